@@ -1,0 +1,1 @@
+"""duffid: online algebraic identification of nonlinear oscillators."""

@@ -1,0 +1,767 @@
+"""Online algebraic identification (paper sections 2-3) and its robust variant.
+
+Two methods share the integrated-by-parts regressors of :mod:`duffid.regressors`:
+
+``"robust"`` (default)
+    Rows ``sigma^a (T - sigma)^b`` with ``a >= 2`` (no raw measurement term), a window
+    that grows from the first sample and then slides, Gregory quadrature, rows
+    normalised to force units, unknowns equilibrated, all rows of all past windows
+    accumulated in a QR-updated least-squares problem (optionally with exponential
+    forgetting), a conditioning figure per step and an ``identified`` flag. Until the
+    problem is well conditioned the estimate is NaN.
+``"paper"``
+    Eqs. (16)-(19) as printed (with NOTES.md's corrections of eq. 12): fixed ``t0`` at the
+    first sample, rows ``I^0 .. I^(p-1)`` from cascaded integrators, raw Cramer
+    determinants and the filtered ratio with gain ``gamma``. Known weaknesses: every
+    zero crossing of the determinant flips the sign of the estimate (``sign_in_numerator``
+    applies NOTES.md's fix), determinants are tiny and the fixed ``t0`` loses float64
+    accuracy on long records.
+
+Both work per degree of freedom; an unforced DOF yields its parameters divided by its
+mass, and the mass follows from a stiffness identified on an absolute scale in a
+neighbouring equation (``m2 = k2 / (k2/m2)`` for the 2-DOF chain of the paper).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+from .models import Chain, Channel, Equation
+from .record import Record, RecordError
+from .regressors import KernelBank, SlidingMoments, batch_moments, row_exponents
+
+__all__ = ["OnlineIdentifier", "identify", "Identification", "Estimate", "METHODS"]
+
+METHODS = ("robust", "paper")
+
+_ROBUST_DEFAULTS: dict[str, Any] = {
+    "window": "auto",         # seconds, or "auto": window_periods x the identified natural period
+    "window_periods": 2.0,
+    "max_window": 1.0,        # seconds: buffer capacity, the longest window
+    "forgetting": None,       # seconds (time constant) or None: no forgetting
+    "rows": "integrals",      # row kernel family, see regressors.row_exponents
+    "n_rows": None,           # rows per window; default: number of unknowns + 2
+    "max_condition": 1e6,     # identified when cond(equilibrated R) <= this,
+    "max_uncertainty": 0.01,  # every relative standard error <= this,
+    "min_time": 0.01,         # and the window spans at least this many seconds
+    "deadband": 0.0,          # |dx| <= deadband keeps the previous sign of velocity
+}
+_PAPER_DEFAULTS: dict[str, Any] = {
+    "gamma": 20.0,
+    "quadrature": "adams3",   # or "trapezoid"
+    "sign_in_numerator": False,
+    "max_condition": 1e6,
+    "min_time": 0.01,
+    "deadband": 0.0,
+}
+_MIN_SAMPLES = 8
+
+
+def _options(method: str, options: Mapping[str, Any]) -> dict[str, Any]:
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+    defaults = _ROBUST_DEFAULTS if method == "robust" else _PAPER_DEFAULTS
+    unknown = set(options) - set(defaults)
+    if unknown:
+        raise TypeError(f"method {method!r} has no option(s) {sorted(unknown)}; "
+                        f"its options are {sorted(defaults)}")
+    merged = {**defaults, **options}
+    for key in ("max_condition", "max_uncertainty", "min_time", "max_window", "window_periods", "gamma"):
+        if key in merged and not (np.isfinite(merged[key]) and merged[key] >= 0):
+            raise ValueError(f"option {key} must be a finite number >= 0, got {merged[key]!r}")
+    if method == "robust":
+        w = merged["window"]
+        if not (w == "auto" or (isinstance(w, (int, float)) and np.isfinite(w) and w > 0)):
+            raise ValueError(f"option window must be 'auto' or a positive number of seconds, got {w!r}")
+        fg = merged["forgetting"]
+        if fg is not None and not (np.isfinite(fg) and fg > 0):
+            raise ValueError(f"option forgetting must be None or a positive time constant in s, got {fg!r}")
+    elif merged["quadrature"] not in ("adams3", "trapezoid"):
+        raise ValueError(f"option quadrature must be 'adams3' or 'trapezoid', got {merged['quadrature']!r}")
+    return merged
+
+
+# ---------------------------------------------------------------------- channels
+class _Channels:
+    """Evaluates the distinct channels of all equations, including sgn(velocity)."""
+
+    def __init__(self, channels: tuple[Channel, ...], deadband: float) -> None:
+        self.channels = channels
+        self.deadband = float(deadband)
+        self._sign_dofs = [c.index for c in channels if c.kind == "sign_velocity"]
+        self.reset()
+
+    def reset(self) -> None:
+        self._last_x: np.ndarray | None = None
+        self._sign = np.zeros(len(self._sign_dofs))
+
+    def evaluate(self, x: np.ndarray, f: np.ndarray) -> np.ndarray:
+        if self._sign_dofs:
+            if self._last_x is not None:
+                dx = x[self._sign_dofs] - self._last_x[self._sign_dofs]
+                moving = np.abs(dx) > self.deadband
+                self._sign = np.where(moving, np.sign(dx), self._sign)
+            self._last_x = x.copy()
+        out = np.empty(len(self.channels))
+        signs = iter(self._sign)
+        for i, c in enumerate(self.channels):
+            out[i] = next(signs) if c.kind == "sign_velocity" else c.evaluate(x, f)
+        return out
+
+    def evaluate_batch(self, X: np.ndarray, F: np.ndarray) -> np.ndarray:
+        out = np.empty((len(X), len(self.channels)))
+        for i, c in enumerate(self.channels):
+            if c.kind != "sign_velocity":
+                out[:, i] = c.evaluate(X, F)
+                continue
+            dx = np.diff(X[:, c.index], prepend=X[0, c.index])
+            moving = np.abs(dx) > self.deadband
+            moving[0] = False
+            idx = np.where(moving, np.arange(len(X)), 0)
+            np.maximum.accumulate(idx, out=idx)
+            out[:, i] = np.where(idx > 0, np.sign(dx[idx]), 0.0)
+        return out
+
+
+class _Assembly:
+    """Maps kernel entries ``E[row, order, channel]`` to ``A`` (rows x unknowns) and ``D``."""
+
+    def __init__(self, equation: Equation, channels: tuple[Channel, ...], max_order: int) -> None:
+        n_ch = len(channels)
+        self.unknowns = equation.unknowns
+        self.lhs = np.zeros(((max_order + 1) * n_ch, len(equation.unknowns)))
+        self.rhs = np.zeros((max_order + 1) * n_ch)
+        for term in equation.lhs:
+            self.lhs[term.order * n_ch + channels.index(term.channel), equation.unknowns.index(term.unknown)] += term.sign
+        for term in equation.rhs:
+            self.rhs[term.order * n_ch + channels.index(term.channel)] += term.sign
+
+    def __call__(self, E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        flat = E.reshape(E.shape[:-2] + (-1,))
+        return flat @ self.lhs, flat @ self.rhs
+
+
+# ---------------------------------------------------------------------- solvers
+class _QRLeastSquares:
+    """Least squares over rows of full-length windows, with exponential forgetting.
+
+    The factor of the augmented matrix ``[A D]`` is updated by QR, so the unknowns are
+    never formed through normal equations; its last diagonal entry is the residual norm.
+    """
+
+    def __init__(self, n_unknowns: int, forgetting_factor: float) -> None:
+        self.n = n_unknowns
+        self.lam = float(forgetting_factor)
+        self.R = np.zeros((n_unknowns + 1, n_unknowns + 1))
+        self.rows = 0.0
+
+    def reset(self) -> None:
+        self.R[:] = 0.0
+        self.rows = 0.0
+
+    def update(self, A: np.ndarray, D: np.ndarray) -> None:
+        stacked = np.vstack([np.sqrt(self.lam) * self.R, np.column_stack([A, D])])
+        self.R = _triangular_factor(stacked, self.n + 1)
+        self.rows = self.lam * self.rows + len(A)
+
+
+def _triangular_factor(M: np.ndarray, size: int) -> np.ndarray:
+    R = np.linalg.qr(M, mode="r")
+    out = np.zeros((size, size))
+    out[: R.shape[0]] = R[:size]
+    return out
+
+
+def _solve_factor(R_aug: np.ndarray, rows: float, overlap: float) -> tuple[np.ndarray, float, np.ndarray]:
+    """Solve the least-squares problem held in the factor ``R_aug`` of ``[A D]``.
+
+    Returns the unknowns, the condition number of the column-equilibrated factor and
+    the relative standard error of each unknown: ``sqrt(diag(cov)) / |theta|`` with
+    ``cov = s^2 (R^T R)^-1``, ``s^2 = residual^2 / (rows - n)`` inflated by ``overlap``
+    (consecutive windows share samples, so their residuals are not independent).
+    """
+    n = R_aug.shape[0] - 1
+    R = R_aug[:n, :n]
+    scale = np.linalg.norm(R, axis=0)
+    nan = np.full(n, np.nan)
+    if not np.all(scale > 0):
+        return nan, np.inf, np.full(n, np.inf)
+    Rs = R / scale
+    cond = float(np.linalg.cond(Rs))
+    if not np.isfinite(cond) or cond > 1e14:
+        return nan, np.inf, np.full(n, np.inf)
+    Rinv = np.linalg.inv(Rs)
+    theta = Rinv @ R_aug[:n, n] / scale
+    dof = rows - n
+    if dof <= 0:
+        return theta, cond, np.full(n, np.inf)
+    s2 = R_aug[n, n] ** 2 / dof * overlap
+    std = np.sqrt(s2 * np.sum(Rinv**2, axis=1)) / scale
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rse = np.where(theta != 0, std / np.abs(theta), np.inf)
+    return theta, cond, rse
+
+
+class _Integrators:
+    """Cascade of ``depth`` integrators per input channel, fixed t0 at the first sample."""
+
+    def __init__(self, n_inputs: int, depth: int, dt: float, quadrature: str) -> None:
+        self.dt = dt
+        self.adams = quadrature == "adams3"
+        self.y = np.zeros((depth + 1, n_inputs))   # y[0] = input, y[k] = k-fold integral
+        self.prev1 = np.zeros_like(self.y)
+        self.prev2 = np.zeros_like(self.y)
+        self.count = 0
+
+    def push(self, u: np.ndarray) -> np.ndarray:
+        h = self.dt
+        self.prev2[:] = self.prev1
+        self.prev1[:] = self.y
+        self.y[0] = u
+        for k in range(1, len(self.y)):
+            if self.count == 0:
+                self.y[k] = 0.0
+            elif self.count == 1 or not self.adams:
+                self.y[k] = self.prev1[k] + 0.5 * h * (self.y[k - 1] + self.prev1[k - 1])
+            else:
+                self.y[k] = self.prev1[k] + h / 12.0 * (
+                    5.0 * self.y[k - 1] + 8.0 * self.prev1[k - 1] - self.prev2[k - 1])
+        self.count += 1
+        return self.y
+
+
+# ---------------------------------------------------------------------- estimate
+@dataclass(frozen=True)
+class Estimate:
+    """One step of the online identifier.
+
+    Attributes
+    ----------
+    t : float
+        Time of the sample [s] (relative to the first sample).
+    parameters : dict
+        Estimates under the model's public names; NaN until identified.
+    identified : bool
+        True when the estimate is trustworthy (conditioning and window length checks).
+    condition : float
+        Largest condition number over the equations (column-equilibrated).
+    uncertainty : float
+        Largest relative standard error of an unknown (robust method; NaN for paper),
+        an approximate figure from the least-squares residual.
+    window : float
+        Current window length [s].
+    """
+
+    t: float
+    parameters: dict[str, float]
+    identified: bool
+    condition: float
+    uncertainty: float
+    window: float
+
+
+class _EquationState:
+    def __init__(self, equation: Equation, assembly: _Assembly) -> None:
+        self.equation = equation
+        self.assembly = assembly
+        self.theta = np.full(len(equation.unknowns), np.nan)
+        self.cond = np.inf
+        self.rse = np.full(len(equation.unknowns), np.inf)
+
+
+class OnlineIdentifier:
+    """Online algebraic identifier: O(1) work and memory per sample.
+
+    Parameters
+    ----------
+    model : Chain
+        Model structure (e.g. :class:`~duffid.models.Duffing1`); its parameter values are
+        not used.
+    dt : float
+        Sampling period [s].
+    method : {"robust", "paper"}
+        Estimator, see the module documentation.
+    **options
+        Method options. ``robust``: ``window`` ("auto" or seconds), ``window_periods``
+        (auto window in natural periods, 2), ``max_window`` (s, 1.0), ``forgetting``
+        (time constant in s or None), ``rows`` ("integrals", "bernstein" or "paper"),
+        ``n_rows``, ``max_condition`` (1e4), ``min_time`` (s, 0.01), ``deadband`` (m).
+        ``paper``: ``gamma`` (20), ``quadrature`` ("adams3" or "trapezoid"),
+        ``sign_in_numerator`` (False), ``max_condition``, ``min_time``, ``deadband``.
+
+    Examples
+    --------
+    >>> ident = OnlineIdentifier(Duffing1(), dt=1e-3)            # doctest: +SKIP
+    >>> for x, f in samples:                                      # doctest: +SKIP
+    ...     est = ident.update(x, f)
+    """
+
+    def __init__(self, model: Chain, dt: float, method: str = "robust", **options: Any) -> None:
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+        self.model = model
+        self.dt = float(dt)
+        self.method = method
+        self.options = _options(method, options)
+        self.equations = model.equations()
+        channels: dict[Channel, None] = {}
+        for eq in self.equations:
+            for c in eq.channels:
+                channels.setdefault(c, None)
+        self.channels = tuple(channels)
+        self._channels = _Channels(self.channels, self.options["deadband"])
+        max_order = max(eq.max_order for eq in self.equations)
+        self._states = [_EquationState(eq, _Assembly(eq, self.channels, max_order)) for eq in self.equations]
+        o = self.options
+        if method == "robust":
+            fixed = o["window"] != "auto"
+            seconds = o["window"] if fixed else o["max_window"]
+            self.capacity = max(int(round(seconds / self.dt)), 2)
+            self._target = self.capacity
+            self._auto = not fixed
+            n_rows = o["n_rows"] or max(len(eq.unknowns) for eq in self.equations) + 2
+            self.bank = KernelBank.build(row_exponents(o["rows"], n_rows), max_order)
+            self._moments = SlidingMoments(self.capacity, self.bank.degree, len(self.channels))
+            lam = 1.0 if o["forgetting"] is None else float(np.exp(-self.dt / o["forgetting"]))
+            self._solvers = [_QRLeastSquares(len(eq.unknowns), lam) for eq in self.equations]
+        else:
+            self._paper_setup(max_order)
+        self.reset()
+
+    # -------------------------------------------------------------- common
+    def reset(self) -> None:
+        """Forget all samples (start a new identification)."""
+        self.n = -1
+        self._channels.reset()
+        self._window_fixed = False
+        self._held = {name: np.nan for name in self.parameter_names}
+        if self.method == "robust":
+            self._moments.reset()
+            self._target = self.capacity
+            for s in self._solvers:
+                s.reset()
+        else:
+            self._paper_reset()
+        for st in self._states:
+            st.theta[:] = np.nan
+            st.cond = np.inf
+            st.rse[:] = np.inf
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        """Public parameter names of the model, in output order."""
+        return tuple(self.model.parameters)
+
+    def update(self, x: float | np.ndarray, f: float | np.ndarray) -> Estimate:
+        """Consume one sample of displacements ``x`` and forces ``f``; return the estimate."""
+        x = np.atleast_1d(np.asarray(x, dtype=float))
+        f = np.atleast_1d(np.asarray(f, dtype=float))
+        if x.shape != (self.model.n_dof,) or f.shape != (self.model.n_forces,):
+            raise ValueError(f"{self.model.name}: update needs {self.model.n_dof} displacement(s) and "
+                             f"{self.model.n_forces} force(s), got {x.size} and {f.size}")
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(f))):
+            raise ValueError(f"{self.model.name}: sample {self.n + 1} is not finite (x={x}, f={f})")
+        self.n += 1
+        g = self._channels.evaluate(x, f)
+        if self.method == "robust":
+            window = self._robust_step(g)
+        else:
+            window = self._paper_step(g)
+        return self._publish(window)
+
+    def _publish(self, window_samples: int) -> Estimate:
+        canonical, cond, rse = self._combine()
+        ok = self._trustworthy(canonical, cond, rse, window_samples)
+        if self.method == "paper":
+            # the paper's estimator outputs its estimate from the start (faithful)
+            self._held = self.model.from_canonical(canonical)
+        elif self._window_ok(cond, window_samples):
+            # each parameter is published once its own relative error is small enough
+            trusted = {k: (v if rse[k] <= self.options["max_uncertainty"] else np.nan)
+                       for k, v in canonical.items()}
+            public = self.model.from_canonical(trusted)
+            self._held = {k: (v if np.isfinite(v) else self._held[k]) for k, v in public.items()}
+        worst = max(rse.values()) if rse else np.inf
+        return Estimate(self.n * self.dt, dict(self._held), ok, cond,
+                        np.nan if self.method == "paper" else worst, window_samples * self.dt)
+
+    def _window_ok(self, cond: float, L: int) -> bool:
+        o = self.options
+        return bool(cond <= o["max_condition"] and L * self.dt >= o["min_time"] - 1e-12
+                    and self.n >= _MIN_SAMPLES)
+
+    def _trustworthy(self, canonical: Mapping[str, float], cond: float, rse: Mapping[str, float],
+                     L: int) -> bool:
+        if not (self._window_ok(cond, L) and all(np.isfinite(v) for v in canonical.values())):
+            return False
+        return self.method == "paper" or max(rse.values()) <= self.options["max_uncertainty"]
+
+    def _combine(self) -> tuple[dict[str, float], float, dict[str, float]]:
+        solutions = [dict(zip(st.equation.unknowns, st.theta)) for st in self._states]
+        errors = [dict(zip(st.equation.unknowns, st.rse)) for st in self._states]
+        cond = max(st.cond for st in self._states)
+        values, rse = combine_equations(self.model, solutions, errors)
+        return values, cond, rse
+
+    # -------------------------------------------------------------- robust
+    def _robust_step(self, g: np.ndarray) -> int:
+        moments, L = self._moments.push(g, self._target)
+        if L == 0:
+            return 0
+        E = self.bank.entries(L / self.capacity, moments, g, self.capacity * self.dt)
+        self._robust_solve([st.assembly(E) for st in self._states], L)
+        return L
+
+    def _robust_solve(self, systems: list[tuple[np.ndarray, np.ndarray]], L: int) -> None:
+        """Update the estimate with the rows of the current window (length ``L``).
+
+        While the window grows, the current window alone is solved (like the paper's
+        fixed t0); once it has its full length, the rows of every full window are
+        accumulated (with forgetting).
+        """
+        full = L >= self._target
+        for st, solver, (A, D) in zip(self._states, self._solvers, systems):
+            if full:
+                solver.update(A, D)
+                st.theta, st.cond, st.rse = _solve_factor(solver.R, solver.rows, float(L))
+            else:
+                R = _triangular_factor(np.column_stack([A, D]), len(st.equation.unknowns) + 1)
+                st.theta, st.cond, st.rse = _solve_factor(R, len(A), 1.0)
+        if self._auto and not self._window_fixed:
+            canonical, cond, rse = self._combine()
+            if self._trustworthy(canonical, cond, rse, L):
+                self._window_fixed = True
+                self._target = auto_window(self.model, canonical, self.dt, L, self.capacity,
+                                           self.options["window_periods"])
+
+    # -------------------------------------------------------------- paper
+    def _paper_setup(self, max_order: int) -> None:
+        o = self.options
+        self._paper = []
+        for st in self._states:
+            eq = st.equation
+            n_rows = len(eq.unknowns)
+            # inputs of the integrator bank: tau^j * g for j = 0, 1, 2 and each channel
+            n_ch = len(self.channels)
+            integ = _Integrators(3 * n_ch, 2 + n_rows - 1, self.dt, o["quadrature"])
+            det_integ = _Integrators(n_rows + 1, 2, self.dt, o["quadrature"])
+            self._paper.append((integ, det_integ))
+        self.capacity = 0
+
+    def _paper_reset(self) -> None:
+        for st_integ in self._paper:
+            for integ in st_integ:
+                integ.y[:] = 0.0
+                integ.prev1[:] = 0.0
+                integ.prev2[:] = 0.0
+                integ.count = 0
+
+    def _paper_rows(self, y: np.ndarray, n_rows: int) -> np.ndarray:
+        """Entries E[row, order, channel] of eq. (16)-(17) from the integrator outputs."""
+        n_ch = len(self.channels)
+        Y = y.reshape(y.shape[0], 3, n_ch)  # [k-fold integral, power j of tau, channel]
+        E = np.zeros((n_rows, 3, n_ch))
+        for p in range(n_rows):
+            # order 2: tau^2 g - 4 I(tau g) + 2 II(g), then p more integrals
+            E[p, 2] = Y[p, 2] - 4.0 * Y[p + 1, 1] + 2.0 * Y[p + 2, 0]
+            E[p, 1] = Y[p + 1, 2] - 2.0 * Y[p + 2, 1]
+            E[p, 0] = Y[p + 2, 2]
+        return E
+
+    def _paper_step(self, g: np.ndarray) -> int:
+        tau = self.n * self.dt
+        u = np.concatenate([g, tau * g, tau**2 * g])
+        gamma = self.options["gamma"]
+        for st, (integ, det_integ) in zip(self._states, self._paper):
+            n_rows = len(st.equation.unknowns)
+            y = integ.push(u)
+            A, D = st.assembly(self._paper_rows(y, n_rows))
+            delta = np.linalg.det(A)
+            deltas = np.empty(n_rows)
+            for i in range(n_rows):
+                Ai = A.copy()
+                Ai[:, i] = D
+                deltas[i] = np.linalg.det(Ai)
+            if self.options["sign_in_numerator"]:
+                num = deltas * np.sign(delta)
+            else:
+                num = np.abs(deltas)
+            weight = np.exp(-gamma * tau)
+            z = det_integ.push(np.concatenate([weight * num, [weight * abs(delta)]]))[2]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                ratio = z[:n_rows] / z[n_rows]
+            if self.options["sign_in_numerator"]:
+                st.theta = ratio if z[n_rows] > 0 else np.full(n_rows, np.nan)
+            else:
+                st.theta = np.sign(deltas) * np.sign(delta) * ratio if z[n_rows] > 0 else np.full(n_rows, np.nan)
+            st.cond = _equilibrated_condition(A)
+        return self.n
+
+    # -------------------------------------------------------------- state
+    def identify_record(self, record: Record) -> "Identification":
+        """Run the identifier over a record sample by sample (see also :func:`identify`)."""
+        _check_record(record, self.model, self.dt)
+        self.reset()
+        history = []
+        for xi, fi in zip(record.x, record.f):
+            history.append(self.update(xi, fi))
+        return Identification.from_estimates(self, record, history)
+
+
+def _equilibrated_condition(A: np.ndarray) -> float:
+    col = np.linalg.norm(A, axis=0)
+    row = np.linalg.norm(A, axis=1)
+    if not (np.all(col > 0) and np.all(row > 0)):
+        return np.inf
+    As = A / col
+    As = As / np.linalg.norm(As, axis=1)[:, None]
+    with np.errstate(all="ignore"):
+        return float(np.linalg.cond(As))
+
+
+def auto_window(model: Chain, canonical: Mapping[str, float], dt: float, current: int,
+                capacity: int, periods: float) -> int:
+    """Window length (samples) of ``periods`` lowest natural periods of the estimate.
+
+    Never shorter than the current window nor longer than the buffer ``capacity``; if the
+    estimate has no positive linear stiffness the window keeps its capacity.
+    """
+    try:
+        omega = model.linear_natural_frequencies(canonical)
+    except (KeyError, np.linalg.LinAlgError, ZeroDivisionError):
+        return capacity
+    omega = omega[np.isfinite(omega) & (omega > 0)]
+    if not len(omega):
+        return capacity
+    samples = int(round(periods * 2.0 * np.pi / omega.min() / dt))
+    return int(min(max(samples, current), capacity))
+
+
+def combine_equations(model: Chain, solutions: list[dict[str, float]],
+                      errors: list[dict[str, float]] | None = None) -> tuple[dict[str, float], dict[str, float]]:
+    """Canonical parameters (and their relative standard errors) from per-equation solutions.
+
+    A forced DOF's equation gives absolute values; an unforced DOF's equation gives values
+    divided by its mass ``m_i``, found from a linear stiffness known on an absolute scale in
+    a neighbouring equation. Each element's parameters are taken from the lowest-index
+    equation with a known scale. Relative errors of products add in quadrature.
+    """
+    n = model.n_dof
+    errors = errors if errors is not None else [{k: np.nan for k in sol} for sol in solutions]
+    # scale[i] = (m_i or 1 for a forced DOF, its relative error)
+    scale: list[tuple[float, float] | None] = [(1.0, 0.0) if i in model.forced else None for i in range(n)]
+
+    def lookup(j: int, name: str) -> tuple[float, float] | None:
+        key = name if j in model.forced else f"{name}/m{j + 1}"
+        if key not in solutions[j] or scale[j] is None:
+            return None
+        s, es = scale[j]
+        return s * solutions[j][key], float(np.hypot(es, errors[j][key]))
+
+    progress = True
+    while progress and any(s is None for s in scale):
+        progress = False
+        for i in range(n):
+            if scale[i] is not None:
+                continue
+            for e in (i + 1, i + 2):  # left and right element of mass i (1-based elements)
+                key = f"k{e}_1/m{i + 1}"
+                if key not in solutions[i] or solutions[i][key] == 0:
+                    continue
+                for j in (e - 2, e - 1):  # the equations that contain element e
+                    absolute = lookup(j, f"k{e}_1") if j != i and 0 <= j < n else None
+                    if absolute is not None:
+                        scale[i] = (absolute[0] / solutions[i][key],
+                                    float(np.hypot(absolute[1], errors[i][key])))
+                        progress = True
+                        break
+                if scale[i] is not None:
+                    break
+    values: dict[str, float] = {}
+    rse: dict[str, float] = {}
+    for name in model.canonical_parameters():
+        found = None
+        if name.startswith("m") and name[1:].isdigit():
+            i = int(name[1:]) - 1
+            found = (solutions[i][name], errors[i][name]) if i in model.forced else scale[i]
+        else:
+            for j in range(n):
+                found = lookup(j, name)
+                if found is not None:
+                    break
+        values[name], rse[name] = found if found is not None else (np.nan, np.inf)
+    return values, rse
+
+
+# ---------------------------------------------------------------------- results
+@dataclass
+class Identification:
+    """Result of :func:`identify` on a record.
+
+    Attributes
+    ----------
+    model, method : str
+        Model and method names.
+    parameters : dict
+        Final estimates (public names); NaN if the record never identified the model.
+    t : ndarray
+        Sample times [s].
+    history : dict of ndarray
+        Estimate of each parameter at each sample (NaN before identification).
+    condition : ndarray
+        Conditioning figure at each sample.
+    identified : ndarray of bool
+        Identified flag at each sample.
+    t_identified : float or None
+        First time the flag was set.
+    window : float
+        Final window length [s].
+    options : dict
+        Method options used.
+    source : str
+        Where the record came from.
+    """
+
+    model: str
+    method: str
+    parameters: dict[str, float]
+    t: np.ndarray
+    history: dict[str, np.ndarray]
+    condition: np.ndarray
+    identified: np.ndarray
+    t_identified: float | None
+    window: float
+    options: dict[str, Any] = field(default_factory=dict)
+    source: str = ""
+
+    @classmethod
+    def from_estimates(cls, ident: OnlineIdentifier, record: Record, estimates: list[Estimate]) -> "Identification":
+        names = ident.parameter_names
+        history = {name: np.array([e.parameters[name] for e in estimates]) for name in names}
+        flags = np.array([e.identified for e in estimates])
+        return cls(
+            model=ident.model.name, method=ident.method,
+            parameters={name: float(history[name][-1]) for name in names},
+            t=record.t - record.t[0], history=history,
+            condition=np.array([e.condition for e in estimates]), identified=flags,
+            t_identified=float(record.t[np.argmax(flags)] - record.t[0]) if flags.any() else None,
+            window=estimates[-1].window, options=dict(ident.options), source=record.source,
+        )
+
+    def errors(self, truth: Mapping[str, float]) -> dict[str, float]:
+        """Relative errors of the final estimates against ``truth`` (in %)."""
+        return {k: 100.0 * (self.parameters[k] - v) / v for k, v in truth.items() if k in self.parameters and v}
+
+    def time_within(self, truth: Mapping[str, float], tolerance: float) -> dict[str, float | None]:
+        """First time after which each estimate stays within ``tolerance`` (relative) of the truth."""
+        out: dict[str, float | None] = {}
+        for name, value in truth.items():
+            h = self.history[name]
+            bad = ~(np.abs(h - value) <= tolerance * abs(value))
+            if bad.all():
+                out[name] = None
+            else:
+                last_bad = np.flatnonzero(bad)
+                out[name] = float(self.t[0]) if not len(last_bad) else (
+                    float(self.t[last_bad[-1] + 1]) if last_bad[-1] + 1 < len(self.t) else None)
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary: model, method, parameters, t_identified, window, ..."""
+        def clean(v: float) -> float | None:
+            return float(v) if np.isfinite(v) else None
+        return {
+            "model": self.model,
+            "method": self.method,
+            "parameters": {k: clean(v) for k, v in self.parameters.items()},
+            "t_identified": self.t_identified,
+            "identified": bool(self.identified[-1]) if len(self.identified) else False,
+            "condition": clean(self.condition[-1]) if len(self.condition) else None,
+            "window": self.window,
+            "samples": int(len(self.t)),
+            "source": self.source,
+            "options": {k: v for k, v in self.options.items()},
+        }
+
+    def to_json(self) -> str:
+        """:meth:`to_dict` as a JSON string."""
+        return json.dumps(self.to_dict())
+
+
+def _check_record(record: Record, model: Chain, dt: float | None = None) -> None:
+    if record.n_dof != model.n_dof:
+        raise RecordError(f"{record.source}: model {model.name} needs {model.n_dof} displacement column(s), "
+                          f"the record has {record.n_dof}")
+    if record.n_forces != model.n_forces:
+        raise RecordError(f"{record.source}: model {model.name} needs {model.n_forces} force column(s), "
+                          f"the record has {record.n_forces}")
+    record.require_samples(2 * _MIN_SAMPLES, f"identification of {model.name}")
+    if dt is not None and abs(record.dt - dt) > 1e-9 * dt:
+        raise RecordError(f"{record.source}: sampled every {record.dt} s, the identifier expects {dt} s")
+
+
+def identify(record: Record, model: Chain, method: str = "robust", **options: Any) -> Identification:
+    """Identify ``model``'s parameters from a record.
+
+    The result equals running :class:`OnlineIdentifier` over the record sample by
+    sample (to rounding); for the robust method the regressors of all windows are
+    computed in one vectorised pass.
+
+    Parameters
+    ----------
+    record : Record
+        Forces and displacements, evenly sampled.
+    model : Chain
+        Model structure.
+    method : {"robust", "paper"}
+        Estimator.
+    **options
+        Method options, see :class:`OnlineIdentifier`.
+
+    Returns
+    -------
+    Identification
+    """
+    _check_record(record, model)
+    ident = OnlineIdentifier(model, record.dt, method, **options)
+    if method == "paper":
+        return ident.identify_record(record)
+    return _identify_robust_batch(ident, record)
+
+
+def _identify_robust_batch(ident: OnlineIdentifier, record: Record) -> Identification:
+    G = ident._channels.evaluate_batch(record.x, record.f)
+    n = len(G)
+    cap = ident.capacity
+    lengths = np.minimum(np.arange(n), cap)
+    estimates: list[Estimate] = []
+    ident.reset()
+    start = 0
+    while start < n:
+        moments = batch_moments(G, lengths, cap, ident.bank.degree)[start:]
+        tau = lengths[start:] / cap
+        E = ident.bank.entries_batch(tau, moments, G[start:], cap * ident.dt)
+        assembled = [st.assembly(E) for st in ident._states]
+        fixed_at = None
+        for k in range(n - start):
+            i = start + k
+            ident.n = i
+            L = int(lengths[i])
+            if L > 0:
+                before = ident._target
+                ident._robust_solve([(A[k], D[k]) for A, D in assembled], L)
+                if ident._target != before:
+                    fixed_at = i
+            estimates.append(ident._publish(L))
+            if fixed_at is not None:
+                break
+        if fixed_at is None:
+            break
+        # the window stops growing at the identified target: recompute from the next sample
+        start = fixed_at + 1
+        idx = np.arange(n)
+        lengths = np.where(idx > fixed_at, np.minimum(idx, ident._target), lengths)
+    return Identification.from_estimates(ident, record, estimates)
