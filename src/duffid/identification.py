@@ -46,7 +46,8 @@ _ROBUST_DEFAULTS: dict[str, Any] = {
     "n_rows": None,           # rows per window; default: number of unknowns + 2
     "max_condition": 1e6,     # identified when cond(equilibrated R) <= this,
     "max_uncertainty": 0.01,  # every relative standard error <= this,
-    "min_time": 0.01,         # and the window spans at least this many seconds
+    "min_time": 0.01,         # and the window spans at least this many seconds;
+    "settle": 0.01,           # a parameter is published after its error stayed small this long (s)
     "deadband": 0.0,          # |dx| <= deadband keeps the previous sign of velocity
 }
 _PAPER_DEFAULTS: dict[str, Any] = {
@@ -69,7 +70,7 @@ def _options(method: str, options: Mapping[str, Any]) -> dict[str, Any]:
         raise TypeError(f"method {method!r} has no option(s) {sorted(unknown)}; "
                         f"its options are {sorted(defaults)}")
     merged = {**defaults, **options}
-    for key in ("max_condition", "max_uncertainty", "min_time", "max_window", "window_periods", "gamma"):
+    for key in ("max_condition", "max_uncertainty", "settle", "min_time", "max_window", "window_periods", "gamma"):
         if key in merged and not (np.isfinite(merged[key]) and merged[key] >= 0):
             raise ValueError(f"option {key} must be a finite number >= 0, got {merged[key]!r}")
     if method == "robust":
@@ -337,6 +338,7 @@ class OnlineIdentifier:
         self.n = -1
         self._channels.reset()
         self._window_fixed = False
+        self._settled: dict[str, int] = {}
         self._held = {name: np.nan for name in self.parameter_names}
         if self.method == "robust":
             self._moments.reset()
@@ -370,34 +372,36 @@ class OnlineIdentifier:
             window = self._robust_step(g)
         else:
             window = self._paper_step(g)
-        return self._publish(window)
+        estimate = self._publish(window)
+        if self.method == "robust":
+            self._after_publish(estimate, window)
+        return estimate
 
     def _publish(self, window_samples: int) -> Estimate:
         canonical, cond, rse = self._combine()
-        ok = self._trustworthy(canonical, cond, rse, window_samples)
+        worst = max(rse.values()) if rse else np.inf
         if self.method == "paper":
             # the paper's estimator outputs its estimate from the start (faithful)
             self._held = self.model.from_canonical(canonical)
-        elif self._window_ok(cond, window_samples):
-            # each parameter is published once its own relative error is small enough
-            trusted = {k: (v if rse[k] <= self.options["max_uncertainty"] else np.nan)
-                       for k, v in canonical.items()}
-            public = self.model.from_canonical(trusted)
-            self._held = {k: (v if np.isfinite(v) else self._held[k]) for k, v in public.items()}
-        worst = max(rse.values()) if rse else np.inf
-        return Estimate(self.n * self.dt, dict(self._held), ok, cond,
-                        np.nan if self.method == "paper" else worst, window_samples * self.dt)
+            ok = self._window_ok(cond, window_samples) and all(np.isfinite(v) for v in canonical.values())
+            return Estimate(self.n * self.dt, dict(self._held), ok, cond, np.nan, window_samples * self.dt)
+        # each parameter is published once its relative error stayed small for `settle` s
+        good = self._window_ok(cond, window_samples)
+        settle = max(int(round(self.options["settle"] / self.dt)), 1)
+        trusted = {}
+        for k, v in canonical.items():
+            small = good and np.isfinite(v) and rse[k] <= self.options["max_uncertainty"]
+            self._settled[k] = self._settled.get(k, 0) + 1 if small else 0
+            trusted[k] = v if self._settled[k] >= settle else np.nan
+        public = self.model.from_canonical(trusted)
+        self._held = {k: (v if np.isfinite(v) else self._held[k]) for k, v in public.items()}
+        ok = all(c >= settle for c in self._settled.values())
+        return Estimate(self.n * self.dt, dict(self._held), ok, cond, worst, window_samples * self.dt)
 
     def _window_ok(self, cond: float, L: int) -> bool:
         o = self.options
         return bool(cond <= o["max_condition"] and L * self.dt >= o["min_time"] - 1e-12
                     and self.n >= _MIN_SAMPLES)
-
-    def _trustworthy(self, canonical: Mapping[str, float], cond: float, rse: Mapping[str, float],
-                     L: int) -> bool:
-        if not (self._window_ok(cond, L) and all(np.isfinite(v) for v in canonical.values())):
-            return False
-        return self.method == "paper" or max(rse.values()) <= self.options["max_uncertainty"]
 
     def _combine(self) -> tuple[dict[str, float], float, dict[str, float]]:
         solutions = [dict(zip(st.equation.unknowns, st.theta)) for st in self._states]
@@ -430,12 +434,14 @@ class OnlineIdentifier:
             else:
                 R = _triangular_factor(np.column_stack([A, D]), len(st.equation.unknowns) + 1)
                 st.theta, st.cond, st.rse = _solve_factor(R, len(A), 1.0)
-        if self._auto and not self._window_fixed:
-            canonical, cond, rse = self._combine()
-            if self._trustworthy(canonical, cond, rse, L):
-                self._window_fixed = True
-                self._target = auto_window(self.model, canonical, self.dt, L, self.capacity,
-                                           self.options["window_periods"])
+
+    def _after_publish(self, estimate: Estimate, L: int) -> None:
+        """Fix the auto window once every parameter is identified."""
+        if self._auto and not self._window_fixed and estimate.identified:
+            self._window_fixed = True
+            canonical = self._combine()[0]
+            self._target = auto_window(self.model, canonical, self.dt, L, self.capacity,
+                                       self.options["window_periods"])
 
     # -------------------------------------------------------------- paper
     def _paper_setup(self, max_order: int) -> None:
@@ -743,7 +749,9 @@ def _identify_robust_batch(ident: OnlineIdentifier, record: Record) -> Identific
     while start < n:
         moments = batch_moments(G, lengths, cap, ident.bank.degree)[start:]
         tau = lengths[start:] / cap
-        E = ident.bank.entries_batch(tau, moments, G[start:], cap * ident.dt)
+        E = np.zeros((len(tau), len(ident.bank.rows), ident.bank.max_order + 1, G.shape[1]))
+        live = tau > 0
+        E[live] = ident.bank.entries_batch(tau[live], moments[live], G[start:][live], cap * ident.dt)
         assembled = [st.assembly(E) for st in ident._states]
         fixed_at = None
         for k in range(n - start):
@@ -751,12 +759,13 @@ def _identify_robust_batch(ident: OnlineIdentifier, record: Record) -> Identific
             ident.n = i
             L = int(lengths[i])
             if L > 0:
-                before = ident._target
                 ident._robust_solve([(A[k], D[k]) for A, D in assembled], L)
-                if ident._target != before:
-                    fixed_at = i
-            estimates.append(ident._publish(L))
-            if fixed_at is not None:
+            estimate = ident._publish(L)
+            estimates.append(estimate)
+            before = ident._target
+            ident._after_publish(estimate, L)
+            if ident._target != before:
+                fixed_at = i
                 break
         if fixed_at is None:
             break

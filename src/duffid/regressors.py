@@ -33,7 +33,6 @@ from dataclasses import dataclass
 from math import comb, factorial
 
 import numpy as np
-from scipy.signal import oaconvolve
 
 __all__ = [
     "row_exponents",
@@ -193,8 +192,8 @@ class SlidingMoments:
     Parameters
     ----------
     n_ref : int
-        Samples per reference length (``s = i / n_ref``); also the block length and the
-        largest window, in sample intervals.
+        Samples per reference length (``s = i / n_ref``); also the largest window, in
+        sample intervals.
     degree : int
         Highest moment power.
     n_channels : int
@@ -202,7 +201,13 @@ class SlidingMoments:
 
     Notes
     -----
-    All storage is allocated here; :meth:`push` allocates only small temporaries.
+    The sums ``sum_i (i/n_ref)^k g[n-i]`` are kept about the newest sample. When a sample
+    arrives every ``s`` grows by ``1/n_ref``, a product with the binomial matrix
+    ``B[k, r] = C(k, r) n_ref^(r-k)`` whose entries are all positive (no cancellation);
+    the sample leaving the window is subtracted. A shadow accumulator starts empty at
+    some sample and replaces the main one as soon as it holds exactly the window, so no
+    accumulator lives longer than two window lengths and rounding errors cannot build up.
+    All storage is allocated here.
     """
 
     def __init__(self, n_ref: int, degree: int, n_channels: int) -> None:
@@ -212,27 +217,22 @@ class SlidingMoments:
         self.degree = int(degree)
         self._q = np.arange(degree + 1, dtype=float)
         k, r = np.meshgrid(np.arange(degree + 1), np.arange(degree + 1), indexing="ij")
-        self._shift_coef = np.where(r <= k, np.vectorize(comb)(k, np.minimum(r, k)) * (-1.0) ** r, 0.0)
-        self._shift_expo = np.maximum(k - r, 0).astype(float)
+        binom = np.vectorize(comb)(k, np.minimum(r, k)).astype(float)
+        self._shift = np.where(r <= k, binom * (1.0 / self.n_ref) ** np.maximum(k - r, 0), 0.0)
         self._buffer = np.zeros((self.n_ref + 2, n_channels))
-        self._cur = np.zeros((degree + 1, n_channels))      # current block, about its start
-        self._cur_end = np.zeros((degree + 1, n_channels))  # current block, about its end
-        self._prev = np.zeros((degree + 1, n_channels))     # previous block, about its end
+        self._main = np.zeros((degree + 1, n_channels))
+        self._shadow = np.zeros((degree + 1, n_channels))
         self._corr_cache: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self.reset()
 
     def reset(self) -> None:
         """Forget every sample."""
         self._buffer[:] = 0.0
-        self._cur[:] = 0.0
-        self._cur_end[:] = 0.0
-        self._prev[:] = 0.0
+        self._main[:] = 0.0
+        self._shadow[:] = 0.0
         self.n = -1          # index of the newest sample
         self.start = 0       # index of the oldest sample in the window
-        self._block = 0      # index of the first sample of the current block
-
-    def _powers(self, u: float) -> np.ndarray:
-        return u**self._q
+        self._shadow_from = 0  # first sample held by the shadow accumulator
 
     def _corrections(self, L: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         cached = self._corr_cache.get(L)
@@ -252,46 +252,42 @@ class SlidingMoments:
         g : ndarray
             Newest sample of each channel.
         window : int
-            Requested window length in sample intervals (at most ``n_ref``); the window
-            is shorter while fewer samples have arrived and never shrinks by more than
-            what arriving samples allow.
+            Requested window length in sample intervals (at most ``n_ref``). The window
+            grows from the first sample until it has this length, then slides.
 
         Returns
         -------
         moments : ndarray, shape (degree+1, channels)
-            ``S_k = (1/n_ref) sum_i c_i (i/n_ref)^k g[n-i]``.
+            ``S_k = (1/n_ref) sum_i c_i (i/n_ref)^k g[n-i]`` with quadrature weights ``c_i``.
         L : int
             Window length in sample intervals.
         """
         N = self.n_ref
         self.n += 1
         n = self.n
-        if n - self._block == N:  # the current block is complete: it becomes the previous one
-            self._prev[:] = self._cur_end
-            self._cur[:] = 0.0
-            self._cur_end[:] = 0.0
-            self._block = n
         self._buffer[n % (N + 2)] = g
-        u = (n - self._block) / N
-        self._cur += np.outer(self._powers(u), g)
-        self._cur_end += np.outer(self._powers(u - 1.0), g)
+        self._main[:] = self._shift @ self._main
+        self._shadow[:] = self._shift @ self._shadow
+        self._main[0] += g
+        self._shadow[0] += g
         new_start = max(self.start, n - min(int(window), N))
         for j in range(self.start, new_start):  # samples leaving the window
-            old = self._buffer[j % (N + 2)]
-            if j >= self._block:
-                self._cur -= np.outer(self._powers((j - self._block) / N), old)
-                self._cur_end -= np.outer(self._powers((j - self._block) / N - 1.0), old)
-            else:
-                self._prev -= np.outer(self._powers((j - self._block) / N), old)
+            s = (n - j) / N
+            self._main -= np.outer(s**self._q, self._buffer[j % (N + 2)])
         self.start = new_start
+        if self._shadow_from < self.start:  # the shadow holds samples outside the window: rebuild
+            self._shadow_from = self.start
+            i = np.arange(n - self.start + 1)
+            self._shadow[:] = ((i[:, None] / N) ** self._q[None, :]).T @ self._buffer[(n - i) % (N + 2)]
+        if self._shadow_from == self.start and n - self.start >= 1:
+            # the shadow holds exactly the window: it becomes the main accumulator
+            self._main[:] = self._shadow
+            self._shadow[:] = 0.0
+            self._shadow_from = n + 1
         L = n - self.start
-        a = (n - self._block) / N
-        shift = self._shift_coef * a**self._shift_expo
-        moments = shift @ (self._cur + self._prev)
         offsets, _, weighted = self._corrections(L)
-        moments += weighted.T @ self._buffer[(n - offsets) % (N + 2)]
-        moments /= N
-        return moments, L
+        moments = self._main + weighted.T @ self._buffer[(n - offsets) % (N + 2)]
+        return moments / N, L
 
 
 def batch_moments(G: np.ndarray, lengths: np.ndarray, n_ref: int, degree: int) -> np.ndarray:
@@ -319,21 +315,16 @@ def batch_moments(G: np.ndarray, lengths: np.ndarray, n_ref: int, degree: int) -
     out = np.zeros((n, degree + 1, n_ch))
     L_max = int(lengths.max()) if n else 0
     kernel = (np.arange(L_max + 1)[:, None] / n_ref) ** q[None, :]  # (L_max+1, degree+1)
-    use_fft = n * (L_max + 1) > 2_000_000
-    starts = np.arange(n) - lengths
-    # windows shorter than L_max (the start of the record, or a window that is still
-    # growing) are summed directly; the remaining ones by one convolution per power
-    short = np.flatnonzero(lengths < L_max)
+    # one direct convolution per power and channel (an FFT would add errors relative to
+    # the largest sample, swamping the small values at the start of a record)
     for k in range(degree + 1):
         for c in range(n_ch):
-            full = oaconvolve(G[:, c], kernel[:, k])[:n] if use_fft else np.convolve(G[:, c], kernel[:, k])[:n]
-            out[:, k, c] = full
-    if len(short):
-        # subtract the part of the full convolution that lies before each short window's start
-        for idx in short:
-            i = np.arange(lengths[idx] + 1, min(L_max, idx) + 1)
-            if len(i):
-                out[idx] -= kernel[i].T @ G[idx - i]
+            out[:, k, c] = np.convolve(G[:, c], kernel[:, k])[:n]
+    # windows shorter than L_max that do not start at the first sample: remove the
+    # samples the full-length convolution took before their start
+    for idx in np.flatnonzero(lengths < np.minimum(np.arange(n), L_max)):
+        i = np.arange(lengths[idx] + 1, min(L_max, idx) + 1)
+        out[idx] -= kernel[i].T @ G[idx - i]
     # quadrature end corrections
     for L in np.unique(lengths):
         rows = np.flatnonzero(lengths == L)
@@ -341,5 +332,4 @@ def batch_moments(G: np.ndarray, lengths: np.ndarray, n_ref: int, degree: int) -
         weighted = (offsets[:, None] / n_ref) ** q[None, :] * deltas[:, None]  # (m, degree+1)
         samples = G[rows[:, None] - offsets[None, :]]  # (rows, m, ch)
         out[rows] += np.einsum("mk,rmc->rkc", weighted, samples)
-    del starts
     return out / n_ref
