@@ -1,0 +1,187 @@
+"""Command-line interface ``duffid`` (argparse, subcommands identify, simulate, demo)."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .identification import identify
+from .models import model_from_name
+from .record import Record, RecordError
+from .signals import from_spec
+from .simulation import SimulationError, measure, simulate
+
+__all__ = ["main", "build_parser"]
+
+MODELS = ("duffing1", "duffing2", "chain", "circuit")
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (np.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a positive number")
+    return value
+
+
+def _window(text: str) -> float | str:
+    return "auto" if text == "auto" else _positive_float(text)
+
+
+def _add_model_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--model", choices=MODELS, default="duffing1", help="model structure (default duffing1)")
+    p.add_argument("--n-dof", type=int, default=None, help="chain: number of masses (default: from the file)")
+    p.add_argument("--orders", default="1,3", help="chain: stiffness orders, e.g. 1,2,3 (default 1,3)")
+    p.add_argument("--coulomb", action="store_true", help="chain: Coulomb friction terms")
+    p.add_argument("--offset", action="store_true", help="add an unknown constant force per DOF (real data)")
+
+
+def _model(args: argparse.Namespace, n_dof: int | None = None):
+    orders = [int(o) for o in args.orders.split(",") if o.strip()]
+    return model_from_name(args.model, args.n_dof or n_dof or 1, orders=orders,
+                           coulomb=args.coulomb, offset=args.offset)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser (exposed for documentation and tests)."""
+    parser = argparse.ArgumentParser(prog="duffid", description=__doc__.split("\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("identify", help="identify a model's parameters from a CSV or .mat record")
+    p.add_argument("file", type=Path, help="record: CSV (t, f, x or t, f1.., x1..) or .mat")
+    _add_model_arguments(p)
+    p.add_argument("--method", choices=("robust", "paper"), default="robust")
+    g = p.add_argument_group("robust method options")
+    g.add_argument("--window", type=_window, default="auto", help="window length in s, or auto (default)")
+    g.add_argument("--window-periods", type=_positive_float, default=None,
+                   help="auto window length in natural periods (default 2)")
+    g.add_argument("--max-window", type=_positive_float, default=None, help="longest window in s (default 1)")
+    g.add_argument("--forgetting", type=_positive_float, default=None, help="forgetting time constant in s")
+    g.add_argument("--rows", choices=("integrals", "bernstein", "paper"), default=None, help="row kernel family")
+    g.add_argument("--n-rows", type=int, default=None, help="rows per window (default unknowns + 2)")
+    g.add_argument("--max-uncertainty", type=_positive_float, default=None,
+                   help="largest relative standard error of a published parameter (default 0.01)")
+    g = p.add_argument_group("paper method options")
+    g.add_argument("--gamma", type=float, default=None, help="filter gain of eq. (19) (default 20)")
+    g.add_argument("--quadrature", choices=("adams3", "trapezoid"), default=None)
+    g.add_argument("--sign-in-numerator", action="store_true", help="NOTES.md's fix of eq. (19)'s sign flips")
+    g = p.add_argument_group(".mat files")
+    g.add_argument("--x-var", default="x", help="displacement variable name(s), comma separated")
+    g.add_argument("--f-var", default="f", help="force variable name(s), comma separated")
+    g.add_argument("--t-var", default=None, help="time variable name (or give --fs)")
+    g.add_argument("--fs", type=_positive_float, default=None, help="sampling frequency [Hz] without a time variable")
+    p.add_argument("--deadband", type=float, default=None, help="Coulomb: |dx| below which the velocity sign is held")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--plot", type=Path, default=None, help="write estimates vs time to this PNG")
+
+    p = sub.add_parser("simulate", help="write a simulated record (CSV) of a named model")
+    _add_model_arguments(p)
+    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                   help="parameter value, e.g. kp=-1.2e6 (repeatable; names as in the model)")
+    p.add_argument("--excitation", default="step:10", help="e.g. step:10, chirp:2,0,20,10, sweep:2.96,2.5,20, "
+                   "multisine:1,1,30,2, sums with + (default step:10)")
+    p.add_argument("--t-end", type=_positive_float, default=2.0, help="duration [s]")
+    p.add_argument("--dt", type=_positive_float, default=1e-3, help="sampling period [s]")
+    p.add_argument("--pulses-per-cm", type=_positive_float, default=None, help="encoder quantisation (paper: 2266)")
+    p.add_argument("--snr-db", type=float, default=None, help="Gaussian noise on x at this SNR [dB]")
+    p.add_argument("--seed", type=int, default=0, help="noise seed")
+    p.add_argument("-o", "--output", type=Path, required=True, help="CSV file to write")
+
+    p = sub.add_parser("demo", help="the main job: identify the paper's 1-DOF and 2-DOF cases")
+    p.add_argument("--out", type=Path, default=Path("out"), help="output folder (default out/)")
+    p.add_argument("--json", action="store_true", help="print a JSON summary instead of tables")
+    return parser
+
+
+def _read_record(args: argparse.Namespace) -> Record:
+    path: Path = args.file
+    if not path.exists():
+        raise RecordError(f"{path}: no such file")
+    if path.suffix.lower() == ".mat":
+        split = lambda s: [v.strip() for v in s.split(",")] if "," in s else s  # noqa: E731
+        return Record.read_mat(path, x=split(args.x_var), f=split(args.f_var), t=args.t_var, fs=args.fs)
+    return Record.read_csv(path)
+
+
+def _identify(args: argparse.Namespace) -> int:
+    record = _read_record(args)
+    model = _model(args, record.n_dof)
+    if args.method == "robust":
+        names = ("window", "window_periods", "max_window", "forgetting", "rows", "n_rows",
+                 "max_uncertainty", "deadband")
+    else:
+        names = ("gamma", "quadrature", "deadband")
+    options = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
+    if args.method == "paper" and args.sign_in_numerator:
+        options["sign_in_numerator"] = True
+    result = identify(record, model, args.method, **options)
+    if args.plot is not None:
+        from .plots import plot_estimates
+        plot_estimates(result, args.plot)
+    if args.json:
+        print(result.to_json())
+        return 0
+    print(f"{record.source}: {record.n_samples} samples, dt {record.dt:g} s, model {model.name}, method {args.method}")
+    for name, value in result.parameters.items():
+        print(f"  {name:>8} = {value:.6g}")
+    when = "never (estimates not trustworthy)" if result.t_identified is None else f"at {result.t_identified:.4g} s"
+    print(f"  identified {when}; final window {result.window:.4g} s; condition {result.condition[-1]:.3g}")
+    return 0
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    model = _model(args)
+    values = {}
+    for item in args.param:
+        name, sep, text = item.partition("=")
+        if not sep:
+            raise ValueError(f"--param {item!r}: expected NAME=VALUE")
+        try:
+            values[name.strip()] = float(text)
+        except ValueError:
+            raise ValueError(f"--param {item!r}: {text!r} is not a number") from None
+    if values:
+        params = {**model.parameters, **values}
+        unknown = set(values) - set(model.parameters)
+        if unknown:
+            raise ValueError(f"--param: unknown parameter(s) {sorted(unknown)} of {model.name}; "
+                             f"known: {', '.join(model.parameters)}")
+        model = type(model)(**params, offset=model.offset) if model.name != "chain" else model.with_parameters(**values)
+    record = simulate(model, from_spec(args.excitation), args.t_end, args.dt)
+    if args.pulses_per_cm is not None or args.snr_db is not None:
+        record = measure(record, pulses_per_cm=args.pulses_per_cm, snr_db=args.snr_db, seed=args.seed)
+    record.to_csv(args.output)
+    print(f"wrote {args.output}: {record.n_samples} samples of {model.name}")
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from .demo import run_demo
+    if args.json:
+        import io
+        summary = run_demo(args.out, stream=io.StringIO())
+        print(json.dumps(summary))
+    else:
+        run_demo(args.out)
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``duffid`` command; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    handlers = {"identify": _identify, "simulate": _simulate, "demo": _demo}
+    try:
+        return handlers[args.command](args)
+    except (RecordError, ValueError, TypeError, SimulationError) as exc:
+        print(f"duffid {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
