@@ -1,0 +1,74 @@
+"""Models and simulation: conventions of eqs. (1)-(5), (10)-(11) and (20)-(21)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from duffid import Chain, Duffing1, Duffing2, DuffingCircuit, SimulationError, Step, measure, model_from_name, simulate
+from duffid.simulation import quantize
+
+
+def test_duffing2_equations_follow_eqs_20_21():
+    eq1, eq2 = Duffing2().equations()
+    assert eq1.unknowns == ("m1", "b1", "k1_1", "k1_3", "b2", "k2_1", "k2_3")
+    assert eq2.unknowns == ("b2/m2", "k2_1/m2", "k2_3/m2")
+    signs = {t.unknown: (t.channel.label, t.order, t.sign) for t in eq1.lhs}
+    assert signs["b2"] == ("(x2-x1)", 1, -1.0)          # b2 (x1' - x2')
+    assert signs["k2_3"] == ("(x2-x1)^3", 0, -1.0)     # -kp2 (x2 - x1)^3
+    assert [(t.channel.label, t.order, t.sign) for t in eq2.rhs] == [("x2", 2, -1.0)]  # = -x2''
+
+
+def test_acceleration_matches_hand_written_2dof():
+    m = Duffing2()
+    p = m.parameters
+    x, v, f = np.array([0.01, 0.03]), np.array([0.2, -0.1]), np.array([3.0])
+    y2, y2d = x[1] - x[0], v[1] - v[0]
+    a1 = (f[0] - p["b1"] * v[0] - p["k1"] * x[0] - p["kp1"] * x[0] ** 3
+          - p["b2"] * (v[0] - v[1]) - p["k2"] * (x[0] - x[1]) + p["kp2"] * y2**3) / p["m1"]
+    a2 = -(p["b2"] * y2d + p["k2"] * y2 + p["kp2"] * y2**3) / p["m2"]
+    np.testing.assert_allclose(m.acceleration(x, v, f), [a1, a2], rtol=1e-14)
+
+
+def test_static_equilibrium_of_a_step():
+    m = Duffing1(b=40.0)
+    rec = simulate(m, Step(5.0), 3.0, 1e-3)
+    x = rec.x[-1, 0]
+    assert m.parameters["k"] * x + m.parameters["kp"] * x**3 == pytest.approx(5.0, rel=1e-6)
+
+
+def test_14N_step_escapes_its_potential_well():
+    with pytest.raises(SimulationError, match="potential well"):
+        simulate(Duffing1(), Step(14.0), 0.5, 1e-3)
+
+
+def test_measurement_model():
+    rec = simulate(Duffing1(), Step(10.0), 0.2, 1e-3)
+    q = measure(rec)
+    step = 1.0 / 226600.0
+    np.testing.assert_allclose(q.x / step, np.round(q.x / step), atol=1e-6)
+    assert np.max(np.abs(q.x - rec.x)) <= step / 2 + 1e-15
+    noisy = measure(rec, pulses_per_cm=None, snr_db=20, seed=3)
+    snr = 10 * np.log10(np.mean(rec.x**2) / np.mean((noisy.x - rec.x) ** 2))
+    assert snr == pytest.approx(20, abs=1.0)
+    np.testing.assert_array_equal(measure(rec, snr_db=20, seed=3).x, measure(rec, snr_db=20, seed=3).x)
+    assert quantize(0.0) == 0.0
+
+
+def test_circuit_vocabulary():
+    c = DuffingCircuit(L=0.2, R=3.0, C=2e-3, a=1e6)
+    assert c.parameters == pytest.approx({"L": 0.2, "R": 3.0, "C": 2e-3, "a": 1e6})
+    assert c.canonical_parameters()["k1_1"] == pytest.approx(500.0)
+
+
+def test_model_validation_errors():
+    with pytest.raises(ValueError, match="m1"):
+        Duffing1(m=-1.0)
+    with pytest.raises(ValueError, match="unknown model"):
+        model_from_name("duffing3")
+    with pytest.raises(ValueError, match="forced"):
+        Chain(masses=(1.0,), damping=(1.0,), stiffness=({1: 1.0},), forced=(2,))
+
+
+def test_linear_natural_frequency():
+    m = Duffing1()
+    assert m.linear_natural_frequencies()[0] == pytest.approx(np.sqrt(1272.1 / 2.53))

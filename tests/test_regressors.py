@@ -1,0 +1,94 @@
+"""Integrated-by-parts regressors against exact integration (by parts) of test signals."""
+from __future__ import annotations
+
+from math import factorial
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+
+from duffid.regressors import KernelBank, SlidingMoments, batch_moments, gregory_corrections, row_exponents
+
+H = 1e-3
+
+
+def _signal(kind):
+    if kind == "poly":
+        return (lambda t: 0.3 + 2 * t - 5 * t**2 + 4 * t**3,
+                lambda t: 2 - 10 * t + 12 * t**2,
+                lambda t: -10 + 24 * t)
+    w = 23.0
+    return (lambda t: np.sin(w * t) + 0.2 * np.cos(3 * t),
+            lambda t: w * np.cos(w * t) - 0.6 * np.sin(3 * t),
+            lambda t: -w**2 * np.sin(w * t) - 1.8 * np.cos(3 * t))
+
+
+def _entries(bank, g, n, N, window):
+    sm = SlidingMoments(N, bank.degree, 1)
+    for i in range(n + 1):
+        moments, L = sm.push(np.array([g(i * H)]), window)
+    return bank.entries(L / N, moments, np.array([g(n * H)]), N * H), L
+
+
+@pytest.mark.parametrize("kind", ["poly", "sine"])
+@pytest.mark.parametrize("family", ["integrals", "bernstein", "paper"])
+@pytest.mark.parametrize("window", [150, 400])
+def test_entries_equal_integrals_of_derivatives(kind, family, window):
+    """Entry of order d == int W(s) g^(d)(t - s) ds / int W (integration by parts), to quadrature accuracy."""
+    bank = KernelBank.build(row_exponents(family, 4), 2)
+    derivs = _signal(kind)
+    n = 300
+    E, L = _entries(bank, derivs[0], n, 400, window)
+    t, T = n * H, L * H
+    assert L == min(n, window)
+    for r, (a, b) in enumerate(bank.rows):
+        W = lambda s: s**a * (T - s) ** b / factorial(a)  # noqa: E731
+        norm = quad(W, 0, T)[0]
+        for d in range(3):
+            exact = quad(lambda s: W(s) * derivs[d](t - s), 0, T, epsabs=1e-13, limit=200)[0] / norm
+            scale = max(1.0, abs(exact))
+            assert E[r, d, 0] == pytest.approx(exact, abs=(2e-5 if d < 2 else 2e-4) * scale), (r, d)
+
+
+def test_paper_rows_have_the_raw_measurement_term():
+    bank = KernelBank.build(row_exponents("paper", 4), 2)
+    assert list(bank.raw_b) == [2, -1, -1, -1]
+    assert row_exponents("integrals", 2) == ((3, 2), (4, 2))
+
+
+def test_gregory_rule_is_exact_for_cubics():
+    for L in [1, 2, 3, 4, 5, 6, 7, 40]:
+        offsets, deltas = gregory_corrections(L)
+        w = np.ones(L + 1)
+        np.add.at(w, offsets, deltas)
+        s = np.arange(L + 1) * H
+        for p in range(4 if L >= 3 else L + 1):
+            assert np.sum(w * s**p) * H == pytest.approx((L * H) ** (p + 1) / (p + 1), rel=1e-12)
+
+
+def test_sliding_moments_equal_batch_moments():
+    rng = np.random.default_rng(1)
+    G = rng.standard_normal((900, 3)) + np.linspace(0, 2, 900)[:, None]
+    for N, window in [(100, 100), (100, 37), (50, 50)]:
+        sm = SlidingMoments(N, 9, 3)
+        online, lengths = zip(*(sm.push(g, window) for g in G))
+        batch = batch_moments(G, np.array(lengths), N, 9)
+        np.testing.assert_allclose(np.array(online), batch, rtol=1e-11, atol=1e-14)
+
+
+def test_sliding_moments_do_not_drift_on_long_records():
+    rng = np.random.default_rng(2)
+    G = rng.standard_normal((20000, 1)) + 5.0
+    sm = SlidingMoments(64, 8, 1)
+    for g in G:
+        moments, L = sm.push(g, 64)
+    i = np.arange(65)
+    exact = np.array([(i / 64) ** k @ G[-1 - i, 0] for k in range(9)])
+    offsets, deltas = gregory_corrections(64)
+    exact += np.array([((offsets / 64) ** k * deltas) @ G[-1 - offsets, 0] for k in range(9)])
+    np.testing.assert_allclose(moments[:, 0], exact / 64, rtol=1e-12)
+
+
+def test_kernel_rows_reject_too_few_integrations():
+    with pytest.raises(ValueError, match="initial conditions"):
+        KernelBank.build(((3, 1),), 2)
