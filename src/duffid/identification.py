@@ -31,7 +31,7 @@ import numpy as np
 
 from .models import Chain, Channel, Equation
 from .record import Record, RecordError
-from .regressors import KernelBank, SlidingMoments, batch_moments, row_exponents
+from .regressors import KernelBank, SlidingMoments, row_exponents
 
 __all__ = ["OnlineIdentifier", "identify", "Identification", "Estimate", "METHODS"]
 
@@ -712,9 +712,9 @@ def _check_record(record: Record, model: Chain, dt: float | None = None) -> None
 def identify(record: Record, model: Chain, method: str = "robust", **options: Any) -> Identification:
     """Identify ``model``'s parameters from a record.
 
-    The result equals running :class:`OnlineIdentifier` over the record sample by
-    sample (to rounding); for the robust method the regressors of all windows are
-    computed in one vectorised pass.
+    The record is fed sample by sample through :class:`OnlineIdentifier` (the same
+    O(1) update as online use), so the estimate history is exactly what an online
+    identifier would have reported at each sample.
 
     Parameters
     ----------
@@ -732,45 +732,4 @@ def identify(record: Record, model: Chain, method: str = "robust", **options: An
     Identification
     """
     _check_record(record, model)
-    ident = OnlineIdentifier(model, record.dt, method, **options)
-    if method == "paper":
-        return ident.identify_record(record)
-    return _identify_robust_batch(ident, record)
-
-
-def _identify_robust_batch(ident: OnlineIdentifier, record: Record) -> Identification:
-    G = ident._channels.evaluate_batch(record.x, record.f)
-    n = len(G)
-    cap = ident.capacity
-    lengths = np.minimum(np.arange(n), cap)
-    estimates: list[Estimate] = []
-    ident.reset()
-    start = 0
-    while start < n:
-        moments = batch_moments(G, lengths, cap, ident.bank.degree)[start:]
-        tau = lengths[start:] / cap
-        E = np.zeros((len(tau), len(ident.bank.rows), ident.bank.max_order + 1, G.shape[1]))
-        live = tau > 0
-        E[live] = ident.bank.entries_batch(tau[live], moments[live], G[start:][live], cap * ident.dt)
-        assembled = [st.assembly(E) for st in ident._states]
-        fixed_at = None
-        for k in range(n - start):
-            i = start + k
-            ident.n = i
-            L = int(lengths[i])
-            if L > 0:
-                ident._robust_solve([(A[k], D[k]) for A, D in assembled], L)
-            estimate = ident._publish(L)
-            estimates.append(estimate)
-            before = ident._target
-            ident._after_publish(estimate, L)
-            if ident._target != before:
-                fixed_at = i
-                break
-        if fixed_at is None:
-            break
-        # the window stops growing at the identified target: recompute from the next sample
-        start = fixed_at + 1
-        idx = np.arange(n)
-        lengths = np.where(idx > fixed_at, np.minimum(idx, ident._target), lengths)
-    return Identification.from_estimates(ident, record, estimates)
+    return OnlineIdentifier(model, record.dt, method, **options).identify_record(record)

@@ -170,21 +170,6 @@ class KernelBank:
         d_scale = t_ref ** -np.arange(self.max_order + 1, dtype=float)
         return E * (self.row_scale(tau)[:, None, None] * d_scale[None, :, None])
 
-    def entries_batch(self, tau: np.ndarray, moments: np.ndarray, newest: np.ndarray,
-                      t_ref: float) -> np.ndarray:
-        """:meth:`entries` for many windows: ``tau`` (n,), ``moments`` (n, degree+1, ch)."""
-        out = np.empty((len(tau), len(self.rows), self.max_order + 1, moments.shape[2]))
-        d_scale = t_ref ** -np.arange(self.max_order + 1, dtype=float)
-        chunk = 4096
-        for lo in range(0, len(tau), chunk):
-            sl = slice(lo, lo + chunk)
-            E = np.einsum("nrdk,nkc->nrdc", self.polynomials(tau[sl]), moments[sl], optimize=True)
-            raw = self.raw_b >= 0
-            if raw.any():
-                E[:, raw, 2, :] += (tau[sl, None] ** self.raw_b[raw])[:, :, None] * newest[sl, None, :]
-            out[sl] = E * (self.row_scale(tau[sl])[:, :, None, None] * d_scale[None, None, :, None])
-        return out
-
 
 class SlidingMoments:
     """O(1)-per-sample moments of the last ``L`` sample intervals of several channels.
