@@ -1,0 +1,87 @@
+"""The ``duffid`` command line."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from duffid import Duffing1
+from duffid.cli import main
+
+
+def _run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(scope="module")
+def case_a_csv(tmp_path_factory, request):
+    case_a = request.getfixturevalue("case_a")
+    path = tmp_path_factory.mktemp("cli") / "case_a.csv"
+    case_a.to_csv(path)
+    return path
+
+
+def test_identify_json_shape(capsys, case_a_csv):
+    code, out, _ = _run(capsys, "identify", str(case_a_csv), "--model", "duffing1", "--json")
+    assert code == 0
+    data = json.loads(out)
+    assert data["model"] == "duffing1" and data["method"] == "robust"
+    assert set(data["parameters"]) == {"m", "b", "k", "kp"}
+    assert data["t_identified"] > 0
+    for name, value in Duffing1().parameters.items():
+        assert data["parameters"][name] == pytest.approx(value, rel=2e-3)
+
+
+def test_identify_paper_table_and_plot(capsys, case_a_csv, tmp_path):
+    png = tmp_path / "est.png"
+    code, out, _ = _run(capsys, "identify", str(case_a_csv), "--method", "paper", "--gamma", "10", "--plot", str(png))
+    assert code == 0 and "kp" in out and "identified" in out
+    assert png.stat().st_size > 1000
+
+
+def test_simulate_then_identify_two_dof(capsys, tmp_path):
+    csv = tmp_path / "two.csv"
+    code, out, _ = _run(capsys, "simulate", "--model", "duffing2", "--excitation", "step:6", "--t-end", "1",
+                        "--param", "b2=4", "-o", str(csv))
+    assert code == 0 and csv.read_text().splitlines()[0] == "t,f1,x1,x2"
+    code, out, _ = _run(capsys, "identify", str(csv), "--model", "duffing2", "--json")
+    data = json.loads(out)
+    assert list(data["parameters"]) == ["m1", "b1", "k1", "kp1", "b2", "k2", "kp2", "m2"]
+    assert data["parameters"]["m2"] == pytest.approx(2.754, rel=1e-3)
+
+
+def test_circuit_json_uses_electrical_names(capsys, tmp_path):
+    csv = tmp_path / "circuit.csv"
+    assert _run(capsys, "simulate", "--model", "circuit", "--excitation", "chirp:1,0,30,2", "--t-end", "2",
+                "--dt", "1e-4", "-o", str(csv))[0] == 0
+    code, out, _ = _run(capsys, "identify", str(csv), "--model", "circuit", "--json")
+    assert set(json.loads(out)["parameters"]) == {"L", "R", "C", "a"}
+
+
+def test_bad_file_errors_name_the_file(capsys, tmp_path):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,f,x\n0,1,0\n0.001,1,nan\n0.002,1,0\n")
+    code, _, err = _run(capsys, "identify", str(bad))
+    assert code == 2 and "bad.csv" in err and "line 3" in err
+    code, _, err = _run(capsys, "identify", str(tmp_path / "missing.csv"))
+    assert code == 2 and "missing.csv" in err
+    code, _, err = _run(capsys, "simulate", "--param", "q=1", "-o", str(tmp_path / "x.csv"))
+    assert code == 2 and "unknown parameter" in err
+
+
+def test_unknown_excitation_is_rejected(capsys, tmp_path):
+    code, _, err = _run(capsys, "simulate", "--excitation", "ramp:3", "-o", str(tmp_path / "x.csv"))
+    assert code == 2 and "ramp" in err
+
+
+@pytest.mark.slow
+def test_demo_json(capsys, tmp_path):
+    code, out, _ = _run(capsys, "demo", "--out", str(tmp_path), "--json")
+    data = json.loads(out)
+    assert code == 0 and set(data) == {"duffing1", "duffing2"}
+    assert np.isfinite(data["duffing1"]["robust"]["parameters"]["kp"])
+    assert (tmp_path / "duffing1_robust_estimates.png").exists()
+    assert (tmp_path / "duffing2_robust_theta2.png").exists()
