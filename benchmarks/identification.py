@@ -1,0 +1,141 @@
+"""Benchmark of the online algebraic identifier: accuracy on the paper's cases and cost.
+
+Run: python benchmarks/identification.py [--seeds 50] [--repeats 5]
+
+Tables (medians over noise seeds; costs are medians of several runs, with ratios to a
+baseline measured in the same run):
+  1. Case A: 1-DOF, 14 N step, 0.25 s, 1 ms, encoder-quantised: errors and the time
+     after which each estimate stays within 5 % of the truth.
+  2. Case B: 1-DOF, 10 N step, 2 s, quantised + 40 dB noise: median errors over seeds,
+     next to the peer baselines of ../shared/paper/NOTES.md.
+  3. 2-DOF (Table 3 with m1 2.53, b1 5, b2 4), 6 N step, 1 s, noise-free.
+  4. Cost per sample of OnlineIdentifier.update and samples/s of identify().
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from tqdm import tqdm
+
+from duffid import Duffing1, Duffing2, OnlineIdentifier, Step, identify, measure, simulate
+
+TARGETS_A = {"paper": {"m": 0.3, "b": 1.0, "k": 0.3, "kp": 0.3},
+             "robust": {"m": 0.05, "b": 0.15, "k": 0.05, "kp": 0.05}}
+TARGET_TIMES = {"m": 0.06, "k": 0.06, "b": 0.15, "kp": 0.15}
+TARGETS_B = {"m": 0.2, "b": 0.4, "k": 0.06, "kp": 0.6}
+PEERS_B = {
+    "paper filtered (NOTES, gamma 20)": [0.29, 1.8, 0.05, 0.46],
+    "sliding window I2..I5 (NOTES)": [0.14, 0.26, 0.04, 0.50],
+    "output-error grey box (NOTES)": [0.05, 0.08, 0.03, 0.25],
+    "LS on Savitzky-Golay (NOTES)": [0.68, 0.58, 0.13, 1.5],
+}
+NAMES1 = ("m", "b", "k", "kp")
+
+
+def _row(label: str, values, width: int = 10, fmt: str = ".3f") -> str:
+    cells = "".join(f"{v:>{width}{fmt}}" if isinstance(v, (float, np.floating)) and np.isfinite(v)
+                    else f"{str(v if v is not None else '-'):>{width}}" for v in values)
+    return f"{label:<36}{cells}"
+
+
+def case_a() -> None:
+    plant = Duffing1()
+    truth = plant.parameters
+    record = measure(simulate(plant, Step(14.0), 0.25, 1e-3))
+    print("\n1. Case A: 1-DOF, 14 N step, 0.25 s, 1 ms, encoder 2266 pulses/cm")
+    print(_row("relative error [%]", NAMES1))
+    for method in ("paper", "robust"):
+        result = identify(record, plant, method)
+        err = result.errors(truth)
+        print(_row(f"  {method}", [abs(err[p]) for p in NAMES1]))
+        print(_row(f"  {method} target (|err| <)", [TARGETS_A[method][p] for p in NAMES1]))
+    print(_row("time to stay within 5 % [s]", NAMES1))
+    for method in ("paper", "robust"):
+        times = identify(record, plant, method).time_within(truth, 0.05)
+        print(_row(f"  {method}", [times[p] for p in NAMES1]))
+    print(_row("  target (robust)", [TARGET_TIMES[p] for p in NAMES1]))
+
+
+def case_b(seeds: int) -> None:
+    plant = Duffing1()
+    truth = plant.parameters
+    exact = simulate(plant, Step(10.0), 2.0, 1e-3)
+    errors = {"paper": [], "robust": []}
+    for seed in tqdm(range(seeds), desc="case B seeds", leave=False):
+        record = measure(exact, snr_db=40, seed=seed)
+        for method in errors:
+            err = identify(record, plant, method).errors(truth)
+            errors[method].append([abs(err[p]) for p in NAMES1])
+    print(f"\n2. Case B: 1-DOF, 10 N step, 2 s, quantised + 40 dB noise, median |error| [%] over {seeds} seeds")
+    print(_row("", NAMES1))
+    for method, values in errors.items():
+        print(_row(f"  duffid {method}", np.median(values, axis=0)))
+    print(_row("  target (robust)", [TARGETS_B[p] for p in NAMES1]))
+    for label, values in PEERS_B.items():
+        print(_row(f"  {label}", values))
+
+
+def two_dof() -> None:
+    plant = Duffing2()
+    truth = plant.parameters
+    record = simulate(plant, Step(6.0), 1.0, 1e-3)
+    ratios = {f"{p}/m2": truth[p] / truth["m2"] for p in ("b2", "k2", "kp2")}
+    names = list(truth) + list(ratios)
+    print("\n3. 2-DOF chain, 6 N step on DOF 1, 1 s, 1 ms, noise-free: |error| [%] (target < 0.1)")
+    print(_row("", names, width=9))
+    for method in ("paper", "robust"):
+        result = identify(record, plant, method)
+        p = result.parameters
+        est = {**p, **{f"{q}/m2": p[q] / p["m2"] for q in ("b2", "k2", "kp2")}}
+        ref = {**truth, **ratios}
+        print(_row(f"  {method}", [abs(100 * (est[n] - ref[n]) / ref[n]) for n in names], width=9))
+
+
+def _median_time(func, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        func()
+        times.append(time.perf_counter() - start)
+    return float(np.median(times))
+
+
+def cost(repeats: int) -> None:
+    print(f"\n4. Cost (median of {repeats} runs; ratio to the paper method measured in the same run)")
+    print(_row("", ["us/sample", "ratio", "samples/s"], width=12))
+    cases = {"1-DOF": (Duffing1(), simulate(Duffing1(), Step(10.0), 2.0, 1e-3)),
+             "2-DOF": (Duffing2(), simulate(Duffing2(), Step(6.0), 1.0, 1e-3))}
+    for label, (model, record) in cases.items():
+        per_sample = {}
+        for method, options in [("paper", {}), ("robust", {}), ("robust", {"window": 0.1}),
+                                ("robust", {"window": 1.0})]:
+            def run() -> None:
+                ident = OnlineIdentifier(model, record.dt, method, **options)
+                for x, f in zip(record.x, record.f):
+                    ident.update(x, f)
+            key = method + ("" if not options else f" window {options['window']} s")
+            per_sample[key] = _median_time(run, repeats) / record.n_samples
+        base = per_sample["paper"]
+        for key, value in per_sample.items():
+            print(_row(f"  {label} update, {key}", [1e6 * value, value / base, 1.0 / value], width=12, fmt=".2f"))
+        t_identify = _median_time(lambda: identify(record, model), repeats)
+        print(_row(f"  {label} identify() robust", [1e6 * t_identify / record.n_samples,
+                                                   t_identify / record.n_samples / base,
+                                                   record.n_samples / t_identify], width=12, fmt=".2f"))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=50, help="noise seeds of case B (default 50)")
+    parser.add_argument("--repeats", type=int, default=5, help="runs per cost figure (default 5)")
+    args = parser.parse_args()
+    case_a()
+    case_b(args.seeds)
+    two_dof()
+    cost(args.repeats)
+
+
+if __name__ == "__main__":
+    main()
