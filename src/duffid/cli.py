@@ -60,11 +60,11 @@ def build_parser() -> argparse.ArgumentParser:
     g = p.add_argument_group("robust method options")
     g.add_argument("--window", type=_window, default="auto", help="window length in s, or auto (default)")
     g.add_argument("--window-periods", type=_positive_float, default=None,
-                   help="auto window length in natural periods (default 2)")
+                   help="auto window length in natural periods (default 1.5)")
     g.add_argument("--max-window", type=_positive_float, default=None, help="longest window in s (default 1)")
     g.add_argument("--forgetting", type=_positive_float, default=None, help="forgetting time constant in s")
     g.add_argument("--rows", choices=("integrals", "bernstein", "paper"), default=None, help="row kernel family")
-    g.add_argument("--n-rows", type=int, default=None, help="rows per window (default unknowns + 2)")
+    g.add_argument("--n-rows", type=int, default=None, help="rows per window (default max(unknowns + 1, 8))")
     g.add_argument("--max-uncertainty", type=_positive_float, default=None,
                    help="largest relative standard error of a published parameter (default 0.01)")
     g = p.add_argument_group("paper method options")

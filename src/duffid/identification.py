@@ -39,11 +39,11 @@ METHODS = ("robust", "paper")
 
 _ROBUST_DEFAULTS: dict[str, Any] = {
     "window": "auto",         # seconds, or "auto": window_periods x the identified natural period
-    "window_periods": 2.0,
+    "window_periods": 1.5,
     "max_window": 1.0,        # seconds: buffer capacity, the longest window
     "forgetting": None,       # seconds (time constant) or None: no forgetting
     "rows": "integrals",      # row kernel family, see regressors.row_exponents
-    "n_rows": None,           # rows per window; default: number of unknowns + 2
+    "n_rows": None,           # rows per window; default: max(unknowns + 1, 8)
     "max_condition": 1e6,     # identified when cond(equilibrated R) <= this,
     "max_uncertainty": 0.01,  # every relative standard error <= this,
     "min_time": 0.01,         # and the window spans at least this many seconds;
@@ -250,8 +250,9 @@ class Estimate:
     condition : float
         Largest condition number over the equations (column-equilibrated).
     uncertainty : float
-        Largest relative standard error of an unknown (robust method; NaN for paper),
-        an approximate figure from the least-squares residual.
+        Largest standard error of a parameter relative to max(|estimate|, |nominal|)
+        (robust method; NaN for paper), an approximate figure from the least-squares
+        residual.
     window : float
         Current window length [s].
     """
@@ -279,17 +280,19 @@ class OnlineIdentifier:
     Parameters
     ----------
     model : Chain
-        Model structure (e.g. :class:`~duffid.models.Duffing1`); its parameter values are
-        not used.
+        Model structure (e.g. :class:`~duffid.models.Duffing1`). Its parameter values are
+        nominal sizes: an estimate is trustworthy when its standard error is below
+        ``max_uncertainty`` times the larger of its own size and the nominal one.
     dt : float
         Sampling period [s].
     method : {"robust", "paper"}
         Estimator, see the module documentation.
     **options
         Method options. ``robust``: ``window`` ("auto" or seconds), ``window_periods``
-        (auto window in natural periods, 2), ``max_window`` (s, 1.0), ``forgetting``
+        (auto window in natural periods, 1.5), ``max_window`` (s, 1.0), ``forgetting``
         (time constant in s or None), ``rows`` ("integrals", "bernstein" or "paper"),
-        ``n_rows``, ``max_condition`` (1e4), ``min_time`` (s, 0.01), ``deadband`` (m).
+        ``n_rows`` (max(unknowns + 1, 8)), ``max_condition`` (1e6), ``max_uncertainty``
+        (0.01), ``settle`` (s, 0.01), ``min_time`` (s, 0.01), ``deadband`` (m).
         ``paper``: ``gamma`` (20), ``quadrature`` ("adams3" or "trapezoid"),
         ``sign_in_numerator`` (False), ``max_condition``, ``min_time``, ``deadband``.
 
@@ -308,6 +311,7 @@ class OnlineIdentifier:
         self.method = method
         self.options = _options(method, options)
         self.equations = model.equations()
+        self._nominal = {k: abs(v) for k, v in model.canonical_parameters().items()}
         channels: dict[Channel, None] = {}
         for eq in self.equations:
             for c in eq.channels:
@@ -323,7 +327,7 @@ class OnlineIdentifier:
             self.capacity = max(int(round(seconds / self.dt)), 2)
             self._target = self.capacity
             self._auto = not fixed
-            n_rows = o["n_rows"] or max(len(eq.unknowns) for eq in self.equations) + 2
+            n_rows = o["n_rows"] or max(max(len(eq.unknowns) for eq in self.equations) + 1, 8)
             self.bank = KernelBank.build(row_exponents(o["rows"], n_rows), max_order)
             self._moments = SlidingMoments(self.capacity, self.bank.degree, len(self.channels))
             lam = 1.0 if o["forgetting"] is None else float(np.exp(-self.dt / o["forgetting"]))
@@ -379,18 +383,24 @@ class OnlineIdentifier:
 
     def _publish(self, window_samples: int) -> Estimate:
         canonical, cond, rse = self._combine()
-        worst = max(rse.values()) if rse else np.inf
         if self.method == "paper":
             # the paper's estimator outputs its estimate from the start (faithful)
             self._held = self.model.from_canonical(canonical)
             ok = self._window_ok(cond, window_samples) and all(np.isfinite(v) for v in canonical.values())
             return Estimate(self.n * self.dt, dict(self._held), ok, cond, np.nan, window_samples * self.dt)
-        # each parameter is published once its relative error stayed small for `settle` s
+        # each parameter is published once its relative error stayed small for `settle` s;
+        # the error is taken relative to the larger of the estimate and the model's nominal
+        # value, so that a parameter that is truly zero is identified once it is small
+        # compared with the size the model expects
         good = self._window_ok(cond, window_samples)
         settle = max(int(round(self.options["settle"] / self.dt)), 1)
         trusted = {}
+        worst = 0.0
         for k, v in canonical.items():
-            small = good and np.isfinite(v) and rse[k] <= self.options["max_uncertainty"]
+            std = rse[k] * abs(v) if np.isfinite(v) and v != 0 else np.inf
+            relative = std / max(abs(v), self._nominal.get(k, 0.0)) if np.isfinite(std) else np.inf
+            worst = max(worst, relative)
+            small = good and relative <= self.options["max_uncertainty"]
             self._settled[k] = self._settled.get(k, 0) + 1 if small else 0
             trusted[k] = v if self._settled[k] >= settle else np.nan
         public = self.model.from_canonical(trusted)

@@ -657,7 +657,10 @@ class Record:
             )
         n = sizes.pop()
         if t_arr is None:
-            fs_val = float(fs)  # type: ignore[arg-type]
+            try:
+                fs_val = float(fs)  # type: ignore[arg-type]
+            except (TypeError, ValueError):
+                fs_val = math.nan
             if not math.isfinite(fs_val) or fs_val <= 0.0:
                 raise RecordError(f"{source}: sampling rate fs must be finite and > 0, got {fs!r}")
             t_vec = np.arange(n, dtype=np.float64) / fs_val
