@@ -190,11 +190,11 @@ def _solve_factor(R_aug: np.ndarray, rows: float, overlap: float) -> tuple[np.nd
     nan = np.full(n, np.nan)
     if not np.all(scale > 0):
         return nan, np.inf, np.full(n, np.inf)
-    Rs = R / scale
-    cond = float(np.linalg.cond(Rs))
+    U, sv, Vt = np.linalg.svd(R / scale)
+    cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else np.inf
     if not np.isfinite(cond) or cond > 1e14:
         return nan, np.inf, np.full(n, np.inf)
-    Rinv = np.linalg.inv(Rs)
+    Rinv = (Vt.T / sv) @ U.T
     theta = Rinv @ R_aug[:n, n] / scale
     dof = rows - n
     if dof <= 0:

@@ -874,5 +874,6 @@ def _load_mat(source: str) -> dict[str, Any]:
         ) from None
     except OSError as exc:
         raise RecordError(f"{source}: cannot read file: {exc.strerror or exc}") from None
-    except (MatReadError, ValueError, TypeError) as exc:
-        raise RecordError(f"{source}: not a readable MATLAB .mat file ({exc})") from None
+    except (MatReadError, ValueError, TypeError, IndexError, KeyError) as exc:
+        # scipy < 1.12 raises IndexError/KeyError on some files that are not .mat at all
+        raise RecordError(f"{source}: not a readable MATLAB .mat file ({exc or type(exc).__name__})") from None

@@ -144,10 +144,11 @@ class KernelBank:
     def row_scale(self, tau: float | np.ndarray) -> np.ndarray:
         """``(a+b+1)! / (b! tau^(a+b+1))``: one over the integral of each row kernel."""
         tau = np.asarray(tau, dtype=float)[..., None]
-        a = np.array([r[0] for r in self.rows])
-        b = np.array([r[1] for r in self.rows])
-        norm = np.array([factorial(ai + bi + 1) / factorial(bi) for ai, bi in self.rows])
-        return norm / tau ** (a + b + 1)
+        return self._norm / tau**self._norm_power
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_norm", np.array([factorial(a + b + 1) / factorial(b) for a, b in self.rows]))
+        object.__setattr__(self, "_norm_power", np.array([a + b + 1 for a, b in self.rows], dtype=float))
 
     def entries(self, tau: float, moments: np.ndarray, newest: np.ndarray, t_ref: float) -> np.ndarray:
         """Normalised entries ``E[r, d, channel]`` for one window.
