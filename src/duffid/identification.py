@@ -112,20 +112,6 @@ class _Channels:
             out[i] = next(signs) if c.kind == "sign_velocity" else c.evaluate(x, f)
         return out
 
-    def evaluate_batch(self, X: np.ndarray, F: np.ndarray) -> np.ndarray:
-        out = np.empty((len(X), len(self.channels)))
-        for i, c in enumerate(self.channels):
-            if c.kind != "sign_velocity":
-                out[:, i] = c.evaluate(X, F)
-                continue
-            dx = np.diff(X[:, c.index], prepend=X[0, c.index])
-            moving = np.abs(dx) > self.deadband
-            moving[0] = False
-            idx = np.where(moving, np.arange(len(X)), 0)
-            np.maximum.accumulate(idx, out=idx)
-            out[:, i] = np.where(idx > 0, np.sign(dx[idx]), 0.0)
-        return out
-
 
 class _Assembly:
     """Maps kernel entries ``E[row, order, channel]`` to ``A`` (rows x unknowns) and ``D``."""
@@ -217,6 +203,12 @@ class _Integrators:
         self.prev2 = np.zeros_like(self.y)
         self.count = 0
 
+    def reset(self) -> None:
+        self.y[:] = 0.0
+        self.prev1[:] = 0.0
+        self.prev2[:] = 0.0
+        self.count = 0
+
     def push(self, u: np.ndarray) -> np.ndarray:
         h = self.dt
         self.prev2[:] = self.prev1
@@ -246,7 +238,8 @@ class Estimate:
     parameters : dict
         Estimates under the model's public names; NaN until identified.
     identified : bool
-        True when the estimate is trustworthy (conditioning and window length checks).
+        True when every parameter is trustworthy (robust: each one published, see
+        ``max_uncertainty`` and ``settle``; paper: a well-conditioned, finite solution).
     condition : float
         Largest condition number over the equations (column-equilibrated).
     uncertainty : float
@@ -333,7 +326,7 @@ class OnlineIdentifier:
             lam = 1.0 if o["forgetting"] is None else float(np.exp(-self.dt / o["forgetting"]))
             self._solvers = [_QRLeastSquares(len(eq.unknowns), lam) for eq in self.equations]
         else:
-            self._paper_setup(max_order)
+            self._paper_setup()
         self.reset()
 
     # -------------------------------------------------------------- common
@@ -454,26 +447,21 @@ class OnlineIdentifier:
                                        self.options["window_periods"])
 
     # -------------------------------------------------------------- paper
-    def _paper_setup(self, max_order: int) -> None:
-        o = self.options
+    def _paper_setup(self) -> None:
+        """Integrator banks of eqs. (16)-(17) (inputs tau^j g, j = 0..2) and of eq. (19)."""
+        quadrature = self.options["quadrature"]
+        n_ch = len(self.channels)
         self._paper = []
         for st in self._states:
-            eq = st.equation
-            n_rows = len(eq.unknowns)
-            # inputs of the integrator bank: tau^j * g for j = 0, 1, 2 and each channel
-            n_ch = len(self.channels)
-            integ = _Integrators(3 * n_ch, 2 + n_rows - 1, self.dt, o["quadrature"])
-            det_integ = _Integrators(n_rows + 1, 2, self.dt, o["quadrature"])
-            self._paper.append((integ, det_integ))
-        self.capacity = 0
+            n_rows = len(st.equation.unknowns)
+            regressors = _Integrators(3 * n_ch, n_rows + 1, self.dt, quadrature)
+            determinants = _Integrators(n_rows + 1, 2, self.dt, quadrature)
+            self._paper.append((regressors, determinants))
 
     def _paper_reset(self) -> None:
-        for st_integ in self._paper:
-            for integ in st_integ:
-                integ.y[:] = 0.0
-                integ.prev1[:] = 0.0
-                integ.prev2[:] = 0.0
-                integ.count = 0
+        for banks in self._paper:
+            for bank in banks:
+                bank.reset()
 
     def _paper_rows(self, y: np.ndarray, n_rows: int) -> np.ndarray:
         """Entries E[row, order, channel] of eq. (16)-(17) from the integrator outputs."""
@@ -501,18 +489,15 @@ class OnlineIdentifier:
                 Ai = A.copy()
                 Ai[:, i] = D
                 deltas[i] = np.linalg.det(Ai)
-            if self.options["sign_in_numerator"]:
-                num = deltas * np.sign(delta)
-            else:
-                num = np.abs(deltas)
+            fixed_sign = self.options["sign_in_numerator"]
+            num = deltas * np.sign(delta) if fixed_sign else np.abs(deltas)
             weight = np.exp(-gamma * tau)
             z = det_integ.push(np.concatenate([weight * num, [weight * abs(delta)]]))[2]
-            with np.errstate(invalid="ignore", divide="ignore"):
+            if z[n_rows] > 0:  # eq. (19): filtered |Delta_i| / |Delta|, signs of the current sample
                 ratio = z[:n_rows] / z[n_rows]
-            if self.options["sign_in_numerator"]:
-                st.theta = ratio if z[n_rows] > 0 else np.full(n_rows, np.nan)
+                st.theta = ratio if fixed_sign else np.sign(deltas) * np.sign(delta) * ratio
             else:
-                st.theta = np.sign(deltas) * np.sign(delta) * ratio if z[n_rows] > 0 else np.full(n_rows, np.nan)
+                st.theta = np.full(n_rows, np.nan)
             st.cond = _equilibrated_condition(A)
         return self.n
 
