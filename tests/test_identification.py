@@ -6,7 +6,9 @@ import pytest
 
 from duffid import (Chirp, Duffing1, Duffing2, DuffingCircuit, Multisine, OnlineIdentifier, Record,
                     RecordError, Step, identify, measure, simulate)
+from duffid.identification import combine_equations
 from duffid.models import Chain
+from duffid.regressors import batch_moments
 
 
 def _max_error(result, truth):
@@ -36,21 +38,48 @@ def test_robust_is_nan_until_trustworthy_then_converges(case_a):
     assert times["m"] < 0.1 and times["k"] < 0.12 and times["b"] < 0.2 and times["kp"] < 0.2
 
 
-@pytest.mark.parametrize("options", [{}, {"window": 0.5}, {"forgetting": 0.5}, {"rows": "bernstein", "window": 0.3}])
-def test_identify_equals_online_identifier(case_b_exact, options):
-    record = measure(case_b_exact, snr_db=40, seed=4)
-    batch = identify(record, Duffing1(), **options)
-    online = OnlineIdentifier(Duffing1(), record.dt, **options).identify_record(record)
-    for name, value in batch.parameters.items():
-        assert value == pytest.approx(online.parameters[name], rel=1e-9, nan_ok=True)
-    np.testing.assert_array_equal(batch.identified, online.identified)
+def _batch_least_squares(record, model, window):
+    """Independent batch computation: moments by whole-record convolutions, the rows of
+    every full-length window stacked into one least-squares problem per equation."""
+    ident = OnlineIdentifier(model, record.dt, window=window)
+    G = np.array([ident._channels.evaluate(x, f) for x, f in zip(record.x, record.f)])
+    N = ident.capacity
+    lengths = np.minimum(np.arange(len(G)), N)
+    moments = batch_moments(G, lengths, N, ident.bank.degree)
+    solutions = []
+    for st in ident._states:
+        rows, rhs = [], []
+        for n in np.flatnonzero(lengths == N):
+            A, D = st.assembly(ident.bank.entries(1.0, moments[n], G[n], N * record.dt))
+            rows.append(A)
+            rhs.append(D)
+        theta = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
+        solutions.append(dict(zip(st.equation.unknowns, theta)))
+    return model.from_canonical(combine_equations(model, solutions)[0])
 
 
-def test_identify_equals_online_identifier_two_dof(two_dof_exact):
-    batch = identify(two_dof_exact, Duffing2())
-    online = OnlineIdentifier(Duffing2(), two_dof_exact.dt).identify_record(two_dof_exact)
-    for name, value in batch.parameters.items():
-        assert value == pytest.approx(online.parameters[name], rel=1e-9, nan_ok=True)
+@pytest.mark.parametrize("model_name", ["duffing1", "duffing2"])
+def test_online_estimate_equals_batch_least_squares(case_b_exact, two_dof_exact, model_name):
+    if model_name == "duffing1":
+        model, record = Duffing1(), measure(case_b_exact, snr_db=40, seed=4)
+    else:
+        model, record = Duffing2(), two_dof_exact
+    online = identify(record, model, window=0.3, max_uncertainty=1.0)
+    batch = _batch_least_squares(record, model, 0.3)
+    for name, value in batch.items():
+        # kp2 carries ~1e-6 of the force balance here (sub-millimetre deflection cubed):
+        # rounding of 1e-16 in the dominant terms reaches it as ~1e-8
+        rel = 1e-7 if name == "kp2" else 1e-9
+        assert online.parameters[name] == pytest.approx(value, rel=rel)
+
+
+def test_identify_equals_feeding_samples_one_by_one(case_a):
+    result = identify(case_a, Duffing1())
+    ident = OnlineIdentifier(Duffing1(), case_a.dt)
+    for x, f in zip(case_a.x, case_a.f):
+        estimate = ident.update(x, f)
+    assert estimate.parameters == pytest.approx(result.parameters, rel=1e-12)
+    assert estimate.identified == bool(result.identified[-1])
 
 
 def test_two_dof_noise_free_within_0p1_percent(two_dof_exact):
