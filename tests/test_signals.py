@@ -298,3 +298,19 @@ def test_from_spec_rejects_non_string() -> None:
 def test_parameter_validation(factory, exc: type[Exception], match: str) -> None:
     with pytest.raises(exc, match=match):
         factory()
+
+
+def test_gated_signal_switches_off_and_round_trips() -> None:
+    from duffid.signals import Gated
+
+    g = from_spec("sweep:3,2.5,4@4")
+    assert isinstance(g, Gated) and g.t_off == 4.0
+    t = np.array([1.0, 3.99, 4.0, 6.0])
+    np.testing.assert_array_equal(g(t)[2:], 0.0)
+    assert g(1.0) == Chirp.paper_sweep(3, 2.5, duration=4)(1.0)
+    assert from_spec(g.spec) == g
+    assert from_spec("step:1@0.5+step:2").spec == "step:1@0.5+step:2"
+    with pytest.raises(ValueError, match="after '@'"):
+        from_spec("step:1@x")
+    with pytest.raises(TypeError, match="single"):
+        Gated(Step(1) + Step(2), 1.0)

@@ -1,4 +1,4 @@
-"""Command-line interface ``duffid`` (argparse, subcommands identify, simulate, demo)."""
+"""Command-line interface ``duffid`` (argparse, subcommands identify, simulate, nonlinearity, demo)."""
 from __future__ import annotations
 
 import argparse
@@ -93,14 +93,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="noise seed")
     p.add_argument("-o", "--output", type=Path, required=True, help="CSV file to write")
 
+    p = sub.add_parser("nonlinearity", help="Hilbert-transform nonlinearity index of swept-sine records")
+    p.add_argument("files", type=Path, nargs="+", help="sweep records (CSV or .mat, with ring-down)")
+    p.add_argument("--band", type=float, nargs=2, metavar=("F1", "F2"), default=None,
+                   help="band [Hz] (default: the central 99.5 %% of the input's energy)")
+    p.add_argument("--uncorrected", action="store_true",
+                   help="report eta without the band-edge correction (the paper's figures)")
+    p.add_argument("--stepped", action="store_true", help="the files are stepped sines: one FRF from all")
+    p.add_argument("--modes", type=int, default=None, help="modes of the linear extension (default: DOFs)")
+    p.add_argument("--output", type=int, default=1, help="displacement column x<N> to analyse (default 1)")
+    p.add_argument("--plot", type=Path, default=None,
+                   help="PNG: Argand and Bode plots (one file), or eta vs amplitude (several files)")
+    p.add_argument("--json", action="store_true", help="print JSON: one object, or a list for several files")
+    p.add_argument("--x-var", default="x", help=".mat: displacement variable name(s)")
+    p.add_argument("--f-var", default="f", help=".mat: force variable name(s)")
+    p.add_argument("--t-var", default=None, help=".mat: time variable name")
+    p.add_argument("--fs", type=_positive_float, default=None, help=".mat: sampling frequency [Hz]")
+
     p = sub.add_parser("demo", help="the main job: identify the paper's 1-DOF and 2-DOF cases")
     p.add_argument("--out", type=Path, default=Path("out"), help="output folder (default out/)")
     p.add_argument("--json", action="store_true", help="print a JSON summary instead of tables")
     return parser
 
 
-def _read_record(args: argparse.Namespace) -> Record:
-    path: Path = args.file
+def _read_record(args: argparse.Namespace, path: Path | None = None) -> Record:
+    path = path if path is not None else args.file
     if not path.exists():
         raise RecordError(f"{path}: no such file")
     if path.suffix.lower() == ".mat":
@@ -132,6 +149,37 @@ def _identify(args: argparse.Namespace) -> int:
         print(f"  {name:>8} = {value:.6g}")
     when = "never (estimates not trustworthy)" if result.t_identified is None else f"at {result.t_identified:.4g} s"
     print(f"  identified {when}; final window {result.window:.4g} s; condition {result.condition[-1]:.3g}")
+    return 0
+
+
+def _nonlinearity(args: argparse.Namespace) -> int:
+    from . import nonlinearity as nl
+    from .plots import plot_eta_vs_amplitude, plot_hilbert
+
+    records = [_read_record(args, path) for path in args.files]
+    band = tuple(args.band) if args.band else None
+    output = args.output - 1
+    if args.stepped:
+        frf = nl.frf_from_stepped_sines(records, output=output, n_modes=args.modes or records[0].n_dof)
+        results = [nl.analyse(frf, band=band, corrected=not args.uncorrected, n_modes=args.modes)]
+    else:
+        results = [nl.analyse(r, band=band, corrected=not args.uncorrected, n_modes=args.modes, output=output)
+                   for r in records]
+    if args.plot is not None:
+        if len(results) == 1:
+            plot_hilbert(results[0], args.plot)
+        else:
+            plot_eta_vs_amplitude({"records": sorted(results, key=lambda r: r.amplitude)}, args.plot)
+    if args.json:
+        dicts = [r.to_dict() for r in results]
+        print(json.dumps(dicts[0] if len(dicts) == 1 else dicts))
+        return 0
+    print(f"{'source':<40} {'amplitude':>10} {'band [Hz]':>17} {'eta':>9} {'uncorrected':>12} "
+          f"{'distortion':>11}  verdict")
+    for r in results:
+        band_text = f"{r.band[0]:.3g}-{r.band[1]:.3g}"
+        print(f"{r.source[-40:]:<40} {r.amplitude:>10.4g} {band_text:>17} {r.eta:>9.5f} "
+              f"{r.eta_uncorrected:>12.5f} {r.distortion_db:>8.1f} dB  {r.verdict}")
     return 0
 
 
@@ -175,7 +223,7 @@ def _demo(args: argparse.Namespace) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``duffid`` command; returns the exit status."""
     args = build_parser().parse_args(argv)
-    handlers = {"identify": _identify, "simulate": _simulate, "demo": _demo}
+    handlers = {"identify": _identify, "simulate": _simulate, "nonlinearity": _nonlinearity, "demo": _demo}
     try:
         return handlers[args.command](args)
     except (RecordError, ValueError, TypeError, SimulationError) as exc:

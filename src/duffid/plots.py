@@ -13,7 +13,7 @@ import numpy as np  # noqa: E402
 from .identification import Identification  # noqa: E402
 from .record import Record  # noqa: E402
 
-__all__ = ["plot_estimates", "plot_record"]
+__all__ = ["plot_estimates", "plot_record", "plot_hilbert", "plot_eta_vs_amplitude"]
 
 
 def plot_estimates(result: Identification, path: str | os.PathLike[str], *,
@@ -78,6 +78,72 @@ def plot_record(record: Record, path: str | os.PathLike[str], *, title: str | No
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     fig.suptitle(title or record.source)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_hilbert(result, path: str | os.PathLike[str], *, title: str | None = None) -> None:
+    """Argand (Nyquist) diagram of F and H{F}, and magnitude and phase, over the band.
+
+    Parameters
+    ----------
+    result : duffid.nonlinearity.NonlinearityResult
+        Result of :func:`duffid.nonlinearity.analyse` (holds the FRF and transforms).
+    path : path
+        PNG file to write.
+    """
+    frf = result.frf
+    inside = frf.in_band
+    f, F = frf.frequency[inside], frf.response[inside]
+    curves = {"F": F, "H{F} corrected": result.transform[inside],
+              "H{F} uncorrected": result.transform_uncorrected[inside]}
+    fig = plt.figure(figsize=(11, 4.5))
+    ax_n = fig.add_subplot(1, 2, 1)
+    ax_m = fig.add_subplot(2, 2, 2)
+    ax_p = fig.add_subplot(2, 2, 4, sharex=ax_m)
+    for (label, values), style in zip(curves.items(), ("-", "--", ":")):
+        ax_n.plot(values.real, values.imag, style, label=label)
+        ax_m.semilogy(f, np.abs(values), style, label=label)
+        ax_p.plot(f, np.degrees(np.angle(values)), style, label=label)
+    ax_n.set_xlabel("Re [m/N]")
+    ax_n.set_ylabel("Im [m/N]")
+    ax_n.set_aspect("equal", adjustable="datalim")
+    ax_n.legend(fontsize=8)
+    ax_m.set_ylabel("|F| [m/N]")
+    ax_p.set_ylabel("phase [deg]")
+    ax_p.set_xlabel("f [Hz]")
+    for ax in (ax_n, ax_m, ax_p):
+        ax.grid(alpha=0.3)
+    fig.suptitle(title or f"{result.source}: eta = {result.eta:.5f} "
+                          f"(uncorrected {result.eta_uncorrected:.5f}), {result.verdict}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_eta_vs_amplitude(series, path: str | os.PathLike[str], *, threshold: float = 0.9,
+                          title: str | None = None) -> None:
+    """``eta`` vs excitation amplitude with the linearity threshold (paper Figures 6 and 11).
+
+    Parameters
+    ----------
+    series : mapping of str to list of NonlinearityResult
+        One curve per label (e.g. per sweep rate).
+    path : path
+        PNG file to write.
+    """
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    for label, results in series.items():
+        amps = [r.amplitude for r in results]
+        ax.plot(amps, [r.eta for r in results], "o-", label=f"{label} (corrected)")
+        ax.plot(amps, [r.eta_uncorrected for r in results], "x:", label=f"{label} (uncorrected)")
+    ax.axhline(threshold, color="r", lw=0.8, ls="--", label=f"threshold {threshold}")
+    ax.set_xlabel("excitation amplitude [N]")
+    ax.set_ylabel("eta")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title or "Hilbert-transform nonlinearity index")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Chirp", "Multisine", "Signal", "Step", "Sum", "Zero", "from_spec"]
+__all__ = ["Chirp", "Gated", "Multisine", "Signal", "Step", "Sum", "Zero", "from_spec"]
 
 _NUMBER_RE = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
 _SEED_RE = re.compile(r"\d+", re.ASCII)
@@ -38,7 +38,8 @@ _EVAL_BLOCK = 1 << 20  # elements of the (time x component) block in Multisine
 ACCEPTED_SPECS = (
     "step:A[,t_on]; chirp:A,f0,f1,t1[,linear|quadratic|logarithmic|hyperbolic]; "
     "sweep:A,rate,duration; multisine:A,f_min,f_max,period[,schroeder|random[,seed]]; "
-    "zero; terms joined with '+' are summed"
+    "zero; a term followed by @T is switched off from T seconds on (e.g. sweep:3,2.5,4@4, "
+    "for a ring-down); terms joined with '+' are summed"
 )
 
 
@@ -502,12 +503,55 @@ class Sum(Signal):
         return "+".join(term.spec for term in self.terms)
 
 
+@dataclass(frozen=True)
+class Gated(Signal):
+    r"""A signal switched off from ``t_off`` on (e.g. a sweep followed by a ring-down).
+
+    .. math:: u(t) = \begin{cases} s(t) & t < t_\mathrm{off} \\ 0 & t \ge t_\mathrm{off} \end{cases}
+
+    Parameters
+    ----------
+    signal : Signal
+        The signal to gate (not a :class:`Sum`: gate each term instead, so that the spec
+        stays unambiguous).
+    t_off : float
+        Switch-off time [s].
+
+    Notes
+    -----
+    Spec: the inner term's spec followed by ``@t_off``, e.g. ``sweep:3,2.5,4@4``.
+    """
+
+    signal: Signal
+    t_off: float
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.signal, Signal) or isinstance(self.signal, (Sum, Gated)):
+            raise TypeError(f"Gated needs a single, ungated signal term, got {self.signal!r}")
+        object.__setattr__(self, "t_off", _real(self.t_off, "t_off"))
+
+    def _evaluate(self, t: np.ndarray) -> np.ndarray:
+        return np.where(t < self.t_off, self.signal(t), 0.0)
+
+    @property
+    def spec(self) -> str:
+        """``'<term>@t_off'``."""
+        return f"{self.signal.spec}@{_num(self.t_off)}"
+
+
 class _SpecError(ValueError):
     """Problem in one term of a spec (internal)."""
 
 
 def _parse_term(term: str) -> Signal:
-    """Parse one term (no '+') of a signal spec."""
+    """Parse one term (no '+') of a signal spec, optionally gated with ``@t_off``."""
+    if "@" in term:
+        inner, _, t_off = term.rpartition("@")
+        if not _NUMBER_RE.fullmatch(t_off.strip()):
+            raise _SpecError(f"switch-off time {t_off.strip()!r} after '@' is not a finite decimal number")
+        if "@" in inner:
+            raise _SpecError("a term takes at most one '@t_off'")
+        return Gated(_parse_term(inner), float(t_off))
     kind, colon, rest = term.partition(":")
     kind = kind.strip().lower()
     args = [a.strip() for a in rest.split(",")] if colon else []
