@@ -142,3 +142,11 @@ def test_cli_json_one_and_several(tmp_path, capsys):
 def test_gated_sweep_has_a_ring_down():
     record = sweep_record(Duffing1(), 1.0, f_max=5.0, ring_down=4.0)
     assert np.all(record.f[record.t >= 2.0] == 0.0) and np.any(record.f[record.t < 2.0] != 0.0)
+
+
+def test_a_record_without_ring_down_is_flagged():
+    record = sweep_record(Duffing2(), 0.5, f_max=12.0, ring_down=1.0)
+    with pytest.warns(UserWarning, match="longer ring-down"):
+        frf_from_sweep(record)
+    full = sweep_record(Duffing2(), 0.5, f_max=12.0)  # default: 12 time constants
+    assert analyse(full).eta > 0.9999

@@ -339,18 +339,35 @@ class Chain:
             net = net - np.asarray(self.coulomb) * np.tanh(v / friction_velocity)
         return net / np.asarray(self.masses)
 
-    def linear_natural_frequencies(self, parameters: Mapping[str, float] | None = None) -> np.ndarray:
-        """Undamped natural frequencies [rad/s] of the linearised chain about x = 0."""
+    def _linear_matrices(self, parameters: Mapping[str, float] | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Mass, damping and stiffness matrices of the chain linearised about x = 0."""
         p = self.canonical_parameters() if parameters is None else parameters
         n = self.n_dof
+
+        def chain_matrix(values: np.ndarray) -> np.ndarray:
+            A = np.diag(values)
+            A[:-1, :-1] += np.diag(values[1:])
+            A[np.arange(n - 1), np.arange(1, n)] = -values[1:]
+            A[np.arange(1, n), np.arange(n - 1)] = -values[1:]
+            return A
+
         k = np.array([p.get(f"k{i + 1}_1", 0.0) for i in range(n)])
+        b = np.array([p.get(f"b{i + 1}", 0.0) for i in range(n)])
         m = np.array([p[f"m{i + 1}"] for i in range(n)])
-        K = np.diag(k)
-        K[:-1, :-1] += np.diag(k[1:])
-        K[np.arange(n - 1), np.arange(1, n)] = -k[1:]
-        K[np.arange(1, n), np.arange(n - 1)] = -k[1:]
-        eig = np.linalg.eigvals(np.linalg.solve(np.diag(m), K))
+        return np.diag(m), chain_matrix(b), chain_matrix(k)
+
+    def linear_natural_frequencies(self, parameters: Mapping[str, float] | None = None) -> np.ndarray:
+        """Undamped natural frequencies [rad/s] of the linearised chain about x = 0."""
+        M, _, K = self._linear_matrices(parameters)
+        eig = np.linalg.eigvals(np.linalg.solve(M, K))
         return np.sqrt(np.sort(np.abs(eig.real)))
+
+    def linear_poles(self, parameters: Mapping[str, float] | None = None) -> np.ndarray:
+        """Poles [rad/s] of the chain linearised about x = 0 (viscous damping included)."""
+        M, B, K = self._linear_matrices(parameters)
+        n = self.n_dof
+        A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, K), -np.linalg.solve(M, B)]])
+        return np.linalg.eigvals(A)
 
 
 def _chain_from_canonical(template: Chain, values: Mapping[str, float]) -> Chain:

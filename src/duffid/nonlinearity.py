@@ -41,6 +41,7 @@ FRF estimation
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
@@ -244,6 +245,13 @@ def frf_from_sweep(record: Record, *, band: tuple[float, float] | None = None, o
                           f"the record has {record.n_samples}")
     if not 0 <= output < record.n_dof or not 0 <= input < record.n_forces:
         raise ValueError(f"{record.source}: no displacement column {output} or force column {input}")
+    tail = max(record.n_samples // 20, 1)
+    residual = float(np.max(np.abs(record.x[-tail:, output])) / max(np.max(np.abs(record.x[:, output])), 1e-300))
+    if residual > 1e-2 or np.max(np.abs(record.f[-tail:, input])) > 0:
+        warnings.warn(f"{record.source}: the record does not end in a ring-down at rest (last 5 %: "
+                      f"response {100 * residual:.2g} % of its peak, force "
+                      f"{'non-zero' if np.max(np.abs(record.f[-tail:, input])) > 0 else 'zero'}); "
+                      "the FRF is biased by leakage: record a longer ring-down", UserWarning, stacklevel=2)
     n = pad * record.n_samples
     u = np.fft.rfft(record.f[:, input], n)
     y = np.fft.rfft(record.x[:, output], n)
@@ -473,10 +481,19 @@ def analyse(data: Record | FRF, *, band: tuple[float, float] | None = None, corr
 
 # ---------------------------------------------------------------------- amplitude sweeps
 def sweep_record(plant: Chain, amplitude: float, *, rate: float = 2.5, f_max: float = 10.0,
-                 ring_down: float = 4.0, dt: float = 2e-3) -> Record:
+                 ring_down: float | None = None, dt: float = 2e-3) -> Record:
     """Simulate the paper's sweep ``A sin(pi rate t^2)`` (instantaneous frequency ``rate t``)
-    from 0 to ``f_max`` Hz on DOF 1 of ``plant``, followed by ``ring_down`` seconds at rest."""
+    from 0 to ``f_max`` Hz on DOF 1 of ``plant``, followed by a ring-down at zero force.
+
+    The default ring-down lasts 12 time constants of the plant's slowest linear mode
+    (its response decays to about 6e-6), so that the FRF of the record is not biased.
+    """
     duration = f_max / rate
+    if ring_down is None:
+        decay = -np.max(plant.linear_poles().real)
+        if not decay > 0:
+            raise ValueError(f"{plant.name}: the linearised plant is not damped; give ring_down")
+        ring_down = 12.0 / decay
     force = Gated(Chirp.paper_sweep(amplitude, rate, duration=duration), duration)
     return simulate(plant, force, duration + ring_down, dt)
 
