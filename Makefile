@@ -22,6 +22,8 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/identification.py
+	$(BIN)/python benchmarks/nonlinearity.py --out out
+	$(BIN)/python benchmarks/silverbox.py
 
 clean:
 	rm -rf $(VENV) out build *.egg-info src/*.egg-info

@@ -8,9 +8,11 @@ from pathlib import Path
 import pytest
 
 EXAMPLES = sorted((Path(__file__).resolve().parent.parent / "examples").glob("*.py"))
+SLOW = {"silverbox_identify.py"}  # identifies 390k upsampled samples (about 80 s)
 
 
-@pytest.mark.parametrize("script", EXAMPLES, ids=lambda p: p.name)
+@pytest.mark.parametrize("script", [pytest.param(p, marks=pytest.mark.slow) if p.name in SLOW else p
+                                    for p in EXAMPLES], ids=lambda p: p.name)
 def test_example_runs(script, tmp_path):
     args = [sys.executable, str(script)]
     if "--out" in script.read_text():
