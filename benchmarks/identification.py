@@ -10,6 +10,8 @@ baseline measured in the same run):
      next to the peer baselines of ../shared/paper/NOTES.md.
   3. 2-DOF (Table 3 with m1 2.53, b1 5, b2 4), 6 N step, 1 s, noise-free.
   4. Cost per sample of OnlineIdentifier.update and samples/s of identify().
+  5. Buffered identification with orthogonal functions (section 4), each basis on cases A
+     and B next to the online methods: errors and cost per window.
 """
 from __future__ import annotations
 
@@ -20,6 +22,8 @@ import numpy as np
 from tqdm import tqdm
 
 from duffid import Duffing1, Duffing2, OnlineIdentifier, Step, identify, measure, simulate
+from duffid.buffered import BufferedIdentifier, velocity_signs
+from duffid.orthogonal import projection_matrix
 
 TARGETS_A = {"paper": {"m": 0.3, "b": 1.0, "k": 0.3, "kp": 0.3},
              "robust": {"m": 0.05, "b": 0.15, "k": 0.05, "kp": 0.05}}
@@ -126,6 +130,78 @@ def cost(repeats: int) -> None:
                                                    record.n_samples / t_identify], width=12, fmt=".2f"))
 
 
+#: Buffered configurations: (label, method, options). Case A is one window of 0.25 s.
+BUFFERED_A = [
+    ("legendre 24", "legendre", {}),
+    ("chebyshev 24", "chebyshev", {}),
+    ("block-pulse 128", "block-pulse", {}),
+    ("haar 128", "haar", {}),
+    ("block-pulse 128, exact P_m", "block-pulse", {"repeated": "exact"}),
+    ("legendre 64, trapezoid coef.", "legendre", {"n_terms": 64, "quadrature": "trapezoid"}),
+]
+#: Case B: 0.5 s windows back to back, the equations of all windows stacked.
+_B = {"window": 0.5, "accumulate": True}
+BUFFERED_B = [
+    ("legendre 48", "legendre", {**_B, "n_terms": 48}),
+    ("chebyshev 48", "chebyshev", {**_B, "n_terms": 48}),
+    ("block-pulse 128", "block-pulse", dict(_B)),
+    ("haar 128", "haar", dict(_B)),
+    ("block-pulse 128, exact P_m", "block-pulse", {**_B, "repeated": "exact"}),
+    ("legendre 48, last window only", "legendre", {"window": 0.5, "n_terms": 48}),
+]
+
+
+def _window_cost(model, record, method: str, options: dict, repeats: int) -> list[float]:
+    """Median cost of one re-identification (solve_window: us per window and per sample of
+    the record, re-identifying every `every` samples) and of building the identifier from
+    scratch (ms: quadrature, basis and operational matrices)."""
+    def build() -> None:
+        projection_matrix.cache_clear()
+        BufferedIdentifier(model, record.dt, method, **options)
+    setup = _median_time(build, repeats)
+    ident = BufferedIdentifier(model, record.dt, method, **options)
+    G = ident.regression.evaluate(record.x, record.f, record.t, velocity_signs(record.x))
+    N = ident.n_intervals
+    windows = [G[end - N: end + 1] for end in range(N, record.n_samples, max(N // 4, 1))]
+
+    def run() -> None:
+        for w in windows:
+            ident.solve_window(w)
+    per_window = _median_time(run, repeats) / len(windows)
+    return [1e6 * per_window, 1e6 * per_window / ident.every, 1e3 * setup]
+
+
+def buffered(seeds: int, repeats: int) -> None:
+    plant = Duffing1()
+    truth = plant.parameters
+    record_a = measure(simulate(plant, Step(14.0), 0.25, 1e-3))
+    print("\n5. Buffered identification with orthogonal functions (section 4, Figure 15)")
+    print("5a. Case A (one 0.25 s window, encoder-quantised): |error| [%]; cost per window, per sample "
+          "(re-identifying every window) and to set up")
+    cost_names = ["us/window", "us/sample", "setup ms"]
+    print(_row("", list(NAMES1) + cost_names, width=10))
+    for method in ("paper", "robust"):
+        err = identify(record_a, plant, method).errors(truth)
+        print(_row(f"  online {method}", [abs(err[p]) for p in NAMES1]))
+    for label, method, options in BUFFERED_A:
+        err = identify(record_a, plant, method, **options).errors(truth)
+        costs = _window_cost(plant, record_a, method, options, repeats)
+        print(_row(f"  {label}", [abs(err[p]) for p in NAMES1] + costs))
+    exact = simulate(plant, Step(10.0), 2.0, 1e-3)
+    records = [measure(exact, snr_db=40, seed=s) for s in range(seeds)]
+    print(f"5b. Case B (0.5 s windows, quantised + 40 dB noise): median |error| [%] over {seeds} seeds")
+    print(_row("", list(NAMES1) + cost_names, width=10))
+    for method in ("paper", "robust"):
+        errors = [[abs(v) for v in identify(r, plant, method).errors(truth).values()]
+                  for r in tqdm(records, desc=method, leave=False)]
+        print(_row(f"  online {method}", np.median(errors, axis=0)))
+    for label, method, options in BUFFERED_B:
+        errors = [[abs(v) for v in identify(r, plant, method, **options).errors(truth).values()]
+                  for r in tqdm(records, desc=label, leave=False)]
+        costs = _window_cost(plant, records[0], method, options, repeats)
+        print(_row(f"  {label}", list(np.median(errors, axis=0)) + costs))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=50, help="noise seeds of case B (default 50)")
@@ -135,6 +211,7 @@ def main() -> None:
     case_b(args.seeds)
     two_dof()
     cost(args.repeats)
+    buffered(args.seeds, args.repeats)
 
 
 if __name__ == "__main__":

@@ -85,3 +85,27 @@ def test_demo_json(capsys, tmp_path):
     assert np.isfinite(data["duffing1"]["robust"]["parameters"]["kp"])
     assert (tmp_path / "duffing1_robust_estimates.png").exists()
     assert (tmp_path / "duffing2_robust_theta2.png").exists()
+
+
+def test_identify_buffered_method(capsys, tmp_path, request):
+    csv = tmp_path / "b.csv"
+    request.getfixturevalue("case_b_exact").to_csv(csv)
+    code, out, _ = _run(capsys, "identify", str(csv), "--method", "legendre", "--window", "0.5",
+                        "--terms", "48", "--accumulate", "--json")
+    data = json.loads(out)
+    assert code == 0 and data["method"] == "legendre"
+    for name, value in Duffing1().parameters.items():
+        assert data["parameters"][name] == pytest.approx(value, rel=1e-3)
+    code, _, err = _run(capsys, "identify", str(csv), "--method", "legendre", "--window", "auto")
+    assert code == 2 and "--window auto" in err
+
+
+def test_identify_equation_json(capsys, case_a_csv):
+    code, out, _ = _run(capsys, "identify", str(case_a_csv), "--equation",
+                        "mass*der(x,2) + c*der(x) + k*x + k3*x^3 = f", "--json")
+    data = json.loads(out)
+    assert code == 0 and data["model"] == "equation"
+    assert set(data["parameters"]) == {"mass", "c", "k", "k3"}
+    assert data["parameters"]["mass"] == pytest.approx(2.53, rel=2e-3)
+    code, _, err = _run(capsys, "identify", str(case_a_csv), "--equation", "m*der(x)*der(x) + k*x = f")
+    assert code == 2 and "der(x)" in err

@@ -156,8 +156,10 @@ def test_record_model_mismatch_is_reported(case_a):
 def test_bad_options_and_samples_are_rejected():
     with pytest.raises(TypeError, match="no option"):
         OnlineIdentifier(Duffing1(), 1e-3, windw=0.1)
-    with pytest.raises(ValueError, match="unknown method"):
+    with pytest.raises(ValueError, match="unknown online method 'fast'"):
         OnlineIdentifier(Duffing1(), 1e-3, method="fast")
+    with pytest.raises(ValueError, match="buffered bases run through identify"):
+        OnlineIdentifier(Duffing1(), 1e-3, method="legendre")
     with pytest.raises(ValueError, match="window"):
         OnlineIdentifier(Duffing1(), 1e-3, window=-1.0)
     ident = OnlineIdentifier(Duffing1(), 1e-3)

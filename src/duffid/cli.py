@@ -5,12 +5,12 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
 from . import silverbox
-from .identification import identify
+from .identification import METHODS, identify
 from .models import model_from_name
 from .record import Record, RecordError
 from .signals import from_spec
@@ -57,9 +57,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("identify", help="identify a model's parameters from a CSV or .mat record")
     p.add_argument("file", type=Path, help="record: CSV (t, f, x or t, f1.., x1..) or .mat")
     _add_model_arguments(p)
-    p.add_argument("--method", choices=("robust", "paper"), default="robust")
+    p.add_argument("--method", choices=METHODS, default=None,
+                   help="robust (default), paper, or a buffered basis; with --equation: paper (default) or a basis")
+    p.add_argument("--equation", default=None, metavar="TEXT",
+                   help='model equation, e.g. "m*der(x,2) + b*der(x) + k*x + kp*x^3 = f": names that are '
+                        "columns of the file are signals, all other names unknown parameters")
     g = p.add_argument_group("robust method options")
-    g.add_argument("--window", type=_window, default="auto", help="window length in s, or auto (default)")
+    g.add_argument("--window", type=_window, default=None,
+                   help="window length in s (robust: or auto, the default; buffered: default 0.25)")
     g.add_argument("--window-periods", type=_positive_float, default=None,
                    help="auto window length in natural periods (default 1.5)")
     g.add_argument("--max-window", type=_positive_float, default=None, help="longest window in s (default 1)")
@@ -70,8 +75,17 @@ def build_parser() -> argparse.ArgumentParser:
                    help="largest relative standard error of a published parameter (default 0.01)")
     g = p.add_argument_group("paper method options")
     g.add_argument("--gamma", type=float, default=None, help="filter gain of eq. (19) (default 20)")
-    g.add_argument("--quadrature", choices=("adams3", "trapezoid"), default=None)
+    g.add_argument("--quadrature", choices=("adams3", "trapezoid", "gauss", "simpson"), default=None,
+                   help="paper: adams3 (default) or trapezoid; buffered coefficients: gauss (default), "
+                        "simpson or trapezoid")
     g.add_argument("--sign-in-numerator", action="store_true", help="NOTES.md's fix of eq. (19)'s sign flips")
+    g = p.add_argument_group("buffered methods (legendre, chebyshev, block-pulse, haar)")
+    g.add_argument("--terms", type=int, default=None, help="basis functions per window")
+    g.add_argument("--every", type=int, default=None, help="samples between re-identifications (default: a window)")
+    g.add_argument("--form", choices=("per-dof", "matrix"), default=None, help="per-DOF or matrix form (eqs. 36-37)")
+    g.add_argument("--repeated", choices=("power", "exact"), default=None,
+                   help="repeated integration: powers of P (paper) or the exact matrix")
+    g.add_argument("--accumulate", action="store_true", help="least squares over all windows so far")
     g = p.add_argument_group(".mat files")
     g.add_argument("--x-var", default="x", help="displacement variable name(s), comma separated")
     g.add_argument("--f-var", default="f", help="force variable name(s), comma separated")
@@ -129,25 +143,46 @@ def _read_record(args: argparse.Namespace, path: Path | None = None) -> Record:
     return Record.read_csv(path)
 
 
+_OPTION_NAMES = {
+    "robust": ("window", "window_periods", "max_window", "forgetting", "rows", "n_rows", "max_uncertainty",
+               "deadband"),
+    "paper": ("gamma", "quadrature", "deadband"),
+}
+_BUFFERED_NAMES = {"window": "window", "terms": "n_terms", "every": "every", "quadrature": "quadrature",
+                   "form": "form", "repeated": "repeated", "max_uncertainty": "max_uncertainty", "deadband": "deadband"}
+
+
+def _method_options(args: argparse.Namespace, method: str) -> dict[str, Any]:
+    """The options given on the command line that ``method`` takes."""
+    if method in _OPTION_NAMES:
+        options = {k: getattr(args, k) for k in _OPTION_NAMES[method] if getattr(args, k) is not None}
+        if method == "paper" and args.sign_in_numerator:
+            options["sign_in_numerator"] = True
+        return options
+    options = {option: getattr(args, arg) for arg, option in _BUFFERED_NAMES.items() if getattr(args, arg) is not None}
+    if options.get("window") == "auto":
+        raise ValueError("--window auto applies to the robust method; give the buffered window in seconds")
+    if args.accumulate:
+        options["accumulate"] = True
+    return options
+
+
 def _identify(args: argparse.Namespace) -> int:
     record = _read_record(args)
-    model = _model(args, record.n_dof)
-    if args.method == "robust":
-        names = ("window", "window_periods", "max_window", "forgetting", "rows", "n_rows",
-                 "max_uncertainty", "deadband")
+    method = args.method or ("paper" if args.equation else "robust")
+    options = _method_options(args, method)
+    if args.equation is not None:
+        from .symbolic import identify_equation
+        result = identify_equation(record, args.equation, method, **options)
     else:
-        names = ("gamma", "quadrature", "deadband")
-    options = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
-    if args.method == "paper" and args.sign_in_numerator:
-        options["sign_in_numerator"] = True
-    result = identify(record, model, args.method, **options)
+        result = identify(record, _model(args, record.n_dof), method, **options)
     if args.plot is not None:
         from .plots import plot_estimates
         plot_estimates(result, args.plot)
     if args.json:
         print(result.to_json())
         return 0
-    print(f"{record.source}: {record.n_samples} samples, dt {record.dt:g} s, model {model.name}, method {args.method}")
+    print(f"{record.source}: {record.n_samples} samples, dt {record.dt:g} s, model {result.model}, method {method}")
     for name, value in result.parameters.items():
         print(f"  {name:>8} = {value:.6g}")
     when = "never (estimates not trustworthy)" if result.t_identified is None else f"at {result.t_identified:.4g} s"

@@ -33,9 +33,12 @@ from .models import Chain, Channel, Equation
 from .record import Record, RecordError
 from .regressors import KernelBank, SlidingMoments, row_exponents
 
-__all__ = ["OnlineIdentifier", "identify", "Identification", "Estimate", "METHODS"]
+__all__ = ["OnlineIdentifier", "identify", "Identification", "Estimate", "METHODS", "ONLINE_METHODS"]
 
-METHODS = ("robust", "paper")
+#: Online methods (OnlineIdentifier) and the buffered orthogonal-function methods of
+#: section 4 (duffid.buffered); identify() accepts all of them.
+ONLINE_METHODS = ("robust", "paper")
+METHODS = ONLINE_METHODS + ("legendre", "chebyshev", "block-pulse", "haar")
 
 _ROBUST_DEFAULTS: dict[str, Any] = {
     "window": "auto",         # seconds, or "auto": window_periods x the identified natural period
@@ -62,8 +65,10 @@ _MIN_SAMPLES = 8
 
 
 def _options(method: str, options: Mapping[str, Any]) -> dict[str, Any]:
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+    if method not in ONLINE_METHODS:
+        hint = " (the buffered bases run through identify() or duffid.buffered.BufferedIdentifier)" \
+            if method in METHODS else ""
+        raise ValueError(f"unknown online method {method!r}; choose one of {', '.join(ONLINE_METHODS)}{hint}")
     defaults = _ROBUST_DEFAULTS if method == "robust" else _PAPER_DEFAULTS
     unknown = set(options) - set(defaults)
     if unknown:
@@ -707,9 +712,11 @@ def _check_record(record: Record, model: Chain, dt: float | None = None) -> None
 def identify(record: Record, model: Chain, method: str = "robust", **options: Any) -> Identification:
     """Identify ``model``'s parameters from a record.
 
-    The record is fed sample by sample through :class:`OnlineIdentifier` (the same
-    O(1) update as online use), so the estimate history is exactly what an online
-    identifier would have reported at each sample.
+    The online methods feed the record sample by sample through
+    :class:`OnlineIdentifier` (the same O(1) update as online use), so the estimate
+    history is exactly what an online identifier would have reported at each sample.
+    The buffered methods (paper section 4, :mod:`duffid.buffered`) re-identify every
+    ``every`` samples over the last window with an orthogonal basis.
 
     Parameters
     ----------
@@ -717,14 +724,23 @@ def identify(record: Record, model: Chain, method: str = "robust", **options: An
         Forces and displacements, evenly sampled.
     model : Chain
         Model structure.
-    method : {"robust", "paper"}
-        Estimator.
+    method : {"robust", "paper", "legendre", "chebyshev", "block-pulse", "haar"}
+        Estimator: online (``robust``, ``paper``) or buffered with the named basis.
     **options
-        Method options, see :class:`OnlineIdentifier`.
+        Method options, see :class:`OnlineIdentifier` (online methods) and
+        :class:`~duffid.buffered.BufferedIdentifier` (``window``, ``n_terms``, ``every``,
+        ``quadrature``, ``form``, ``repeated``, ``accumulate``, ``max_condition``,
+        ``max_uncertainty``, ``deadband``).
 
     Returns
     -------
     Identification
+        For the buffered methods a :class:`~duffid.buffered.BufferedIdentification`.
     """
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     _check_record(record, model)
-    return OnlineIdentifier(model, record.dt, method, **options).identify_record(record)
+    if method in ONLINE_METHODS:
+        return OnlineIdentifier(model, record.dt, method, **options).identify_record(record)
+    from .buffered import identify_buffered  # buffered builds on this module
+    return identify_buffered(record, model, method, **options)

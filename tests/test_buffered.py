@@ -1,0 +1,140 @@
+"""Buffered identification with orthogonal functions (paper section 4)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from duffid import Duffing1, Duffing2, Record, RecordError, identify, measure
+from duffid.buffered import (BufferedIdentification, BufferedIdentifier, identify_buffered,
+                             regression_from_model, velocity_signs)
+from duffid.identification import _Channels
+from duffid.models import Channel
+
+
+def _max_error(result, truth):
+    return max(abs(v) for v in result.errors(truth).values())
+
+
+@pytest.mark.parametrize("method, options, tol", [
+    ("legendre", {}, 0.002),
+    ("chebyshev", {}, 0.005),
+    ("block-pulse", {}, 1.0),                      # P^2 of block pulses: O(1/r^2)
+    ("haar", {"repeated": "exact"}, 0.3),          # exact repeated integration: 4-5x better
+])
+def test_noise_free_case_a(case_a_exact, method, options, tol):
+    result = identify(case_a_exact, Duffing1(), method, **options)
+    assert isinstance(result, BufferedIdentification)
+    assert _max_error(result, Duffing1().parameters) < tol  # percent
+
+
+def test_quantised_case_a_legendre(case_a):
+    errors = identify(case_a, Duffing1(), "legendre").errors(Duffing1().parameters)
+    assert all(abs(e) < 0.2 for e in errors.values())
+
+
+def test_trapezoid_coefficients_ruin_the_estimate(case_a_exact):
+    good = identify(case_a_exact, Duffing1(), "legendre", n_terms=64)
+    bad = identify(case_a_exact, Duffing1(), "legendre", n_terms=64, quadrature="trapezoid")
+    truth = Duffing1().parameters
+    assert _max_error(good, truth) < 0.01 < 10.0 < _max_error(bad, truth)
+
+
+def test_block_pulse_and_haar_span_the_same_space(case_a):
+    bp = identify(case_a, Duffing1(), "block-pulse", n_terms=64)
+    haar = identify(case_a, Duffing1(), "haar", n_terms=64)
+    for name, value in bp.parameters.items():
+        assert haar.parameters[name] == pytest.approx(value, rel=1e-9)
+
+
+def test_online_update_equals_identify_and_history_is_buffered(case_b_exact):
+    record = measure(case_b_exact, snr_db=40, seed=3).slice(0.0, 0.6)
+    options = dict(window=0.2, every=50, accumulate=True)
+    result = identify(record, Duffing1(), "chebyshev", **options)
+    ident = BufferedIdentifier(Duffing1(), record.dt, "chebyshev", **options)
+    estimates = [ident.update(x, f) for x, f in zip(record.x, record.f)]
+    assert estimates[-1].parameters == pytest.approx(result.parameters, rel=1e-12)
+    m = result.history["m"]
+    assert np.all(np.isnan(m[:200])) and np.all(np.isfinite(m[200:]))
+    assert np.allclose(np.diff(result.t_windows), 0.05) and result.t_windows[0] == pytest.approx(0.2)
+    assert np.all(m[200:250] == m[200]) and m[250] != m[200]  # held between re-identifications
+    assert np.all(np.isinf(result.condition[:200])) and np.all(result.condition[200:] < 1e6)
+    assert result.t_identified in result.t_windows  # flagged at a re-identification
+
+
+def test_accumulating_windows_beats_the_last_window_on_a_decaying_record(case_b_exact):
+    truth = Duffing1().parameters
+    record = measure(case_b_exact, snr_db=40, seed=0)
+    last = identify(record, Duffing1(), "legendre", window=0.5)
+    stacked = identify(record, Duffing1(), "legendre", window=0.5, accumulate=True)
+    assert _max_error(stacked, truth) < 3.0 < _max_error(last, truth)
+    # the last window's estimate is published but not flagged: its uncertainty is large
+    assert last.t_identified == pytest.approx(0.5) and not last.identified[-1]
+    assert stacked.identified[-1]
+
+
+def test_matrix_form_of_the_two_dof_chain(two_dof_exact):
+    truth = Duffing2().parameters
+    per_dof = identify(two_dof_exact, Duffing2(), "legendre", window=0.5)
+    matrix = identify(two_dof_exact, Duffing2(), "legendre", window=0.5, form="matrix")
+    assert _max_error(per_dof, truth) < 0.05 and _max_error(matrix, truth) < 0.05
+    M, B, K, Kp = (matrix.matrices[k] for k in ("M", "B", "K", "Kp"))
+    t = truth
+    np.testing.assert_allclose(M, [[t["m1"], 0], [0, 1]], rtol=1e-5)
+    np.testing.assert_allclose(B, [[t["b1"] + t["b2"], -t["b2"]], [-t["b2"] / t["m2"], t["b2"] / t["m2"]]],
+                               rtol=1e-4)
+    np.testing.assert_allclose(K, [[t["k1"] + t["k2"], -t["k2"]], [-t["k2"] / t["m2"], t["k2"] / t["m2"]]],
+                               rtol=1e-5)
+    np.testing.assert_allclose(Kp, [[t["kp1"], -t["kp2"]], [0, t["kp2"] / t["m2"]]], rtol=2e-3)
+    data = json.loads(matrix.to_json())
+    assert data["matrices"]["Kp"][1][0] == 0.0 and data["method"] == "legendre"
+    assert set(data) == set(per_dof.to_dict()) | {"matrices"}
+
+
+def test_velocity_signs_follow_the_online_rule():
+    x = np.array([[0.0], [0.1], [0.1], [0.05], [0.05 + 1e-9], [0.2]])
+    online = _Channels((Channel("sign_velocity", 0),), deadband=1e-6)
+    expected = [online.evaluate(xi, np.zeros(1))[0] for xi in x]
+    np.testing.assert_array_equal(velocity_signs(x, 1e-6)[:, 0], expected)
+
+
+def test_regression_of_the_per_dof_form_lists_the_model_equations():
+    reg = regression_from_model(Duffing2())
+    assert reg.unknowns == tuple(eq.unknowns for eq in Duffing2().equations())
+    assert reg.max_order == 2 and not reg.joint
+
+
+def test_options_and_inputs_are_checked(case_a):
+    with pytest.raises(TypeError, match="no option.*windw"):
+        identify(case_a, Duffing1(), "legendre", windw=0.1)
+    with pytest.raises(ValueError, match="unknown method"):
+        identify(case_a, Duffing1(), "fourier")
+    with pytest.raises(ValueError, match="window"):
+        identify(case_a, Duffing1(), "legendre", window=-1.0)
+    with pytest.raises(ValueError, match="n_terms"):
+        identify(case_a, Duffing1(), "legendre", window=0.01, n_terms=24)
+    with pytest.raises(ValueError, match="power of two"):
+        identify(case_a, Duffing1(), "haar", n_terms=100)
+    with pytest.raises(ValueError, match="every"):
+        identify(case_a, Duffing1(), "legendre", every=0)
+    with pytest.raises(ValueError, match="form"):
+        identify(case_a, Duffing1(), "legendre", form="full")
+    with pytest.raises(RecordError, match="fewer than one window"):
+        identify(case_a, Duffing1(), "legendre", window=0.3)
+    with pytest.raises(RecordError, match="displacement"):
+        identify(case_a, Duffing2(), "legendre")
+    ident = BufferedIdentifier(Duffing1(), 1e-3, "legendre")
+    with pytest.raises(ValueError, match="not finite"):
+        ident.update(np.nan, 1.0)
+    other = Record(t=case_a.t * 2, f=case_a.f, x=case_a.x)
+    with pytest.raises(RecordError, match="expects"):
+        ident.identify_record(other)
+    with pytest.raises(ValueError, match="matrix"):
+        BufferedIdentifier(regression_from_model(Duffing1()), 1e-3, form="matrix")
+
+
+def test_identify_buffered_accepts_a_regression(case_a_exact):
+    direct = identify_buffered(case_a_exact, regression_from_model(Duffing1()))
+    via_model = identify(case_a_exact, Duffing1(), "legendre")
+    assert direct.parameters == pytest.approx(via_model.parameters, rel=1e-14)
