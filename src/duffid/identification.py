@@ -488,21 +488,7 @@ class OnlineIdentifier:
             n_rows = len(st.equation.unknowns)
             y = integ.push(u)
             A, D = st.assembly(self._paper_rows(y, n_rows))
-            delta = np.linalg.det(A)
-            deltas = np.empty(n_rows)
-            for i in range(n_rows):
-                Ai = A.copy()
-                Ai[:, i] = D
-                deltas[i] = np.linalg.det(Ai)
-            fixed_sign = self.options["sign_in_numerator"]
-            num = deltas * np.sign(delta) if fixed_sign else np.abs(deltas)
-            weight = np.exp(-gamma * tau)
-            z = det_integ.push(np.concatenate([weight * num, [weight * abs(delta)]]))[2]
-            if z[n_rows] > 0:  # eq. (19): filtered |Delta_i| / |Delta|, signs of the current sample
-                ratio = z[:n_rows] / z[n_rows]
-                st.theta = ratio if fixed_sign else np.sign(deltas) * np.sign(delta) * ratio
-            else:
-                st.theta = np.full(n_rows, np.nan)
+            st.theta = filtered_cramer(A, D, det_integ, gamma, tau, self.options["sign_in_numerator"])
             st.cond = _equilibrated_condition(A)
         return self.n
 
@@ -515,6 +501,31 @@ class OnlineIdentifier:
         for xi, fi in zip(record.x, record.f):
             history.append(self.update(xi, fi))
         return Identification.from_estimates(self, record, history)
+
+
+def filtered_cramer(A: np.ndarray, D: np.ndarray, filters: _Integrators, gamma: float, tau: float,
+                    sign_in_numerator: bool) -> np.ndarray:
+    """Eq. (19) for one sample: Cramer determinants of ``A theta = D``, then the ratio of
+    the doubly integrated, exponentially weighted ``|Delta_i|`` and ``|Delta|`` (with the
+    signs of the current sample), or, with ``sign_in_numerator``, of ``Delta_i sgn(Delta)``.
+
+    ``filters`` integrates the ``len(D) + 1`` weighted determinants twice; NaN until the
+    filtered ``|Delta|`` is positive.
+    """
+    m = len(D)
+    delta = np.linalg.det(A)
+    deltas = np.empty(m)
+    for i in range(m):
+        Ai = A.copy()
+        Ai[:, i] = D
+        deltas[i] = np.linalg.det(Ai)
+    num = deltas * np.sign(delta) if sign_in_numerator else np.abs(deltas)
+    weight = np.exp(-gamma * tau)
+    z = filters.push(np.concatenate([weight * num, [weight * abs(delta)]]))[2]
+    if z[m] > 0:
+        ratio = z[:m] / z[m]
+        return ratio if sign_in_numerator else np.sign(deltas) * np.sign(delta) * ratio
+    return np.full(m, np.nan)
 
 
 def _equilibrated_condition(A: np.ndarray) -> float:

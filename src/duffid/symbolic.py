@@ -46,7 +46,7 @@ import casadi as ca
 import numpy as np
 
 from .buffered import LinearTerm, Regression, identify_buffered, velocity_signs
-from .identification import Identification, _equilibrated_condition, _Integrators
+from .identification import Identification, _equilibrated_condition, _Integrators, filtered_cramer
 from .orthogonal import BASES
 from .record import Record
 
@@ -962,7 +962,7 @@ def _identify_paper(record: Record, reg: DerivedRegressor, options: Mapping[str,
         values: dict[str, float] = {}
         cond = 0.0
         for (A, D), filt, unknowns in zip(reg.rows(Y), filters, reg.unknowns):
-            theta = _filtered_cramer(A, D, filt, o["gamma"], tau[i], o["sign_in_numerator"])
+            theta = filtered_cramer(A, D, filt, o["gamma"], tau[i], o["sign_in_numerator"])
             values.update(zip(unknowns, theta))
             cond = max(cond, _equilibrated_condition(A))
         for k in names:
@@ -978,20 +978,3 @@ def _identify_paper(record: Record, reg: DerivedRegressor, options: Mapping[str,
         options={**o, "equation": "; ".join(reg.equations)}, source=record.source)
 
 
-def _filtered_cramer(A: np.ndarray, D: np.ndarray, filt: _Integrators, gamma: float, tau: float,
-                     sign_in_numerator: bool) -> np.ndarray:
-    """Eq. (19): doubly integrated, exponentially weighted |Delta_i| / |Delta| (as identify's paper method)."""
-    m = len(D)
-    delta = np.linalg.det(A)
-    deltas = np.empty(m)
-    for i in range(m):
-        Ai = A.copy()
-        Ai[:, i] = D
-        deltas[i] = np.linalg.det(Ai)
-    num = deltas * np.sign(delta) if sign_in_numerator else np.abs(deltas)
-    weight = np.exp(-gamma * tau)
-    z = filt.push(np.concatenate([weight * num, [weight * abs(delta)]]))[2]
-    if z[m] > 0:
-        ratio = z[:m] / z[m]
-        return ratio if sign_in_numerator else np.sign(deltas) * np.sign(delta) * ratio
-    return np.full(m, np.nan)
