@@ -1,4 +1,4 @@
-"""Command-line interface ``duffid`` (argparse: identify, simulate, nonlinearity, silverbox, demo)."""
+"""Command-line interface ``duffid`` (argparse: identify, simulate, nonlinearity, silverbox, build-fmus, demo)."""
 from __future__ import annotations
 
 import argparse
@@ -9,7 +9,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from . import silverbox
+from . import modelica, silverbox
 from .identification import METHODS, identify
 from .models import model_from_name
 from .record import Record, RecordError
@@ -126,6 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fs", type=_positive_float, default=None, help=".mat: sampling frequency [Hz]")
 
     silverbox.add_cli(sub)
+    modelica.add_cli(sub)
 
     p = sub.add_parser("demo", help="the main job: identify the paper's 1-DOF and 2-DOF cases")
     p.add_argument("--out", type=Path, default=Path("out"), help="output folder (default out/)")
@@ -262,7 +263,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``duffid`` command; returns the exit status."""
     args = build_parser().parse_args(argv)
     handlers = {"identify": _identify, "simulate": _simulate, "nonlinearity": _nonlinearity,
-                "silverbox": silverbox.run_cli, "demo": _demo}
+                "silverbox": silverbox.run_cli, "build-fmus": modelica.run_cli, "demo": _demo}
     try:
         return handlers[args.command](args)
     except (RecordError, ValueError, TypeError, SimulationError) as exc:

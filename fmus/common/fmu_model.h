@@ -1,0 +1,81 @@
+/* What a model provides to the shared FMI glue (fmus/common).
+ *
+ * A model has n_vars Float64 variables with value references 0 .. n_vars-1, stored in
+ * Instance.vars. The glue handles the FMI state machine, argument checks, logging,
+ * FMU state snapshots and (for co-simulation) the integration of the ODE
+ *     der(x) = f(t, x, inputs, parameters)
+ * with an adaptive Dormand-Prince 5(4) method. A model supplies only its variable
+ * table and one function that computes every dependent variable (derivatives, outputs,
+ * locals, calculated parameters) from time, states, inputs and parameters.
+ *
+ * A discrete-time model (an estimator, say) sets do_step instead of relying on the ODE
+ * integrator; it may have no continuous states.
+ */
+#ifndef DUFFID_FMU_MODEL_H
+#define DUFFID_FMU_MODEL_H
+
+#include <stddef.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Causality of a variable (FMI 2 and FMI 3 meaning). */
+enum {
+    CAUSALITY_PARAMETER = 0,
+    CAUSALITY_CALCULATED_PARAMETER = 1,
+    CAUSALITY_INPUT = 2,
+    CAUSALITY_OUTPUT = 3,
+    CAUSALITY_LOCAL = 4,
+    CAUSALITY_INDEPENDENT = 5
+};
+
+/* Variability of a variable. */
+enum {
+    VARIABILITY_CONSTANT = 0,
+    VARIABILITY_FIXED = 1,
+    VARIABILITY_TUNABLE = 2,
+    VARIABILITY_DISCRETE = 3,
+    VARIABILITY_CONTINUOUS = 4
+};
+
+struct Instance;
+
+/* Compute all dependent variables of inst->vars at inst->time; 0 on success. */
+typedef int (*ModelEvaluate)(struct Instance *inst);
+
+/* Advance a discrete-time model from inst->time to t + h (inputs held); 0 on success. */
+typedef int (*ModelDoStep)(struct Instance *inst, double t, double h);
+
+typedef struct ModelInfo {
+    const char *model_identifier;
+    const char *instantiation_token;   /* guid (FMI 2) / instantiationToken (FMI 3) */
+    size_t n_vars;                     /* Float64 variables, value references 0..n_vars-1 */
+    const char *const *names;          /* variable names, for messages */
+    const double *start;               /* start values (NaN: none) */
+    const unsigned char *causality;    /* CAUSALITY_* */
+    const unsigned char *variability;  /* VARIABILITY_* */
+    const unsigned char *settable_start; /* 1: start value may be set before initialisation */
+    size_t n_states;
+    const unsigned *state_vr;          /* value references of the continuous states */
+    const unsigned *derivative_vr;     /* value references of their derivatives */
+    size_t n_work;                     /* doubles of scratch memory (Instance.work) */
+    size_t n_iwork;                    /* long long of scratch memory (Instance.iwork) */
+    ModelEvaluate evaluate;            /* required */
+    ModelDoStep do_step;               /* NULL: integrate the ODE */
+    double default_tolerance;          /* co-simulation tolerance without SetupExperiment */
+    unsigned interfaces;               /* INTERFACE_* bits declared in modelDescription.xml */
+} ModelInfo;
+
+/* Interfaces of ModelInfo.interfaces. */
+#define INTERFACE_MODEL_EXCHANGE 1u
+#define INTERFACE_CO_SIMULATION 2u
+
+/* The model compiled into this FMU (defined by the model's own source file). */
+extern const ModelInfo fmu_model_info;
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif
