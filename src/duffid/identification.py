@@ -33,7 +33,8 @@ from .models import Chain, Channel, Equation
 from .record import Record, RecordError
 from .regressors import KernelBank, SlidingMoments, row_exponents
 
-__all__ = ["OnlineIdentifier", "identify", "Identification", "Estimate", "METHODS", "ONLINE_METHODS"]
+__all__ = ["OnlineIdentifier", "identify", "Identification", "Estimate", "METHODS", "ONLINE_METHODS",
+           "default_options", "check_options", "filtered_cramer", "combine_equations", "auto_window"]
 
 #: Online methods (OnlineIdentifier) and the buffered orthogonal-function methods of
 #: section 4 (duffid.buffered); identify() accepts all of them.
@@ -64,7 +65,21 @@ _PAPER_DEFAULTS: dict[str, Any] = {
 _MIN_SAMPLES = 8
 
 
-def _options(method: str, options: Mapping[str, Any]) -> dict[str, Any]:
+def default_options(method: str) -> dict[str, Any]:
+    """A copy of the default options of the online ``method`` ("robust" or "paper")."""
+    return dict(check_options(method, {}))
+
+
+def check_options(method: str, options: Mapping[str, Any]) -> dict[str, Any]:
+    """Validate ``options`` of the online ``method`` and merge them with its defaults.
+
+    Raises
+    ------
+    ValueError
+        Unknown method, or an option value out of range (the message names it).
+    TypeError
+        An option the method does not have (the message lists those it has).
+    """
     if method not in ONLINE_METHODS:
         hint = " (the buffered bases run through identify() or duffid.buffered.BufferedIdentifier)" \
             if method in METHODS else ""
@@ -307,7 +322,7 @@ class OnlineIdentifier:
         self.model = model
         self.dt = float(dt)
         self.method = method
-        self.options = _options(method, options)
+        self.options = check_options(method, options)
         self.equations = model.equations()
         self._nominal = {k: abs(v) for k, v in model.canonical_parameters().items()}
         channels: dict[Channel, None] = {}

@@ -46,7 +46,7 @@ import casadi as ca
 import numpy as np
 
 from .buffered import LinearTerm, Regression, identify_buffered, velocity_signs
-from .identification import Identification, _equilibrated_condition, _Integrators, filtered_cramer
+from .identification import Identification, _equilibrated_condition, _Integrators, default_options, filtered_cramer
 from .orthogonal import BASES
 from .record import Record
 
@@ -860,14 +860,7 @@ def _build(texts, parameters, unknowns, terms, order, rows, ctx: _Context) -> De
 
 
 # ---------------------------------------------------------------------- identification
-_PAPER_DEFAULTS: dict[str, Any] = {
-    "gamma": 20.0,
-    "quadrature": "adams3",
-    "sign_in_numerator": False,
-    "max_condition": 1e6,
-    "min_time": 0.01,
-    "deadband": 0.0,
-}
+_PAPER_DEFAULTS: dict[str, Any] = default_options("paper")  # the same options as identify()'s
 
 
 def identify_equation(record: Record, equation: str | Sequence[str], method: str = "paper",

@@ -1,0 +1,1472 @@
+/*
+ * duffid_estimator.c - portable C99 port of duffid.identification.OnlineIdentifier.
+ *
+ * Section names follow the Python modules:
+ *   channels        models.Channel / identification._Channels
+ *   kernel bank     regressors.row_exponents, regressors.KernelBank
+ *   moments         regressors.SlidingMoments, regressors.gregory_corrections
+ *   robust solve    identification._QRLeastSquares, _solve_factor
+ *   paper method    identification._Integrators, OnlineIdentifier._paper_step
+ *   combination     identification.combine_equations, auto_window
+ *   publication     OnlineIdentifier._publish, _window_ok, _after_publish
+ *
+ * The order of floating-point operations follows the Python code wherever it is defined
+ * by the source (not by BLAS/LAPACK), so that both round alike.
+ */
+#include "duffid_estimator.h"
+#include "duffid_linalg.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#ifndef DUFFID_NO_STDIO
+#include <stdio.h>
+#endif
+#include <stdlib.h>
+#include <string.h>
+
+/* ------------------------------------------------------------------ maxima */
+#define MAX_CH 8                     /* distinct channels (Duffing2 + offset) */
+#define MAX_UNK 8                    /* unknowns per equation */
+#define MAX_AUG (MAX_UNK + 1)        /* augmented factor [A D] */
+#define MAX_EQ DUFFID_MAX_DOF
+#define MAX_ORDER 2                  /* derivative orders 0..2 */
+#define N_ORD (MAX_ORDER + 1)
+#define MAX_DEG (DUFFID_MAX_ROWS + 4) /* highest moment power */
+#define MAX_POW (MAX_DEG + 1)
+#define MAX_CORR 6                   /* quadrature end corrections */
+#define MIN_SAMPLES 8                /* identification._MIN_SAMPLES */
+#define MAX_CAPACITY 100000000L      /* longest robust window in samples */
+
+#define DNAN ((double)NAN)      /* NAN and INFINITY are float constants in C99 */
+#define DINF ((double)INFINITY)
+
+static const double PI = 3.141592653589793238462643383279502884;
+
+/* channel kinds */
+enum { CH_X = 0, CH_DEFL = 1, CH_FORCE = 2, CH_ONE = 3 };
+/* canonical parameter kinds, id = 4 * dof + kind for kind < 4; offsets 4 * n_dof + dof */
+enum { P_M = 0, P_B = 1, P_K1 = 2, P_K3 = 3 };
+
+typedef struct {
+    int kind, index, power;
+} channel_t;
+
+typedef struct {
+    int n_in, depth;   /* inputs and integrator depth (y has depth + 1 levels) */
+    double *y, *p1, *p2;
+    int count;         /* samples pushed, saturated at 2 */
+} integrators_t;
+
+typedef struct {
+    int dof, forced, n_unk;
+    int param[MAX_UNK];      /* canonical id of each unknown (column) */
+    int ch[MAX_UNK], order[MAX_UNK];
+    double sign[MAX_UNK];
+    int rhs_ch, rhs_order;
+    double rhs_sign;
+    /* state */
+    double theta[MAX_UNK], rse[MAX_UNK], cond;
+    double R[MAX_AUG * MAX_AUG]; /* robust: accumulated factor of [A D] */
+    double rows;
+    integrators_t reg, det;      /* paper */
+} equation_t;
+
+struct duffid_estimator {
+    duffid_config cfg;
+    int n_dof, n_forces, n_params, n_ch, n_eq;
+    channel_t ch[MAX_CH];
+    equation_t eq[MAX_EQ];
+    int canon_of_public[DUFFID_MAX_PARAMS];
+    double nominal[DUFFID_MAX_PARAMS];     /* canonical order, |value| */
+
+    /* common state */
+    int64_t n;                             /* index of the newest sample, -1 before any */
+    int window_fixed;
+    int64_t settled[DUFFID_MAX_PARAMS];    /* canonical order, saturated at settle_count */
+    double held[DUFFID_MAX_PARAMS];        /* public order */
+    int64_t settle_count;
+
+    /* robust */
+    long capacity, target;
+    int auto_window;
+    int n_rows, degree;
+    double lam, sqrt_lam;
+    int row_a[DUFFID_MAX_ROWS], row_b[DUFFID_MAX_ROWS], raw_b[DUFFID_MAX_ROWS];
+    double coef[DUFFID_MAX_ROWS * N_ORD * MAX_POW];
+    double expo[DUFFID_MAX_ROWS * N_ORD * MAX_POW];
+    double norm[DUFFID_MAX_ROWS], norm_power[DUFFID_MAX_ROWS];
+    double d_scale[N_ORD];
+    double t_ref;
+    double shift[MAX_POW * MAX_POW];
+    long poly_L;                            /* cache key of poly/row_scale (-1: empty) */
+    double poly[DUFFID_MAX_ROWS * N_ORD * MAX_POW];
+    double row_scale[DUFFID_MAX_ROWS];
+    double raw_pow[DUFFID_MAX_ROWS];
+    long corr_L;                            /* cache key of the corrections (-1: empty) */
+    int corr_n;
+    long corr_off[MAX_CORR];
+    double corr_w[MAX_CORR * MAX_POW];      /* [m][k] */
+    double *ring;                           /* (capacity + 2) x n_ch */
+    double main_acc[MAX_POW * MAX_CH], shadow[MAX_POW * MAX_CH], mom[MAX_POW * MAX_CH];
+    int64_t start, shadow_from;
+    double E[DUFFID_MAX_ROWS * N_ORD * MAX_CH];
+
+    /* workspace of one update (no allocation, no large stack frames) */
+    double g[MAX_CH];
+    double B[DUFFID_MAX_ROWS * MAX_AUG];
+    double W[MAX_AUG * MAX_AUG];
+    double U[MAX_UNK * MAX_UNK], V[MAX_UNK * MAX_UNK], Rinv[MAX_UNK * MAX_UNK];
+    double sv[MAX_UNK], scale[MAX_UNK], tmp[MAX_UNK * MAX_UNK];
+    double u_in[3 * MAX_CH];
+    double Ap[MAX_UNK * MAX_UNK], Dp[MAX_UNK], Aw[MAX_UNK * MAX_UNK];
+    double canon[DUFFID_MAX_PARAMS], canon_rse[DUFFID_MAX_PARAMS];
+
+    void *block; /* the malloc'ed block (duffid_create), NULL for caller memory */
+};
+
+/* ------------------------------------------------------------------ helpers */
+static void set_msg(char *msg, size_t size, const char *fmt, ...)
+{
+    va_list ap;
+    if (msg == NULL || size == 0) {
+        return;
+    }
+    va_start(ap, fmt);
+#ifdef DUFFID_NO_STDIO /* targets without vsnprintf: the message template only */
+    strncpy(msg, fmt, size - 1);
+    msg[size - 1] = '\0';
+#else
+    vsnprintf(msg, size, fmt, ap);
+#endif
+    va_end(ap);
+}
+
+static int is_finite(double v)
+{
+    return v == v && v - v == 0.0;
+}
+
+/* Python's round() of a float (half to even), as a double. */
+static double round_half_even(double v)
+{
+    double r = floor(v);
+    double diff = v - r;
+    if (diff > 0.5) {
+        r += 1.0;
+    } else if (diff == 0.5) {
+        if (fmod(r, 2.0) != 0.0) {
+            r += 1.0;
+        }
+    }
+    return r;
+}
+
+static double sign_of(double v) /* np.sign */
+{
+    if (v > 0.0) {
+        return 1.0;
+    }
+    if (v < 0.0) {
+        return -1.0;
+    }
+    return v; /* 0 or NaN */
+}
+
+static double max_builtin(double current, double candidate) /* Python max(current, candidate) */
+{
+    return candidate > current ? candidate : current;
+}
+
+static const char *const NAMES1[] = {"m", "b", "k", "kp", "c1"};
+static const char *const NAMES2[] = {"m1", "b1", "k1", "kp1", "b2", "k2", "kp2", "m2", "c1", "c2"};
+static const double NOMINAL1[] = {2.53, 12.47, 1272.1, -1.237e6, 0.0};
+static const double NOMINAL2[] = {2.53, 5.0, 1272.1, -1.237e6, 4.0, 1570.0, -1.350e6, 2.754, 0.0, 0.0};
+
+static int model_dofs(int model)
+{
+    return model == DUFFID_DUFFING1 ? 1 : (model == DUFFID_DUFFING2 ? 2 : 0);
+}
+
+static int public_count(int model, int offset)
+{
+    int n = model_dofs(model);
+    return 4 * n + (offset ? n : 0);
+}
+
+/* canonical id of public parameter i */
+static int public_to_canon(int model, int i)
+{
+    static const int map2[] = {0, 1, 2, 3, 5, 6, 7, 4, 8, 9};
+    return model == DUFFID_DUFFING1 ? i : map2[i];
+}
+
+/* ------------------------------------------------------------------ configuration */
+int duffid_default_config(duffid_config *cfg, int model, int method, double dt)
+{
+    int i;
+    if (cfg == NULL || model_dofs(model) == 0) {
+        return DUFFID_ERR_ARGUMENT;
+    }
+    memset(cfg, 0, sizeof *cfg);
+    cfg->model = model;
+    cfg->method = method;
+    cfg->offset = 0;
+    cfg->dt = dt;
+    for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
+        cfg->nominal[i] = model == DUFFID_DUFFING1 ? (i < 5 ? NOMINAL1[i] : 0.0) : NOMINAL2[i];
+    }
+    cfg->max_condition = 1e6;
+    cfg->min_time = 0.01;
+    cfg->deadband = 0.0;
+    cfg->window = 0.0;
+    cfg->window_periods = 1.5;
+    cfg->max_window = 1.0;
+    cfg->forgetting = 0.0;
+    cfg->rows = DUFFID_ROWS_INTEGRALS;
+    cfg->n_rows = 0;
+    cfg->max_uncertainty = 0.01;
+    cfg->settle = 0.01;
+    cfg->gamma = 20.0;
+    cfg->quadrature = DUFFID_ADAMS3;
+    cfg->sign_in_numerator = 0;
+    return DUFFID_OK;
+}
+
+static int check_nonneg(const char *name, double v, char *msg, size_t size)
+{
+    if (!(is_finite(v) && v >= 0.0)) {
+        set_msg(msg, size, "option %s must be a finite number >= 0, got %g", name, v);
+        return DUFFID_ERR_CONFIG;
+    }
+    return DUFFID_OK;
+}
+
+static int n_unknowns_max(const duffid_config *cfg)
+{
+    /* equation of DOF 1: m1 b1 k1_1 k1_3 [b2 k2_1 k2_3] [c1] */
+    return (cfg->model == DUFFID_DUFFING2 ? 7 : 4) + (cfg->offset ? 1 : 0);
+}
+
+static int effective_rows(const duffid_config *cfg)
+{
+    int def = n_unknowns_max(cfg) + 1;
+    if (def < 8) {
+        def = 8;
+    }
+    return cfg->n_rows ? cfg->n_rows : def;
+}
+
+static long capacity_of(const duffid_config *cfg)
+{
+    double seconds = cfg->window > 0.0 ? cfg->window : cfg->max_window;
+    double r = round_half_even(seconds / cfg->dt);
+    if (!(r <= (double)MAX_CAPACITY)) {
+        return -1;
+    }
+    return r < 2.0 ? 2L : (long)r;
+}
+
+int duffid_check_config(const duffid_config *cfg, char *msg, size_t size)
+{
+    int i, rc, n_pub;
+    if (cfg == NULL) {
+        set_msg(msg, size, "no configuration");
+        return DUFFID_ERR_ARGUMENT;
+    }
+    if (model_dofs(cfg->model) == 0) {
+        set_msg(msg, size, "unknown model %d; choose DUFFID_DUFFING1 (1) or DUFFID_DUFFING2 (2)", cfg->model);
+        return DUFFID_ERR_CONFIG;
+    }
+    if (cfg->method != DUFFID_ROBUST && cfg->method != DUFFID_PAPER) {
+        set_msg(msg, size, "unknown method %d; choose DUFFID_ROBUST (0) or DUFFID_PAPER (1)", cfg->method);
+        return DUFFID_ERR_CONFIG;
+    }
+    if (cfg->offset != 0 && cfg->offset != 1) {
+        set_msg(msg, size, "offset must be 0 or 1, got %d", cfg->offset);
+        return DUFFID_ERR_CONFIG;
+    }
+    if (!(is_finite(cfg->dt) && cfg->dt > 0.0)) {
+        set_msg(msg, size, "dt must be a positive number of seconds, got %g", cfg->dt);
+        return DUFFID_ERR_CONFIG;
+    }
+    n_pub = public_count(cfg->model, cfg->offset);
+    for (i = 0; i < n_pub; i++) {
+        const char *name = cfg->model == DUFFID_DUFFING1 ? NAMES1[i] : NAMES2[i];
+        double v = cfg->nominal[i];
+        int mass = name[0] == 'm';
+        if (!is_finite(v) || (mass && !(v > 0.0))) {
+            set_msg(msg, size, "parameter %s must be a finite%s number, got %g", name,
+                    mass ? " positive" : "", v);
+            return DUFFID_ERR_CONFIG;
+        }
+    }
+    if ((rc = check_nonneg("max_condition", cfg->max_condition, msg, size)) != DUFFID_OK ||
+        (rc = check_nonneg("min_time", cfg->min_time, msg, size)) != DUFFID_OK) {
+        return rc;
+    }
+    if (cfg->method == DUFFID_ROBUST) {
+        if ((rc = check_nonneg("max_uncertainty", cfg->max_uncertainty, msg, size)) != DUFFID_OK ||
+            (rc = check_nonneg("settle", cfg->settle, msg, size)) != DUFFID_OK ||
+            (rc = check_nonneg("max_window", cfg->max_window, msg, size)) != DUFFID_OK ||
+            (rc = check_nonneg("window_periods", cfg->window_periods, msg, size)) != DUFFID_OK) {
+            return rc;
+        }
+        if (!(is_finite(cfg->window) && cfg->window >= 0.0)) {
+            set_msg(msg, size, "option window must be 0 ('auto') or a positive number of seconds, got %g",
+                    cfg->window);
+            return DUFFID_ERR_CONFIG;
+        }
+        if (!(is_finite(cfg->forgetting) && cfg->forgetting >= 0.0)) {
+            set_msg(msg, size, "option forgetting must be 0 (none) or a positive time constant in s, got %g",
+                    cfg->forgetting);
+            return DUFFID_ERR_CONFIG;
+        }
+        if (cfg->rows != DUFFID_ROWS_INTEGRALS && cfg->rows != DUFFID_ROWS_BERNSTEIN &&
+            cfg->rows != DUFFID_ROWS_PAPER) {
+            set_msg(msg, size, "unknown row family %d; choose integrals (0), bernstein (1) or paper (2)",
+                    cfg->rows);
+            return DUFFID_ERR_CONFIG;
+        }
+        if (cfg->n_rows < 0) {
+            set_msg(msg, size, "n_rows must be >= 1 (or 0 for the default), got %d", cfg->n_rows);
+            return DUFFID_ERR_CONFIG;
+        }
+        if (effective_rows(cfg) > DUFFID_MAX_ROWS) {
+            set_msg(msg, size, "n_rows must be at most %d in the C core, got %d", DUFFID_MAX_ROWS,
+                    effective_rows(cfg));
+            return DUFFID_ERR_CONFIG;
+        }
+        if (capacity_of(cfg) < 0 ||
+            ((double)capacity_of(cfg) + 2.0) * (double)MAX_CH * (double)sizeof(double) >
+                (double)SIZE_MAX / 2.0) {
+            set_msg(msg, size, "the window (%g s at dt %g s) exceeds %ld samples or the address space",
+                    cfg->window > 0.0 ? cfg->window : cfg->max_window, cfg->dt, MAX_CAPACITY);
+            return DUFFID_ERR_CONFIG;
+        }
+    } else {
+        if ((rc = check_nonneg("gamma", cfg->gamma, msg, size)) != DUFFID_OK) {
+            return rc;
+        }
+        if (cfg->quadrature != DUFFID_ADAMS3 && cfg->quadrature != DUFFID_TRAPEZOID) {
+            set_msg(msg, size, "option quadrature must be adams3 (0) or trapezoid (1), got %d", cfg->quadrature);
+            return DUFFID_ERR_CONFIG;
+        }
+        if (cfg->sign_in_numerator != 0 && cfg->sign_in_numerator != 1) {
+            set_msg(msg, size, "option sign_in_numerator must be 0 or 1, got %d", cfg->sign_in_numerator);
+            return DUFFID_ERR_CONFIG;
+        }
+    }
+    set_msg(msg, size, "");
+    return DUFFID_OK;
+}
+
+/* ------------------------------------------------------------------ memory layout */
+#define ALIGNMENT 8u /* doubles and 64-bit integers */
+#define ALIGN_UP(v) (((v) + (ALIGNMENT - 1u)) & ~(size_t)(ALIGNMENT - 1u))
+
+/* distinct channels: x1 x1 x1^3 f1 (Duffing1) or x1 x1 x1^3 (x2-x1) (x2-x1)^3 f1 x2
+ * (Duffing2), x and the first deflection counted apart as in Python; + 1 with offsets */
+static int channel_count(const duffid_config *cfg)
+{
+    return (model_dofs(cfg->model) == 1 ? 4 : 7) + (cfg->offset ? 1 : 0);
+}
+
+static size_t dynamic_doubles(const duffid_config *cfg)
+{
+    int n_dof = model_dofs(cfg->model);
+    int n_ch = channel_count(cfg);
+    if (cfg->method == DUFFID_ROBUST) {
+        return (size_t)(capacity_of(cfg) + 2) * (size_t)n_ch;
+    } else {
+        size_t total = 0;
+        int e;
+        for (e = 0; e < n_dof; e++) {
+            /* DOF 1: n_unknowns_max; DOF 2 (unforced): b2/m2 k2_1/m2 k2_3/m2 [c2/m2] */
+            int n_unk = e == 0 ? n_unknowns_max(cfg) : 3 + (cfg->offset ? 1 : 0);
+            total += 3u * (size_t)(n_unk + 2) * (size_t)(3 * n_ch); /* regressor integrators */
+            total += 3u * 3u * (size_t)(n_unk + 1);                 /* determinant integrators */
+        }
+        return total;
+    }
+}
+
+size_t duffid_memory_size(const duffid_config *cfg)
+{
+    if (duffid_check_config(cfg, NULL, 0) != DUFFID_OK) {
+        return 0;
+    }
+    return ALIGN_UP(sizeof(struct duffid_estimator)) + dynamic_doubles(cfg) * sizeof(double) + ALIGNMENT;
+}
+
+/* ------------------------------------------------------------------ structure */
+static int add_channel(duffid_estimator *est, int kind, int index, int power)
+{
+    int i;
+    for (i = 0; i < est->n_ch; i++) {
+        if (est->ch[i].kind == kind && est->ch[i].index == index && est->ch[i].power == power) {
+            return i;
+        }
+    }
+    est->ch[est->n_ch].kind = kind;
+    est->ch[est->n_ch].index = index;
+    est->ch[est->n_ch].power = power;
+    return est->n_ch++;
+}
+
+static void add_unknown(duffid_estimator *est, equation_t *eq, int param, int kind, int index, int power,
+                        int order, double sign)
+{
+    int u = eq->n_unk++;
+    eq->param[u] = param;
+    eq->ch[u] = add_channel(est, kind, index, power);
+    eq->order[u] = order;
+    eq->sign[u] = sign;
+}
+
+/* models.Chain.equations() for orders (1, 3), forced (0,), no Coulomb friction. The
+ * channels are registered in first-use order (lhs then rhs terms, equation by equation). */
+static void build_structure(duffid_estimator *est)
+{
+    int i;
+    est->n_ch = 0;
+    est->n_eq = est->n_dof;
+    for (i = 0; i < est->n_dof; i++) {
+        equation_t *eq = &est->eq[i];
+        eq->dof = i;
+        eq->forced = i == 0;
+        eq->n_unk = 0;
+        if (eq->forced) {
+            add_unknown(est, eq, 4 * i + P_M, CH_X, i, 1, 2, 1.0);
+        }
+        add_unknown(est, eq, 4 * i + P_B, CH_DEFL, i, 1, 1, 1.0);
+        add_unknown(est, eq, 4 * i + P_K1, CH_DEFL, i, 1, 0, 1.0);
+        add_unknown(est, eq, 4 * i + P_K3, CH_DEFL, i, 3, 0, 1.0);
+        if (i + 1 < est->n_dof) {
+            add_unknown(est, eq, 4 * (i + 1) + P_B, CH_DEFL, i + 1, 1, 1, -1.0);
+            add_unknown(est, eq, 4 * (i + 1) + P_K1, CH_DEFL, i + 1, 1, 0, -1.0);
+            add_unknown(est, eq, 4 * (i + 1) + P_K3, CH_DEFL, i + 1, 3, 0, -1.0);
+        }
+        if (est->cfg.offset) {
+            add_unknown(est, eq, 4 * est->n_dof + i, CH_ONE, 0, 1, 0, 1.0);
+        }
+        if (eq->forced) {
+            eq->rhs_ch = add_channel(est, CH_FORCE, 0, 1);
+            eq->rhs_order = 0;
+            eq->rhs_sign = 1.0;
+        } else {
+            eq->rhs_ch = add_channel(est, CH_X, i, 1);
+            eq->rhs_order = 2;
+            eq->rhs_sign = -1.0;
+        }
+    }
+}
+
+static uint64_t factorial_u64(int n)
+{
+    uint64_t r = 1;
+    int i;
+    for (i = 2; i <= n; i++) {
+        r *= (uint64_t)i;
+    }
+    return r;
+}
+
+static uint64_t comb_u64(int n, int k)
+{
+    uint64_t r = 1;
+    int i;
+    for (i = 1; i <= k; i++) {
+        r = r * (uint64_t)(n - k + i) / (uint64_t)i;
+    }
+    return r;
+}
+
+/* regressors.row_exponents + KernelBank.build (+ __post_init__) */
+static void build_kernel_bank(duffid_estimator *est)
+{
+    int r, m, d, k, n_rows = est->n_rows;
+    est->degree = 0;
+    for (r = 0; r < n_rows; r++) {
+        int a, b;
+        if (est->cfg.rows == DUFFID_ROWS_PAPER) {
+            a = 1 + r;
+            b = 2;
+        } else if (est->cfg.rows == DUFFID_ROWS_INTEGRALS) {
+            a = 3 + r;
+            b = 2;
+        } else {
+            a = 2 + r;
+            b = 1 + n_rows - r;
+        }
+        est->row_a[r] = a;
+        est->row_b[r] = b;
+        if (a + b > est->degree) {
+            est->degree = a + b;
+        }
+    }
+    memset(est->coef, 0, sizeof est->coef);
+    memset(est->expo, 0, sizeof est->expo);
+    for (r = 0; r < n_rows; r++) {
+        int a = est->row_a[r], b = est->row_b[r];
+        uint64_t prod = 1;
+        for (m = 0; m <= b; m++) {
+            int power = a + m;
+            for (d = 0; d <= MAX_ORDER; d++) {
+                double num;
+                int idx;
+                if (power - d < 0) {
+                    continue;
+                }
+                /* comb(b, m) * (-1)**m * falling / factorial(a): exact integers, one rounding */
+                num = (double)(comb_u64(b, m) * (factorial_u64(power) / factorial_u64(power - d)));
+                if (m % 2) {
+                    num = -num;
+                }
+                idx = (r * N_ORD + d) * MAX_POW + (power - d);
+                est->coef[idx] += num / (double)factorial_u64(a);
+                est->expo[idx] = (double)(b - m);
+            }
+        }
+        est->raw_b[r] = (a == 1 && MAX_ORDER >= 2) ? b : -1;
+        for (k = b + 1; k <= a + b + 1; k++) {
+            prod *= (uint64_t)k; /* (a+b+1)! / b! */
+        }
+        est->norm[r] = (double)prod;
+        est->norm_power[r] = (double)(a + b + 1);
+    }
+    /* SlidingMoments._shift: B[k, r] = C(k, r) (1/N)^(k-r) */
+    for (k = 0; k <= est->degree; k++) {
+        for (r = 0; r <= est->degree; r++) {
+            est->shift[k * MAX_POW + r] =
+                r <= k ? (double)comb_u64(k, r) * pow(1.0 / (double)est->capacity, (double)(k - r)) : 0.0;
+        }
+    }
+    est->t_ref = (double)est->capacity * est->cfg.dt;
+    for (d = 0; d <= MAX_ORDER; d++) {
+        est->d_scale[d] = pow(est->t_ref, -(double)d);
+    }
+}
+
+static void integrators_reset(integrators_t *it)
+{
+    size_t n = (size_t)(it->depth + 1) * (size_t)it->n_in;
+    memset(it->y, 0, n * sizeof(double));
+    memset(it->p1, 0, n * sizeof(double));
+    memset(it->p2, 0, n * sizeof(double));
+    it->count = 0;
+}
+
+static double *integrators_setup(integrators_t *it, int n_in, int depth, double *mem)
+{
+    size_t n = (size_t)(depth + 1) * (size_t)n_in;
+    it->n_in = n_in;
+    it->depth = depth;
+    it->y = mem;
+    it->p1 = mem + n;
+    it->p2 = mem + 2 * n;
+    return mem + 3 * n;
+}
+
+/* ------------------------------------------------------------------ lifecycle */
+int duffid_init(duffid_estimator **out, void *memory, size_t size, const duffid_config *cfg, char *msg,
+                size_t msg_size)
+{
+    duffid_estimator *est;
+    uintptr_t base;
+    double *dyn;
+    int rc, i;
+    if (out == NULL || memory == NULL) {
+        set_msg(msg, msg_size, "NULL argument");
+        return DUFFID_ERR_ARGUMENT;
+    }
+    *out = NULL;
+    rc = duffid_check_config(cfg, msg, msg_size);
+    if (rc != DUFFID_OK) {
+        return rc;
+    }
+    if (size < duffid_memory_size(cfg)) {
+        set_msg(msg, msg_size, "memory block of %lu bytes, need %lu", (unsigned long)size,
+                (unsigned long)duffid_memory_size(cfg));
+        return DUFFID_ERR_ARGUMENT;
+    }
+    base = ((uintptr_t)memory + (ALIGNMENT - 1u)) & ~(uintptr_t)(ALIGNMENT - 1u);
+    est = (duffid_estimator *)base;
+    memset(est, 0, sizeof *est);
+    est->cfg = *cfg;
+    est->n_dof = model_dofs(cfg->model);
+    est->n_forces = 1;
+    est->n_params = public_count(cfg->model, cfg->offset);
+    for (i = 0; i < est->n_params; i++) {
+        est->canon_of_public[i] = public_to_canon(cfg->model, i);
+        est->nominal[est->canon_of_public[i]] = fabs(cfg->nominal[i]);
+    }
+    build_structure(est);
+    if (est->n_ch != channel_count(cfg)) { /* cannot happen: the layout below relies on it */
+        set_msg(msg, msg_size, "internal error: %d channels, expected %d", est->n_ch, channel_count(cfg));
+        return DUFFID_ERR_CONFIG;
+    }
+    dyn = (double *)(base + ALIGN_UP(sizeof(struct duffid_estimator)));
+    if (cfg->method == DUFFID_ROBUST) {
+        est->capacity = capacity_of(cfg);
+        est->auto_window = !(cfg->window > 0.0);
+        est->n_rows = effective_rows(cfg);
+        est->lam = cfg->forgetting > 0.0 ? exp(-cfg->dt / cfg->forgetting) : 1.0;
+        est->sqrt_lam = sqrt(est->lam);
+        est->ring = dyn;
+        build_kernel_bank(est);
+        {
+            double s = round_half_even(cfg->settle / cfg->dt);
+            est->settle_count = s < 1.0 ? 1 : (s > 4e18 ? (int64_t)4e18 : (int64_t)s);
+        }
+    } else {
+        for (i = 0; i < est->n_eq; i++) {
+            equation_t *eq = &est->eq[i];
+            dyn = integrators_setup(&eq->reg, 3 * est->n_ch, eq->n_unk + 1, dyn);
+            dyn = integrators_setup(&eq->det, eq->n_unk + 1, 2, dyn);
+        }
+    }
+    duffid_reset(est);
+    *out = est;
+    return DUFFID_OK;
+}
+
+int duffid_create(duffid_estimator **out, const duffid_config *cfg, char *msg, size_t msg_size)
+{
+    size_t size;
+    void *mem;
+    int rc;
+    if (out == NULL) {
+        set_msg(msg, msg_size, "NULL argument");
+        return DUFFID_ERR_ARGUMENT;
+    }
+    *out = NULL;
+    rc = duffid_check_config(cfg, msg, msg_size);
+    if (rc != DUFFID_OK) {
+        return rc;
+    }
+    size = duffid_memory_size(cfg);
+    mem = malloc(size);
+    if (mem == NULL) {
+        set_msg(msg, msg_size, "out of memory (%lu bytes)", (unsigned long)size);
+        return DUFFID_ERR_ARGUMENT;
+    }
+    rc = duffid_init(out, mem, size, cfg, msg, msg_size);
+    if (rc != DUFFID_OK) {
+        free(mem);
+        return rc;
+    }
+    (*out)->block = mem;
+    return DUFFID_OK;
+}
+
+void duffid_destroy(duffid_estimator *est)
+{
+    if (est != NULL && est->block != NULL) {
+        free(est->block);
+    }
+}
+
+void duffid_reset(duffid_estimator *est)
+{
+    int i, u;
+    if (est == NULL) {
+        return;
+    }
+    est->n = -1;
+    est->window_fixed = 0;
+    for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
+        est->settled[i] = 0;
+        est->held[i] = DNAN;
+    }
+    if (est->cfg.method == DUFFID_ROBUST) {
+        memset(est->ring, 0, (size_t)(est->capacity + 2) * (size_t)est->n_ch * sizeof(double));
+        memset(est->main_acc, 0, sizeof est->main_acc);
+        memset(est->shadow, 0, sizeof est->shadow);
+        est->start = 0;
+        est->shadow_from = 0;
+        est->target = est->capacity;
+        est->poly_L = -1;
+        est->corr_L = -1;
+        for (i = 0; i < est->n_eq; i++) {
+            memset(est->eq[i].R, 0, sizeof est->eq[i].R);
+            est->eq[i].rows = 0.0;
+        }
+    } else {
+        for (i = 0; i < est->n_eq; i++) {
+            integrators_reset(&est->eq[i].reg);
+            integrators_reset(&est->eq[i].det);
+        }
+    }
+    for (i = 0; i < est->n_eq; i++) {
+        for (u = 0; u < MAX_UNK; u++) {
+            est->eq[i].theta[u] = DNAN;
+            est->eq[i].rse[u] = DINF;
+        }
+        est->eq[i].cond = DINF;
+    }
+}
+
+/* ------------------------------------------------------------------ channels */
+static void evaluate_channels(duffid_estimator *est, const double *x, const double *f)
+{
+    int i;
+    for (i = 0; i < est->n_ch; i++) {
+        const channel_t *c = &est->ch[i];
+        double v;
+        switch (c->kind) {
+        case CH_X:
+            v = x[c->index];
+            break;
+        case CH_DEFL:
+            v = x[c->index] - (c->index > 0 ? x[c->index - 1] : 0.0);
+            if (c->power != 1) {
+                v = pow(v, (double)c->power);
+            }
+            break;
+        case CH_FORCE:
+            v = f[c->index];
+            break;
+        default:
+            v = 1.0;
+            break;
+        }
+        est->g[i] = v;
+    }
+}
+
+/* ------------------------------------------------------------------ moments */
+/* regressors.gregory_corrections + SlidingMoments._corrections, cached for one L */
+static void corrections(duffid_estimator *est, long L)
+{
+    static const double gregory[3] = {-5.0 / 8.0, 1.0 / 6.0, -1.0 / 24.0};
+    static const int nc_num[5][6] = {
+        {1, 1, 0, 0, 0, 0}, {1, 4, 1, 0, 0, 0}, {3, 9, 9, 3, 0, 0},
+        {14, 64, 24, 64, 14, 0}, {95, 375, 250, 250, 375, 95}};
+    static const int nc_den[5] = {2, 3, 8, 45, 288};
+    double delta[MAX_CORR];
+    int m, k;
+    if (est->corr_L == L) {
+        return;
+    }
+    if (L < 1) {
+        est->corr_n = 1;
+        est->corr_off[0] = 0;
+        delta[0] = -1.0;
+    } else if (L <= 5) {
+        est->corr_n = (int)L + 1;
+        for (m = 0; m <= L; m++) {
+            est->corr_off[m] = m;
+            delta[m] = (double)nc_num[L - 1][m] / (double)nc_den[L - 1] - 1.0;
+        }
+    } else {
+        long off[6];
+        off[0] = 0;
+        off[1] = 1;
+        off[2] = 2;
+        off[3] = L;
+        off[4] = L - 1;
+        off[5] = L - 2;
+        est->corr_n = 6;
+        for (m = 0; m < 6; m++) {
+            est->corr_off[m] = off[m];
+            delta[m] = gregory[m % 3];
+        }
+    }
+    for (m = 0; m < est->corr_n; m++) {
+        double s = (double)est->corr_off[m] / (double)est->capacity;
+        for (k = 0; k <= est->degree; k++) {
+            est->corr_w[m * MAX_POW + k] = pow(s, (double)k) * delta[m];
+        }
+    }
+    est->corr_L = L;
+}
+
+static void shift_accumulator(const duffid_estimator *est, double *acc)
+{
+    int k, r, c, D = est->degree, n_ch = est->n_ch;
+    for (k = D; k >= 0; k--) { /* row k uses rows 0..k of the old values: go downwards */
+        for (c = 0; c < n_ch; c++) {
+            double sum = 0.0;
+            for (r = 0; r <= k; r++) {
+                sum += est->shift[k * MAX_POW + r] * acc[r * MAX_CH + c];
+            }
+            acc[k * MAX_CH + c] = sum;
+        }
+    }
+}
+
+/* SlidingMoments.push: the moments of the window (into est->mom) and its length L */
+static long moments_push(duffid_estimator *est, long window)
+{
+    const long N = est->capacity;
+    const int n_ch = est->n_ch, D = est->degree;
+    const int64_t ring_len = (int64_t)N + 2;
+    int64_t n, j, new_start;
+    long w, L;
+    int k, c, m;
+    double *slot;
+
+    n = est->n; /* SlidingMoments.n == OnlineIdentifier.n */
+    slot = est->ring + (size_t)(n % ring_len) * (size_t)n_ch;
+    for (c = 0; c < n_ch; c++) {
+        slot[c] = est->g[c];
+    }
+    shift_accumulator(est, est->main_acc);
+    shift_accumulator(est, est->shadow);
+    for (c = 0; c < n_ch; c++) {
+        est->main_acc[c] += est->g[c];
+        est->shadow[c] += est->g[c];
+    }
+    w = window < N ? window : N;
+    new_start = n - w > est->start ? n - w : est->start;
+    for (j = est->start; j < new_start; j++) { /* samples leaving the window */
+        double s = (double)(n - j) / (double)N;
+        const double *old = est->ring + (size_t)(j % ring_len) * (size_t)n_ch;
+        for (k = 0; k <= D; k++) {
+            double p = pow(s, (double)k);
+            for (c = 0; c < n_ch; c++) {
+                est->main_acc[k * MAX_CH + c] -= p * old[c];
+            }
+        }
+    }
+    est->start = new_start;
+    if (est->shadow_from < est->start) { /* the shadow holds samples outside the window: rebuild */
+        int64_t i;
+        est->shadow_from = est->start;
+        for (k = 0; k <= D; k++) {
+            for (c = 0; c < n_ch; c++) {
+                double sum = 0.0;
+                for (i = 0; i <= n - est->start; i++) {
+                    sum += pow((double)i / (double)N, (double)k) *
+                           est->ring[(size_t)((n - i) % ring_len) * (size_t)n_ch + (size_t)c];
+                }
+                est->shadow[k * MAX_CH + c] = sum;
+            }
+        }
+    }
+    if (est->shadow_from == est->start && n - est->start >= 1) {
+        /* the shadow holds exactly the window: it becomes the main accumulator */
+        memcpy(est->main_acc, est->shadow, sizeof est->main_acc);
+        memset(est->shadow, 0, sizeof est->shadow);
+        est->shadow_from = n + 1;
+    }
+    L = (long)(n - est->start);
+    corrections(est, L);
+    for (k = 0; k <= D; k++) {
+        for (c = 0; c < n_ch; c++) {
+            double corr = 0.0;
+            for (m = 0; m < est->corr_n; m++) {
+                corr += est->corr_w[m * MAX_POW + k] *
+                        est->ring[(size_t)((n - est->corr_off[m]) % ring_len) * (size_t)n_ch + (size_t)c];
+            }
+            est->mom[k * MAX_CH + c] = (est->main_acc[k * MAX_CH + c] + corr) / (double)N;
+        }
+    }
+    return L;
+}
+
+/* ------------------------------------------------------------------ kernel entries */
+/* KernelBank.entries: E[r, d, channel] for a window of L samples */
+static void kernel_entries(duffid_estimator *est, long L)
+{
+    const int n_rows = est->n_rows, n_ch = est->n_ch, D = est->degree;
+    const double tau = (double)L / (double)est->capacity;
+    int r, d, k, c;
+    if (est->poly_L != L) {
+        for (r = 0; r < n_rows; r++) {
+            for (d = 0; d <= MAX_ORDER; d++) {
+                for (k = 0; k <= D; k++) {
+                    int idx = (r * N_ORD + d) * MAX_POW + k;
+                    est->poly[idx] = est->coef[idx] != 0.0 ? est->coef[idx] * pow(tau, est->expo[idx]) : 0.0;
+                }
+            }
+            est->row_scale[r] = est->norm[r] / pow(tau, est->norm_power[r]);
+            est->raw_pow[r] = est->raw_b[r] >= 0 ? pow(tau, (double)est->raw_b[r]) : 0.0;
+        }
+        est->poly_L = L;
+    }
+    for (r = 0; r < n_rows; r++) {
+        for (d = 0; d <= MAX_ORDER; d++) {
+            const double *poly = est->poly + (r * N_ORD + d) * MAX_POW;
+            double scale = est->row_scale[r] * est->d_scale[d];
+            for (c = 0; c < n_ch; c++) {
+                double sum = 0.0;
+                for (k = 0; k <= D; k++) {
+                    if (poly[k] != 0.0) {
+                        sum += poly[k] * est->mom[k * MAX_CH + c];
+                    }
+                }
+                if (d == 2 && est->raw_b[r] >= 0) {
+                    sum += est->raw_pow[r] * est->g[c];
+                }
+                est->E[(r * N_ORD + d) * MAX_CH + c] = sum * scale;
+            }
+        }
+    }
+}
+
+/* rows of [A D] of one equation (identification._Assembly) into B (n_rows x (n_unk + 1)) */
+static void assemble(const equation_t *eq, const double *E, int n_rows, double *B)
+{
+    const int p = eq->n_unk + 1;
+    int r, u;
+    for (r = 0; r < n_rows; r++) {
+        for (u = 0; u < eq->n_unk; u++) {
+            B[r * p + u] = eq->sign[u] * E[(r * N_ORD + eq->order[u]) * MAX_CH + eq->ch[u]];
+        }
+        B[r * p + eq->n_unk] = eq->rhs_sign * E[(r * N_ORD + eq->rhs_order) * MAX_CH + eq->rhs_ch];
+    }
+}
+
+/* ------------------------------------------------------------------ least squares */
+/* identification._solve_factor on the p x p factor Raug (p = n + 1) */
+static void solve_factor(duffid_estimator *est, equation_t *eq, const double *Raug, double rows,
+                         double overlap)
+{
+    const int n = eq->n_unk, p = n + 1;
+    double cond, dof, s2;
+    int i, j, k;
+    for (j = 0; j < n; j++) { /* column norms: np.linalg.norm(R, axis=0), rows in order */
+        double sum = 0.0;
+        for (i = 0; i < n; i++) {
+            sum += Raug[i * p + j] * Raug[i * p + j];
+        }
+        est->scale[j] = sqrt(sum);
+    }
+    for (j = 0; j < n; j++) {
+        if (!(est->scale[j] > 0.0)) {
+            goto singular;
+        }
+    }
+    for (i = 0; i < n; i++) {
+        for (j = 0; j < n; j++) {
+            est->U[i * n + j] = Raug[i * p + j] / est->scale[j];
+        }
+    }
+    duffid_la_jacobi_svd(n, est->U, est->sv, est->V);
+    cond = est->sv[n - 1] > 0.0 ? est->sv[0] / est->sv[n - 1] : DINF;
+    if (!is_finite(cond) || cond > 1e14) {
+        goto singular;
+    }
+    /* Rinv = (V / sv) @ U.T */
+    for (i = 0; i < n; i++) {
+        for (j = 0; j < n; j++) {
+            est->tmp[i * n + j] = est->V[i * n + j] / est->sv[j];
+        }
+    }
+    for (i = 0; i < n; i++) {
+        for (k = 0; k < n; k++) {
+            double sum = 0.0;
+            for (j = 0; j < n; j++) {
+                sum += est->tmp[i * n + j] * est->U[k * n + j];
+            }
+            est->Rinv[i * n + k] = sum;
+        }
+    }
+    for (i = 0; i < n; i++) {
+        double sum = 0.0;
+        for (k = 0; k < n; k++) {
+            sum += est->Rinv[i * n + k] * Raug[k * p + n];
+        }
+        eq->theta[i] = sum / est->scale[i];
+    }
+    eq->cond = cond;
+    dof = rows - (double)n;
+    if (dof <= 0.0) {
+        for (i = 0; i < n; i++) {
+            eq->rse[i] = DINF;
+        }
+        return;
+    }
+    s2 = pow(Raug[n * p + n], 2.0) / dof * overlap;
+    for (i = 0; i < n; i++) {
+        double sq[MAX_UNK], std;
+        for (k = 0; k < n; k++) {
+            sq[k] = est->Rinv[i * n + k] * est->Rinv[i * n + k];
+        }
+        std = sqrt(s2 * duffid_la_pairwise_sum(sq, n, 1)) / est->scale[i];
+        eq->rse[i] = eq->theta[i] != 0.0 ? std / fabs(eq->theta[i]) : DINF;
+    }
+    return;
+singular:
+    for (i = 0; i < n; i++) {
+        eq->theta[i] = DNAN;
+        eq->rse[i] = DINF;
+    }
+    eq->cond = DINF;
+}
+
+/* OnlineIdentifier._robust_step + _robust_solve; returns the window length L */
+static long robust_step(duffid_estimator *est)
+{
+    long L = moments_push(est, est->target);
+    int full, e, i;
+    if (L == 0) {
+        return 0;
+    }
+    kernel_entries(est, L);
+    full = L >= est->target;
+    for (e = 0; e < est->n_eq; e++) {
+        equation_t *eq = &est->eq[e];
+        const int p = eq->n_unk + 1;
+        assemble(eq, est->E, est->n_rows, est->B);
+        if (full) {
+            duffid_la_qr_accumulate(eq->R, p, est->sqrt_lam, est->B, est->n_rows);
+            eq->rows = est->lam * eq->rows + (double)est->n_rows;
+            solve_factor(est, eq, eq->R, eq->rows, (double)L);
+        } else {
+            for (i = 0; i < p * p; i++) {
+                est->W[i] = 0.0;
+            }
+            duffid_la_qr_accumulate(est->W, p, 1.0, est->B, est->n_rows);
+            solve_factor(est, eq, est->W, (double)est->n_rows, 1.0);
+        }
+    }
+    return L;
+}
+
+/* ------------------------------------------------------------------ paper method */
+/* identification._Integrators.push: returns y (levels 0..depth, n_in each) */
+static const double *integrators_push(integrators_t *it, const double *u, double h, int adams)
+{
+    const size_t n = (size_t)(it->depth + 1) * (size_t)it->n_in;
+    const int m = it->n_in;
+    int k, i;
+    memcpy(it->p2, it->p1, n * sizeof(double));
+    memcpy(it->p1, it->y, n * sizeof(double));
+    for (i = 0; i < m; i++) {
+        it->y[i] = u[i];
+    }
+    for (k = 1; k <= it->depth; k++) {
+        double *y = it->y + k * m;
+        const double *y_lo = it->y + (k - 1) * m;
+        const double *p1 = it->p1 + k * m, *p1_lo = it->p1 + (k - 1) * m, *p2_lo = it->p2 + (k - 1) * m;
+        for (i = 0; i < m; i++) {
+            if (it->count == 0) {
+                y[i] = 0.0;
+            } else if (it->count == 1 || !adams) {
+                y[i] = p1[i] + 0.5 * h * (y_lo[i] + p1_lo[i]);
+            } else {
+                y[i] = p1[i] + h / 12.0 * (5.0 * y_lo[i] + 8.0 * p1_lo[i] - p2_lo[i]);
+            }
+        }
+    }
+    if (it->count < 2) {
+        it->count++;
+    }
+    return it->y;
+}
+
+/* identification._equilibrated_condition */
+static double equilibrated_condition(duffid_estimator *est, const double *A, int n)
+{
+    double col[MAX_UNK], row[MAX_UNK], sq[MAX_UNK];
+    int i, j;
+    for (j = 0; j < n; j++) {
+        double sum = 0.0;
+        for (i = 0; i < n; i++) {
+            sum += A[i * n + j] * A[i * n + j];
+        }
+        col[j] = sqrt(sum);
+    }
+    for (i = 0; i < n; i++) {
+        for (j = 0; j < n; j++) {
+            sq[j] = A[i * n + j] * A[i * n + j];
+        }
+        row[i] = sqrt(duffid_la_pairwise_sum(sq, n, 1));
+    }
+    for (i = 0; i < n; i++) {
+        if (!(col[i] > 0.0 && row[i] > 0.0)) {
+            return DINF;
+        }
+    }
+    for (i = 0; i < n; i++) {
+        double rn;
+        for (j = 0; j < n; j++) {
+            est->Aw[i * n + j] = A[i * n + j] / col[j];
+            sq[j] = est->Aw[i * n + j] * est->Aw[i * n + j];
+        }
+        rn = sqrt(duffid_la_pairwise_sum(sq, n, 1));
+        for (j = 0; j < n; j++) {
+            est->Aw[i * n + j] /= rn;
+        }
+    }
+    duffid_la_jacobi_svd(n, est->Aw, est->sv, est->V);
+    if (est->sv[0] != est->sv[0]) {
+        return DNAN;
+    }
+    if (!(est->sv[n - 1] > 0.0)) {
+        return DINF;
+    }
+    return est->sv[0] / est->sv[n - 1];
+}
+
+/* OnlineIdentifier._paper_step; returns the window length (samples since the first) */
+static long paper_step(duffid_estimator *est)
+{
+    const double dt = est->cfg.dt;
+    const double tau = (double)est->n * dt;
+    const double tau2 = pow(tau, 2.0);
+    const int n_ch = est->n_ch, adams = est->cfg.quadrature == DUFFID_ADAMS3;
+    const int fixed_sign = est->cfg.sign_in_numerator;
+    const double weight = exp(-est->cfg.gamma * tau);
+    int e, c, p, u, i;
+    for (c = 0; c < n_ch; c++) {
+        est->u_in[c] = est->g[c];
+        est->u_in[n_ch + c] = tau * est->g[c];
+        est->u_in[2 * n_ch + c] = tau2 * est->g[c];
+    }
+    for (e = 0; e < est->n_eq; e++) {
+        equation_t *eq = &est->eq[e];
+        const int n = eq->n_unk, m = 3 * n_ch;
+        const double *y = integrators_push(&eq->reg, est->u_in, dt, adams);
+        double delta, deltas[MAX_UNK], in[MAX_UNK + 1];
+        const double *z;
+        /* E[p, order, channel] of eqs. (16)-(17); Y[k, j, c] = y[k * m + j * n_ch + c] */
+        for (p = 0; p < n; p++) {
+            for (c = 0; c < n_ch; c++) {
+                double *Ep = est->E + (size_t)p * N_ORD * MAX_CH;
+                Ep[2 * MAX_CH + c] = y[p * m + 2 * n_ch + c] - 4.0 * y[(p + 1) * m + n_ch + c] +
+                                     2.0 * y[(p + 2) * m + c];
+                Ep[1 * MAX_CH + c] = y[(p + 1) * m + 2 * n_ch + c] - 2.0 * y[(p + 2) * m + n_ch + c];
+                Ep[c] = y[(p + 2) * m + 2 * n_ch + c];
+            }
+        }
+        for (p = 0; p < n; p++) {
+            for (u = 0; u < n; u++) {
+                est->Ap[p * n + u] = eq->sign[u] * est->E[(p * N_ORD + eq->order[u]) * MAX_CH + eq->ch[u]];
+            }
+            est->Dp[p] = eq->rhs_sign * est->E[(p * N_ORD + eq->rhs_order) * MAX_CH + eq->rhs_ch];
+        }
+        memcpy(est->tmp, est->Ap, (size_t)(n * n) * sizeof(double));
+        delta = duffid_la_det(n, est->tmp);
+        for (i = 0; i < n; i++) {
+            memcpy(est->tmp, est->Ap, (size_t)(n * n) * sizeof(double));
+            for (p = 0; p < n; p++) {
+                est->tmp[p * n + i] = est->Dp[p];
+            }
+            deltas[i] = duffid_la_det(n, est->tmp);
+        }
+        for (i = 0; i < n; i++) {
+            double num = fixed_sign ? deltas[i] * sign_of(delta) : fabs(deltas[i]);
+            in[i] = weight * num;
+        }
+        in[n] = weight * fabs(delta);
+        z = integrators_push(&eq->det, in, dt, adams) + 2 * (n + 1);
+        if (z[n] > 0.0) { /* eq. (19): filtered |Delta_i| / |Delta|, signs of the current sample */
+            for (i = 0; i < n; i++) {
+                double ratio = z[i] / z[n];
+                eq->theta[i] = fixed_sign ? ratio : sign_of(deltas[i]) * sign_of(delta) * ratio;
+            }
+        } else {
+            for (i = 0; i < n; i++) {
+                eq->theta[i] = DNAN;
+            }
+        }
+        eq->cond = equilibrated_condition(est, est->Ap, n);
+    }
+    return (long)est->n;
+}
+
+/* ------------------------------------------------------------------ combination */
+static int find_unknown(const equation_t *eq, int param)
+{
+    int u;
+    for (u = 0; u < eq->n_unk; u++) {
+        if (eq->param[u] == param) {
+            return u;
+        }
+    }
+    return -1;
+}
+
+/* identification.combine_equations into est->canon / est->canon_rse (canonical order) */
+static void combine(duffid_estimator *est)
+{
+    const int n = est->n_dof;
+    int known[MAX_EQ];
+    double s_val[MAX_EQ], s_err[MAX_EQ];
+    int i, progress = 1, n_canon = est->n_params;
+    for (i = 0; i < n; i++) {
+        known[i] = est->eq[i].forced;
+        s_val[i] = 1.0;
+        s_err[i] = 0.0;
+    }
+    for (;;) {
+        int missing = 0;
+        for (i = 0; i < n; i++) {
+            missing |= !known[i];
+        }
+        if (!(progress && missing)) {
+            break;
+        }
+        progress = 0;
+        for (i = 0; i < n; i++) {
+            int e;
+            if (known[i]) {
+                continue;
+            }
+            for (e = i + 1; e <= i + 2 && !known[i]; e++) { /* 1-based elements of mass i */
+                int u, j;
+                double ratio;
+                if (e > n) {
+                    continue;
+                }
+                u = find_unknown(&est->eq[i], 4 * (e - 1) + P_K1);
+                if (u < 0 || est->eq[i].theta[u] == 0.0) {
+                    continue;
+                }
+                ratio = est->eq[i].theta[u];
+                for (j = e - 2; j <= e - 1; j++) { /* the equations that contain element e */
+                    int v;
+                    if (j == i || j < 0 || j >= n || !known[j]) {
+                        continue;
+                    }
+                    v = find_unknown(&est->eq[j], 4 * (e - 1) + P_K1);
+                    if (v < 0) {
+                        continue;
+                    }
+                    {
+                        double abs_val = s_val[j] * est->eq[j].theta[v];
+                        double abs_err = hypot(s_err[j], est->eq[j].rse[v]);
+                        s_val[i] = abs_val / ratio;
+                        s_err[i] = hypot(abs_err, est->eq[i].rse[u]);
+                        known[i] = 1;
+                        progress = 1;
+                        break;
+                    }
+                }
+            }
+        }
+    }
+    for (i = 0; i < n_canon; i++) {
+        int is_mass = i < 4 * n && i % 4 == P_M;
+        double val = DNAN, err = DINF;
+        if (is_mass) {
+            int dof = i / 4;
+            if (est->eq[dof].forced) {
+                int u = find_unknown(&est->eq[dof], i);
+                val = est->eq[dof].theta[u];
+                err = est->eq[dof].rse[u];
+            } else if (known[dof]) {
+                val = s_val[dof];
+                err = s_err[dof];
+            }
+        } else {
+            int j;
+            for (j = 0; j < n; j++) {
+                int u = find_unknown(&est->eq[j], i);
+                if (u >= 0 && known[j]) {
+                    val = s_val[j] * est->eq[j].theta[u];
+                    err = hypot(s_err[j], est->eq[j].rse[u]);
+                    break;
+                }
+            }
+        }
+        est->canon[i] = val;
+        est->canon_rse[i] = err;
+    }
+}
+
+static double combined_condition(const duffid_estimator *est)
+{
+    double cond = est->eq[0].cond;
+    int e;
+    for (e = 1; e < est->n_eq; e++) {
+        cond = max_builtin(cond, est->eq[e].cond);
+    }
+    return cond;
+}
+
+/* identification.auto_window with Chain.linear_natural_frequencies of the estimate */
+static long auto_window(const duffid_estimator *est, long current)
+{
+    double omega[MAX_EQ], best = DINF, samples;
+    int n_omega = 0, i;
+    const double *p = est->canon;
+    if (est->n_dof == 1) {
+        double m = p[P_M], k = p[P_K1];
+        if (!is_finite(m) || !is_finite(k) || m == 0.0) {
+            return est->capacity;
+        }
+        omega[n_omega++] = sqrt(fabs(k / m));
+    } else {
+        double m1 = p[P_M], k1 = p[P_K1], m2 = p[4 + P_M], k2 = p[4 + P_K1];
+        double a, b, c, d, half_tr, det, disc;
+        if (!is_finite(m1) || !is_finite(k1) || !is_finite(m2) || !is_finite(k2) || m1 == 0.0 || m2 == 0.0) {
+            return est->capacity;
+        }
+        /* eigenvalues of M^-1 K, K = [[k1 + k2, -k2], [-k2, k2]] */
+        a = (k1 + k2) / m1;
+        b = -k2 / m1;
+        c = -k2 / m2;
+        d = k2 / m2;
+        half_tr = 0.5 * (a + d);
+        det = a * d - b * c;
+        disc = half_tr * half_tr - det;
+        if (disc >= 0.0) {
+            double root = sqrt(disc);
+            omega[n_omega++] = sqrt(fabs(half_tr - root));
+            omega[n_omega++] = sqrt(fabs(half_tr + root));
+        } else {
+            omega[n_omega++] = sqrt(fabs(half_tr));
+            omega[n_omega++] = sqrt(fabs(half_tr));
+        }
+    }
+    for (i = 0; i < n_omega; i++) {
+        if (is_finite(omega[i]) && omega[i] > 0.0 && omega[i] < best) {
+            best = omega[i];
+        }
+    }
+    if (!is_finite(best)) {
+        return est->capacity;
+    }
+    samples = round_half_even(est->cfg.window_periods * 2.0 * PI / best / est->cfg.dt);
+    if (samples < (double)current) {
+        samples = (double)current;
+    }
+    if (!(samples <= (double)est->capacity)) {
+        samples = (double)est->capacity;
+    }
+    return (long)samples;
+}
+
+/* ------------------------------------------------------------------ publication */
+static int window_ok(const duffid_estimator *est, double cond, long L)
+{
+    return cond <= est->cfg.max_condition && (double)L * est->cfg.dt >= est->cfg.min_time - 1e-12 &&
+           est->n >= MIN_SAMPLES;
+}
+
+static void publish(duffid_estimator *est, long window, duffid_output *out)
+{
+    const int np = est->n_params;
+    double cond, worst = 0.0;
+    int i, ok = 1;
+    combine(est);
+    cond = combined_condition(est);
+    if (est->cfg.method == DUFFID_PAPER) {
+        for (i = 0; i < np; i++) {
+            double v = est->canon[est->canon_of_public[i]];
+            est->held[i] = v;
+            ok &= is_finite(v);
+        }
+        ok = ok && window_ok(est, cond, window);
+        worst = DNAN;
+    } else {
+        const int good = window_ok(est, cond, window);
+        double trusted[DUFFID_MAX_PARAMS];
+        for (i = 0; i < np; i++) { /* canonical order */
+            double v = est->canon[i];
+            double std = (is_finite(v) && v != 0.0) ? est->canon_rse[i] * fabs(v) : DINF;
+            double relative = DINF;
+            int small;
+            if (is_finite(std)) {
+                double size = fabs(v) > est->nominal[i] ? fabs(v) : est->nominal[i];
+                relative = std / size;
+            }
+            worst = max_builtin(worst, relative);
+            small = good && relative <= est->cfg.max_uncertainty;
+            if (small) {
+                if (est->settled[i] < est->settle_count) {
+                    est->settled[i]++;
+                }
+            } else {
+                est->settled[i] = 0;
+            }
+            trusted[i] = est->settled[i] >= est->settle_count ? v : DNAN;
+            ok &= est->settled[i] >= est->settle_count;
+        }
+        for (i = 0; i < np; i++) {
+            double v = trusted[est->canon_of_public[i]];
+            if (is_finite(v)) {
+                est->held[i] = v;
+            }
+        }
+    }
+    if (out != NULL) {
+        out->t = (double)est->n * est->cfg.dt;
+        for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
+            out->parameters[i] = i < np ? est->held[i] : DNAN;
+        }
+        out->n_parameters = np;
+        out->identified = ok;
+        out->condition = cond;
+        out->uncertainty = worst;
+        out->window = (double)window * est->cfg.dt;
+    }
+    if (est->cfg.method == DUFFID_ROBUST && est->auto_window && !est->window_fixed && ok) {
+        est->window_fixed = 1;
+        est->target = auto_window(est, window);
+    }
+}
+
+/* ------------------------------------------------------------------ update */
+int duffid_update(duffid_estimator *est, const double *x, const double *f, duffid_output *out)
+{
+    long window;
+    int i;
+    if (est == NULL || x == NULL || f == NULL) {
+        return DUFFID_ERR_ARGUMENT;
+    }
+    for (i = 0; i < est->n_dof; i++) {
+        if (!is_finite(x[i])) {
+            return DUFFID_ERR_SAMPLE;
+        }
+    }
+    for (i = 0; i < est->n_forces; i++) {
+        if (!is_finite(f[i])) {
+            return DUFFID_ERR_SAMPLE;
+        }
+    }
+    est->n++;
+    evaluate_channels(est, x, f);
+    window = est->cfg.method == DUFFID_ROBUST ? robust_step(est) : paper_step(est);
+    publish(est, window, out);
+    return DUFFID_OK;
+}
+
+/* ------------------------------------------------------------------ introspection */
+int duffid_n_parameters(const duffid_estimator *est)
+{
+    return est != NULL ? est->n_params : 0;
+}
+
+int duffid_n_dof(const duffid_estimator *est)
+{
+    return est != NULL ? est->n_dof : 0;
+}
+
+int duffid_n_forces(const duffid_estimator *est)
+{
+    return est != NULL ? est->n_forces : 0;
+}
+
+const char *duffid_parameter_name(const duffid_estimator *est, int i)
+{
+    if (est == NULL || i < 0 || i >= est->n_params) {
+        return NULL;
+    }
+    return est->cfg.model == DUFFID_DUFFING1 ? NAMES1[i] : NAMES2[i];
+}
+
+long duffid_capacity(const duffid_estimator *est)
+{
+    return est != NULL ? est->capacity : 0;
+}
+
+const duffid_config *duffid_get_config(const duffid_estimator *est)
+{
+    return est != NULL ? &est->cfg : NULL;
+}
+
+size_t duffid_config_size(void)
+{
+    return sizeof(duffid_config);
+}
+
+size_t duffid_output_size(void)
+{
+    return sizeof(duffid_output);
+}

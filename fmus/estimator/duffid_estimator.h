@@ -1,0 +1,156 @@
+/*
+ * duffid_estimator.h - portable C99 core of duffid's online algebraic identifier.
+ *
+ * A port of duffid.identification.OnlineIdentifier (methods "robust" and "paper") for
+ * the models Duffing1 (m x'' + b x' + k x + kp x^3 = f) and Duffing2 (the wall-m1-m2
+ * chain of the paper, force on m1), optionally with an unknown constant offset force
+ * per degree of freedom. On the same samples it reports the same estimates as the
+ * Python class (to rounding; see tests/test_estimator_c.py).
+ *
+ * Design rules:
+ *   - double precision, libc + libm only, no global or static mutable state: any number
+ *     of estimators can run at once (one per duffid_estimator);
+ *   - all memory is sized from the configuration and handed over once, either by the
+ *     caller (duffid_memory_size + duffid_init, for targets without a heap) or by one
+ *     malloc (duffid_create / duffid_destroy); duffid_update never allocates;
+ *   - no variable-length arrays: the small dense algebra works on fixed maxima
+ *     (DUFFID_MAX_*), the ring buffer of samples is the only configuration-sized array.
+ *
+ * Typical use:
+ *     duffid_config cfg;
+ *     duffid_estimator *est;
+ *     char msg[256];
+ *     duffid_default_config(&cfg, DUFFID_DUFFING1, DUFFID_ROBUST, 1e-3);
+ *     if (duffid_create(&est, &cfg, msg, sizeof msg) != DUFFID_OK) { puts(msg); ... }
+ *     for (each sample) { duffid_update(est, x, f, &out); ... out.parameters[0] ... }
+ *     duffid_destroy(est);
+ */
+#ifndef DUFFID_ESTIMATOR_H
+#define DUFFID_ESTIMATOR_H
+
+#include <stddef.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define DUFFID_VERSION "0.1.0"
+
+/* Fixed maxima of the supported structures. */
+#define DUFFID_MAX_DOF 2        /* displacements per sample */
+#define DUFFID_MAX_FORCES 1     /* forces per sample */
+#define DUFFID_MAX_PARAMS 10    /* public parameters (Duffing2 with offsets) */
+#define DUFFID_MAX_ROWS 12      /* rows per window of the robust method (n_rows) */
+
+/* Status codes: every function that can fail returns one of these. */
+#define DUFFID_OK 0
+#define DUFFID_ERR_ARGUMENT (-1) /* NULL pointer or wrong memory size */
+#define DUFFID_ERR_CONFIG (-2)   /* invalid configuration, see the message buffer */
+#define DUFFID_ERR_SAMPLE (-3)   /* a NaN or infinite sample; the state is unchanged */
+
+/* Models (public parameter order in brackets; offsets c1 [c2] are appended when
+ * duffid_config.offset is set). */
+#define DUFFID_DUFFING1 1 /* m, b, k, kp;            inputs x[0], f[0]           */
+#define DUFFID_DUFFING2 2 /* m1, b1, k1, kp1, b2, k2, kp2, m2; inputs x[0..1], f[0] */
+
+/* Methods. */
+#define DUFFID_ROBUST 0
+#define DUFFID_PAPER 1
+
+/* Row kernel families of the robust method (duffid.regressors.row_exponents). */
+#define DUFFID_ROWS_INTEGRALS 0
+#define DUFFID_ROWS_BERNSTEIN 1
+#define DUFFID_ROWS_PAPER 2
+
+/* Quadrature of the paper method's integrators. */
+#define DUFFID_ADAMS3 0
+#define DUFFID_TRAPEZOID 1
+
+/*
+ * Configuration. duffid_default_config fills it with the defaults of
+ * duffid.identification (_ROBUST_DEFAULTS / _PAPER_DEFAULTS) and the model's nominal
+ * parameter values; change fields afterwards. Fields of the other method are ignored.
+ */
+typedef struct duffid_config {
+    int model;              /* DUFFID_DUFFING1 or DUFFID_DUFFING2 */
+    int method;             /* DUFFID_ROBUST or DUFFID_PAPER */
+    int offset;             /* 1: an unknown constant force per DOF (c1, c2) */
+    double dt;              /* sampling period [s], > 0 */
+    /* Nominal parameter values in public order (the model's parameter values in
+     * Python): a parameter is trustworthy when its standard error is below
+     * max_uncertainty x max(|estimate|, |nominal|). Masses must be > 0. */
+    double nominal[DUFFID_MAX_PARAMS];
+    /* both methods */
+    double max_condition;   /* 1e6: largest condition number of an identified solution */
+    double min_time;        /* 0.01 s: shortest window of an identified solution */
+    double deadband;        /* 0: unused by the supported models (no Coulomb friction) */
+    /* robust */
+    double window;          /* 0: "auto" (default), otherwise the window length [s] */
+    double window_periods;  /* 1.5: auto window in natural periods */
+    double max_window;      /* 1.0 s: buffer capacity (longest window) */
+    double forgetting;      /* 0: none (default), otherwise the time constant [s] */
+    int rows;               /* DUFFID_ROWS_INTEGRALS */
+    int n_rows;             /* 0: max(unknowns + 1, 8) */
+    double max_uncertainty; /* 0.01 */
+    double settle;          /* 0.01 s */
+    /* paper */
+    double gamma;           /* 20: filter gain of eq. (19) */
+    int quadrature;         /* DUFFID_ADAMS3 */
+    int sign_in_numerator;  /* 0 */
+} duffid_config;
+
+/* Result of one update. */
+typedef struct duffid_output {
+    double t;                              /* time of the sample, n * dt [s] */
+    double parameters[DUFFID_MAX_PARAMS];  /* public order; NaN until published */
+    int n_parameters;
+    int identified;                        /* 1 when every parameter is trustworthy */
+    double condition;                      /* largest condition number over the equations */
+    double uncertainty;                    /* largest relative standard error (robust), NaN (paper) */
+    double window;                         /* window length [s] */
+} duffid_output;
+
+typedef struct duffid_estimator duffid_estimator;
+
+/* Defaults for a model and method. Returns DUFFID_ERR_ARGUMENT for an unknown model. */
+int duffid_default_config(duffid_config *cfg, int model, int method, double dt);
+
+/* Validate a configuration; on error writes a message (if msg != NULL). */
+int duffid_check_config(const duffid_config *cfg, char *msg, size_t msg_size);
+
+/* Bytes of memory an estimator with this configuration needs (0: invalid configuration). */
+size_t duffid_memory_size(const duffid_config *cfg);
+
+/* Build an estimator in caller-provided memory of at least duffid_memory_size(cfg)
+ * bytes (any alignment). *est points into memory; nothing is allocated. */
+int duffid_init(duffid_estimator **est, void *memory, size_t size, const duffid_config *cfg,
+                char *msg, size_t msg_size);
+
+/* Same, with one malloc; release with duffid_destroy. */
+int duffid_create(duffid_estimator **est, const duffid_config *cfg, char *msg, size_t msg_size);
+void duffid_destroy(duffid_estimator *est);
+
+/* Forget all samples (start a new identification). */
+void duffid_reset(duffid_estimator *est);
+
+/* Consume one sample: displacements x[n_dof] and forces f[n_forces]. out may be NULL.
+ * A non-finite sample returns DUFFID_ERR_SAMPLE and leaves the state unchanged. */
+int duffid_update(duffid_estimator *est, const double *x, const double *f, duffid_output *out);
+
+/* Introspection. */
+int duffid_n_parameters(const duffid_estimator *est);
+int duffid_n_dof(const duffid_estimator *est);
+int duffid_n_forces(const duffid_estimator *est);
+const char *duffid_parameter_name(const duffid_estimator *est, int i); /* NULL if out of range */
+long duffid_capacity(const duffid_estimator *est);  /* robust: buffer length in samples */
+const duffid_config *duffid_get_config(const duffid_estimator *est);
+
+/* sizeof(duffid_config) and sizeof(duffid_output), for bindings that check their layout. */
+size_t duffid_config_size(void);
+size_t duffid_output_size(void);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* DUFFID_ESTIMATOR_H */

@@ -1,0 +1,383 @@
+"""ctypes binding of the portable C99 estimator core (``fmus/estimator/``).
+
+The C core is a port of :class:`~duffid.identification.OnlineIdentifier` (methods
+``robust`` and ``paper``) for :class:`~duffid.models.Duffing1` and
+:class:`~duffid.models.Duffing2` (with or without ``offset``), written for co-simulation
+FMUs and embedded targets. This module compiles it on demand with the system C compiler,
+caches the shared library by a hash of the sources and flags, and exposes
+:class:`CIdentifier`, a drop-in replacement of ``OnlineIdentifier`` for those models.
+
+Examples
+--------
+>>> from duffid import Duffing1                                  # doctest: +SKIP
+>>> ident = CIdentifier(Duffing1(), dt=1e-3)                     # doctest: +SKIP
+>>> estimate = ident.update(x, f)                                # doctest: +SKIP
+"""
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from .identification import Estimate, Identification, _check_record, check_options
+from .models import Chain, Duffing1, Duffing2, model_from_name
+from .record import Record
+
+__all__ = [
+    "CIdentifier",
+    "CompilerNotFoundError",
+    "CBuildError",
+    "build_library",
+    "load_library",
+    "source_dir",
+    "SOURCES",
+    "CFLAGS",
+]
+
+#: C sources of the core, relative to :func:`source_dir`.
+SOURCES = ("duffid_estimator.c", "duffid_linalg.c")
+HEADERS = ("duffid_estimator.h", "duffid_linalg.h")
+#: Compiler flags of the shared library (the project's strict C99 set).
+CFLAGS = ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared")
+
+_MAX_PARAMS = 10
+_MODELS = {"duffing1": 1, "duffing2": 2}
+_METHODS = {"robust": 0, "paper": 1}
+_ROWS = {"integrals": 0, "bernstein": 1, "paper": 2}
+_QUADRATURE = {"adams3": 0, "trapezoid": 1}
+_STATUS = {0: "ok", -1: "invalid argument", -2: "invalid configuration", -3: "sample not finite"}
+
+
+class CompilerNotFoundError(RuntimeError):
+    """No C compiler was found to build the estimator core."""
+
+
+class CBuildError(RuntimeError):
+    """The C compiler failed on the estimator core."""
+
+
+class _Config(ctypes.Structure):
+    _fields_ = [
+        ("model", ctypes.c_int),
+        ("method", ctypes.c_int),
+        ("offset", ctypes.c_int),
+        ("dt", ctypes.c_double),
+        ("nominal", ctypes.c_double * _MAX_PARAMS),
+        ("max_condition", ctypes.c_double),
+        ("min_time", ctypes.c_double),
+        ("deadband", ctypes.c_double),
+        ("window", ctypes.c_double),
+        ("window_periods", ctypes.c_double),
+        ("max_window", ctypes.c_double),
+        ("forgetting", ctypes.c_double),
+        ("rows", ctypes.c_int),
+        ("n_rows", ctypes.c_int),
+        ("max_uncertainty", ctypes.c_double),
+        ("settle", ctypes.c_double),
+        ("gamma", ctypes.c_double),
+        ("quadrature", ctypes.c_int),
+        ("sign_in_numerator", ctypes.c_int),
+    ]
+
+
+class _Output(ctypes.Structure):
+    _fields_ = [
+        ("t", ctypes.c_double),
+        ("parameters", ctypes.c_double * _MAX_PARAMS),
+        ("n_parameters", ctypes.c_int),
+        ("identified", ctypes.c_int),
+        ("condition", ctypes.c_double),
+        ("uncertainty", ctypes.c_double),
+        ("window", ctypes.c_double),
+    ]
+
+
+# ---------------------------------------------------------------------- building
+def source_dir() -> Path:
+    """Folder of the C sources: ``$DUFFID_C_SOURCES`` or ``fmus/estimator`` of the checkout."""
+    env = os.environ.get("DUFFID_C_SOURCES")
+    if env:
+        return Path(env)
+    return Path(__file__).resolve().parents[2] / "fmus" / "estimator"
+
+
+def _default_build_dir() -> Path:
+    env = os.environ.get("DUFFID_BUILD_DIR")
+    if env:
+        return Path(env)
+    root = Path(__file__).resolve().parents[2]
+    if (root / "fmus").is_dir() and os.access(root, os.W_OK):
+        return root / "build" / "estimator"
+    cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(cache) / "duffid" / "estimator"
+
+
+def find_compiler() -> str:
+    """The C compiler: ``$CC``, else the first of cc, gcc, clang on PATH."""
+    env = os.environ.get("CC")
+    candidates = [env] if env else ["cc", "gcc", "clang"]
+    for name in candidates:
+        path = shutil.which(name) if name else None
+        if path:
+            return path
+    raise CompilerNotFoundError(
+        "the C estimator core needs a C compiler: none of "
+        f"{', '.join(c for c in candidates if c)} was found on PATH (set CC to use another)")
+
+
+def _library_name(tag: str) -> str:
+    suffix = {"win32": ".dll", "darwin": ".dylib"}.get(sys.platform, ".so")
+    return f"libduffid_estimator-{tag}{suffix}"
+
+
+def build_library(build_dir: str | os.PathLike[str] | None = None, *, compiler: str | None = None,
+                  force: bool = False) -> Path:
+    """Compile the C core into a shared library (cached by source and flag hash).
+
+    Parameters
+    ----------
+    build_dir : path, optional
+        Where the library goes; default ``$DUFFID_BUILD_DIR``, else ``build/estimator``
+        of the checkout, else ``~/.cache/duffid/estimator``.
+    compiler : str, optional
+        C compiler command; default :func:`find_compiler`.
+    force : bool
+        Rebuild even if a library with the same hash exists.
+
+    Returns
+    -------
+    Path
+        The shared library.
+
+    Raises
+    ------
+    CompilerNotFoundError
+        If no C compiler is available.
+    CBuildError
+        If compilation fails (the compiler's messages are included).
+    """
+    src = source_dir()
+    missing = [name for name in SOURCES + HEADERS if not (src / name).is_file()]
+    if missing:
+        raise FileNotFoundError(f"C sources of the estimator core not found in {src}: {missing} "
+                                "(set DUFFID_C_SOURCES to the fmus/estimator folder)")
+    cc = compiler or find_compiler()
+    digest = hashlib.sha256()
+    for name in SOURCES + HEADERS:
+        digest.update(name.encode() + b"\0" + (src / name).read_bytes())
+    digest.update(" ".join(CFLAGS).encode())
+    out_dir = Path(build_dir) if build_dir is not None else _default_build_dir()
+    target = out_dir / _library_name(digest.hexdigest()[:16])
+    if target.is_file() and not force:
+        return target
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=target.stem + ".", suffix=target.suffix, dir=out_dir)
+    os.close(fd)
+    cmd = [cc, *CFLAGS, "-o", tmp, *(str(src / name) for name in SOURCES), "-lm"]
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise CBuildError(f"building the C estimator core failed ({' '.join(cmd)}):\n"
+                              f"{proc.stdout}{proc.stderr}")
+        os.replace(tmp, target)  # atomic: concurrent builders never see a partial file
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    for stale in out_dir.glob(_library_name("*")):  # builds of older sources
+        if stale != target:
+            try:
+                stale.unlink()
+            except OSError:  # in use (Windows) or removed by another builder
+                pass
+    return target
+
+
+_LIBRARIES: dict[str, ctypes.CDLL] = {}
+
+
+def load_library(path: str | os.PathLike[str] | None = None) -> ctypes.CDLL:
+    """Load (building if needed) the shared library and declare its functions."""
+    path = str(path if path is not None else build_library())
+    lib = _LIBRARIES.get(path)
+    if lib is not None:
+        return lib
+    lib = ctypes.CDLL(path)
+    cfg_p, out_p = ctypes.POINTER(_Config), ctypes.POINTER(_Output)
+    est_p, dbl_p = ctypes.c_void_p, ctypes.POINTER(ctypes.c_double)
+    signatures = {
+        "duffid_default_config": (ctypes.c_int, [cfg_p, ctypes.c_int, ctypes.c_int, ctypes.c_double]),
+        "duffid_check_config": (ctypes.c_int, [cfg_p, ctypes.c_char_p, ctypes.c_size_t]),
+        "duffid_memory_size": (ctypes.c_size_t, [cfg_p]),
+        "duffid_create": (ctypes.c_int, [ctypes.POINTER(est_p), cfg_p, ctypes.c_char_p, ctypes.c_size_t]),
+        "duffid_destroy": (None, [est_p]),
+        "duffid_reset": (None, [est_p]),
+        "duffid_update": (ctypes.c_int, [est_p, dbl_p, dbl_p, out_p]),
+        "duffid_n_parameters": (ctypes.c_int, [est_p]),
+        "duffid_parameter_name": (ctypes.c_char_p, [est_p, ctypes.c_int]),
+        "duffid_capacity": (ctypes.c_long, [est_p]),
+        "duffid_config_size": (ctypes.c_size_t, []),
+        "duffid_output_size": (ctypes.c_size_t, []),
+    }
+    for name, (restype, argtypes) in signatures.items():
+        fn = getattr(lib, name)
+        fn.restype = restype
+        fn.argtypes = argtypes
+    if lib.duffid_config_size() != ctypes.sizeof(_Config) or lib.duffid_output_size() != ctypes.sizeof(_Output):
+        raise RuntimeError(f"{path}: the C structures do not match this binding (rebuild the library)")
+    _LIBRARIES[path] = lib
+    return lib
+
+
+# ---------------------------------------------------------------------- identifier
+def _resolve_model(model: Chain | str) -> Chain:
+    if isinstance(model, str):
+        model = model_from_name(model)
+    if not isinstance(model, (Duffing1, Duffing2)):
+        raise ValueError(f"the C estimator core supports the models duffing1 and duffing2, "
+                         f"got {getattr(model, 'name', model)!r}")
+    return model
+
+
+class CIdentifier:
+    """The C core with the interface of :class:`~duffid.identification.OnlineIdentifier`.
+
+    Parameters
+    ----------
+    model : Duffing1, Duffing2 or {"duffing1", "duffing2"}
+        Model structure; its parameter values are the nominal sizes (as in Python), its
+        ``offset`` flag adds the offset unknowns.
+    dt : float
+        Sampling period [s].
+    method : {"robust", "paper"}
+        Estimator.
+    **options
+        The options of ``OnlineIdentifier`` with the same defaults and validation
+        (``n_rows`` at most 12 in the C core).
+    library : path, optional (keyword)
+        A prebuilt shared library; default: build/load with :func:`load_library`.
+
+    Raises
+    ------
+    CompilerNotFoundError
+        If the library has to be built and there is no C compiler.
+    """
+
+    def __init__(self, model: Chain | str, dt: float, method: str = "robust", *,
+                 library: str | os.PathLike[str] | None = None, **options: Any) -> None:
+        self.model = _resolve_model(model)
+        if method not in _METHODS:
+            raise ValueError(f"unknown method {method!r}; the C core supports {', '.join(_METHODS)}")
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+        self.dt = float(dt)
+        self.method = method
+        self.options = check_options(method, options)
+        self._lib = load_library(library)
+        cfg = _Config()
+        self._lib.duffid_default_config(ctypes.byref(cfg), _MODELS[self.model.name], _METHODS[method], self.dt)
+        cfg.offset = int(bool(self.model.offset))
+        for i, value in enumerate(self.model.parameters.values()):
+            cfg.nominal[i] = float(value)
+        o = self.options
+        cfg.max_condition = float(o["max_condition"])
+        cfg.min_time = float(o["min_time"])
+        cfg.deadband = float(o["deadband"])
+        if method == "robust":
+            cfg.window = 0.0 if o["window"] == "auto" else float(o["window"])
+            cfg.window_periods = float(o["window_periods"])
+            cfg.max_window = float(o["max_window"])
+            cfg.forgetting = 0.0 if o["forgetting"] is None else float(o["forgetting"])
+            if o["rows"] not in _ROWS:
+                raise ValueError(f"unknown row family {o['rows']!r}; choose paper, integrals or bernstein")
+            cfg.rows = _ROWS[o["rows"]]
+            n_rows = o["n_rows"]
+            if n_rows is not None and (int(n_rows) != n_rows or n_rows < 0):
+                raise ValueError(f"n_rows must be >= 1, got {n_rows}")
+            cfg.n_rows = int(n_rows or 0)
+            cfg.max_uncertainty = float(o["max_uncertainty"])
+            cfg.settle = float(o["settle"])
+        else:
+            cfg.gamma = float(o["gamma"])
+            cfg.quadrature = _QUADRATURE[o["quadrature"]]
+            cfg.sign_in_numerator = int(bool(o["sign_in_numerator"]))
+        self._config = cfg
+        handle = ctypes.c_void_p()
+        msg = ctypes.create_string_buffer(512)
+        rc = self._lib.duffid_create(ctypes.byref(handle), ctypes.byref(cfg), msg, len(msg))
+        if rc != 0:
+            raise ValueError(f"C estimator core: {msg.value.decode() or _STATUS.get(rc, rc)}")
+        self._handle = handle
+        self._names = tuple(self._lib.duffid_parameter_name(handle, i).decode()
+                            for i in range(self._lib.duffid_n_parameters(handle)))
+        self.capacity = int(self._lib.duffid_capacity(handle)) if method == "robust" else None
+        self._x = (ctypes.c_double * self.model.n_dof)()
+        self._f = (ctypes.c_double * self.model.n_forces)()
+        self._out = _Output()
+        self.n = -1
+
+    def __del__(self) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Release the C estimator (also done when the object is collected)."""
+        handle = getattr(self, "_handle", None)
+        if handle is not None and handle.value:
+            self._lib.duffid_destroy(handle)
+            self._handle = None
+
+    def __enter__(self) -> "CIdentifier":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _live(self) -> ctypes.c_void_p:
+        if self._handle is None:
+            raise ValueError("the C estimator was closed")
+        return self._handle
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        """Public parameter names of the model, in output order."""
+        return self._names
+
+    def reset(self) -> None:
+        """Forget all samples (start a new identification)."""
+        self._lib.duffid_reset(self._live())
+        self.n = -1
+
+    def update(self, x: float | Sequence[float] | np.ndarray, f: float | Sequence[float] | np.ndarray) -> Estimate:
+        """Consume one sample of displacements ``x`` and forces ``f``; return the estimate."""
+        xa = np.atleast_1d(np.asarray(x, dtype=float))
+        fa = np.atleast_1d(np.asarray(f, dtype=float))
+        if xa.shape != (self.model.n_dof,) or fa.shape != (self.model.n_forces,):
+            raise ValueError(f"{self.model.name}: update needs {self.model.n_dof} displacement(s) and "
+                             f"{self.model.n_forces} force(s), got {xa.size} and {fa.size}")
+        for i, v in enumerate(xa):
+            self._x[i] = v
+        for i, v in enumerate(fa):
+            self._f[i] = v
+        rc = self._lib.duffid_update(self._live(), self._x, self._f, ctypes.byref(self._out))
+        if rc == -3:
+            raise ValueError(f"{self.model.name}: sample {self.n + 1} is not finite (x={xa}, f={fa})")
+        if rc != 0:
+            raise RuntimeError(f"C estimator core: {_STATUS.get(rc, rc)}")
+        self.n += 1
+        out = self._out
+        params = {name: out.parameters[i] for i, name in enumerate(self._names)}
+        return Estimate(out.t, params, bool(out.identified), out.condition, out.uncertainty, out.window)
+
+    def identify_record(self, record: Record) -> Identification:
+        """Run the identifier over a record sample by sample (like ``OnlineIdentifier``)."""
+        _check_record(record, self.model, self.dt)
+        self.reset()
+        history = [self.update(xi, fi) for xi, fi in zip(record.x, record.f)]
+        return Identification.from_estimates(self, record, history)  # type: ignore[arg-type]

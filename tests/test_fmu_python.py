@@ -1,0 +1,194 @@
+"""The pythonfmu fallback FMU (duffid.fmu_python) through fmpy."""
+from __future__ import annotations
+
+import zipfile
+
+import numpy as np
+import pytest
+
+fmpy = pytest.importorskip("fmpy")
+pytest.importorskip("pythonfmu")
+
+from fmpy.fmi1 import FMICallException  # noqa: E402
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE,  # noqa: E402
+                       fmi2Terminated)
+from fmpy.validation import validate_fmu  # noqa: E402
+
+from duffid import Duffing1, Duffing2, identify  # noqa: E402
+from duffid.fmu_python import FMU_NAMES, build_python_fmu  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory):
+    out = tmp_path_factory.mktemp("fmus")
+    return {name: build_python_fmu(name, out) for name in FMU_NAMES}
+
+
+def _signals(record, names):
+    """fmpy input: the record's samples on fmpy's communication grid t0 + k dt."""
+    columns = [("time", float)] + [(name, float) for name in names]
+    sig = np.zeros(record.n_samples, dtype=columns)
+    sig["time"] = np.arange(record.n_samples) * record.dt
+    values = np.column_stack([record.x, record.f])
+    for i, name in enumerate(names):
+        sig[name] = values[:, i]
+    return sig
+
+
+def _simulate(fmu, record, names, start_values=None):
+    return fmpy.simulate_fmu(str(fmu), start_time=0.0, stop_time=record.n_samples * record.dt,
+                             output_interval=record.dt, input=_signals(record, names),
+                             start_values=start_values or {})
+
+
+def test_file_names_and_validation(fmus):
+    assert fmus["duffing1"].name == "DuffingEstimator1_python.fmu"
+    assert fmus["duffing2"].name == "DuffingEstimator2_python.fmu"
+    for path in fmus.values():
+        assert validate_fmu(str(path)) == []
+        with zipfile.ZipFile(path) as z:
+            assert "modelDescription.xml" in z.namelist()
+
+
+@pytest.mark.parametrize("model_name, inputs, outputs", [
+    ("duffing1", ["x", "f"], ["m_hat", "b_hat", "k_hat", "kp_hat"]),
+    ("duffing2", ["x1", "x2", "f1"], ["m1_hat", "b1_hat", "k1_hat", "kp1_hat", "b2_hat", "k2_hat", "kp2_hat",
+                                       "m2_hat"]),
+])
+def test_interface(fmus, model_name, inputs, outputs):
+    md = fmpy.read_model_description(str(fmus[model_name]))
+    assert md.coSimulation is not None and md.fmiVersion == "2.0"
+    variables = {v.name: v for v in md.modelVariables}
+    assert [v.name for v in md.modelVariables if v.causality == "input"] == inputs
+    out = [v.name for v in md.modelVariables if v.causality == "output"]
+    assert out == outputs + ["identified", "condition", "uncertainty", "window_length"]
+    assert all(variables[name].initial == "exact" for name in out)
+    assert variables["identified"].type == "Boolean"
+    assert np.isnan(float(variables[outputs[0]].start))
+    params = [v for v in md.modelVariables if v.causality == "parameter"]
+    assert all(v.variability == "tunable" for v in params)
+    names = {v.name for v in params}
+    assert {"method", "gamma", "window", "forgetting"} <= names
+    model = Duffing1() if model_name == "duffing1" else Duffing2()
+    for name, value in model.parameters.items():
+        assert float(variables[f"{name}_nominal"].start) == value
+    assert variables["method"].start == "robust" and float(variables["window"].start) == 0.0
+    assert float(variables["gamma"].start) == 20.0 and float(variables["forgetting"].start) == 0.0
+
+
+def test_case_a_gives_identify_answer(fmus, case_a):
+    result = _simulate(fmus["duffing1"], case_a, ["x", "f"])
+    expected = identify(case_a, Duffing1())
+    assert len(result) == case_a.n_samples + 1  # the initial values, then one row per sample
+    for name, value in expected.parameters.items():
+        assert result[f"{name}_hat"][-1] == pytest.approx(value, rel=1e-9)
+        # the whole history, NaN until published
+        np.testing.assert_allclose(result[f"{name}_hat"][1:], expected.history[name], rtol=1e-9)
+    assert np.array_equal(result["identified"][1:], expected.identified)
+    assert result["window_length"][-1] == pytest.approx(expected.window)
+    assert not result["identified"][0] and np.isnan(result["m_hat"][0])
+
+
+def test_options_and_nominal_parameters(fmus, case_a):
+    start = {"method": "paper", "sign_in_numerator": True, "gamma": 10.0}
+    result = _simulate(fmus["duffing1"], case_a, ["x", "f"], start)
+    expected = identify(case_a, Duffing1(), "paper", sign_in_numerator=True, gamma=10.0)
+    for name, value in expected.parameters.items():
+        assert result[f"{name}_hat"][-1] == pytest.approx(value, rel=1e-9)
+    result = _simulate(fmus["duffing1"], case_a, ["x", "f"], {"window": 0.1, "m_nominal": 3.0})
+    expected = identify(case_a, Duffing1(m=3.0), window=0.1)
+    for name, value in expected.parameters.items():
+        assert result[f"{name}_hat"][-1] == pytest.approx(value, rel=1e-9)
+
+
+def test_two_dof_gives_identify_answer(fmus, two_dof_exact):
+    result = _simulate(fmus["duffing2"], two_dof_exact, ["x1", "x2", "f1"])
+    expected = identify(two_dof_exact, Duffing2())
+    for name, value in expected.parameters.items():
+        assert result[f"{name}_hat"][-1] == pytest.approx(value, rel=1e-9)
+    assert bool(result["identified"][-1]) == bool(expected.identified[-1])
+
+
+def _start(path, tmp_path, messages, start_strings=None):
+    """Instantiate with our own callbacks. Never pass ``logger=`` to fmpy.simulate_fmu in
+    tests: fmpy's native logger proxy keeps a global pointer to that Python callback after
+    it is freed, and a later FMU logging through fmpy's default callbacks then crashes."""
+    unzipdir = fmpy.extract(str(path), str(tmp_path / "unzipped"))
+    md = fmpy.read_model_description(str(path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
+                    instanceName="est")
+
+    def log(env, name, status, category, message):
+        messages.append((status, category.decode(), message.decode()))
+
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(log)
+    fmu.instantiate(callbacks=callbacks, loggingOn=True)
+    fmu._duffid_callbacks = callbacks  # keep the ctypes callback alive as long as the instance
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    for name, value in (start_strings or {}).items():
+        fmu.setString([vr[name]], [value])
+    fmu.exitInitializationMode()
+    return fmu, vr
+
+
+def test_bad_parameter_ends_the_simulation_with_a_logged_error(fmus, tmp_path):
+    messages = []
+    fmu, vr = _start(fmus["duffing1"], tmp_path, messages, {"method": "fast"})
+    try:
+        fmu.setReal([vr["x"], vr["f"]], [0.0, 10.0])
+        with pytest.raises(FMICallException, match="status 2"):  # fmi2Discard, terminated
+            fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=1e-3)
+        assert fmu.getBooleanStatus(fmi2Terminated)
+    finally:
+        fmu.freeInstance()
+    assert (3, "logStatusError", "parameter method must be 'robust' or 'paper', got 'fast'") in messages
+
+
+@pytest.fixture
+def instance(fmus, tmp_path):
+    """A started instance of the 1-DOF FMU (fmpy's low-level API) and its value references."""
+    fmu, vr = _start(fmus["duffing1"], tmp_path, [])
+    yield fmu, vr
+    fmu.freeInstance()
+
+
+def test_changing_the_step_size_is_an_error(instance):
+    fmu, vr = instance
+    for k in range(20):
+        fmu.setReal([vr["x"], vr["f"]], [1e-4 * k * k, 10.0])
+        fmu.doStep(currentCommunicationPoint=k * 1e-3, communicationStepSize=1e-3)
+    fmu.doStep(currentCommunicationPoint=20e-3, communicationStepSize=1e-3 * (1 + 1e-12))  # rounding: fine
+    with pytest.raises(FMICallException, match="status 2"):  # fmi2Discard, terminated
+        fmu.doStep(currentCommunicationPoint=21e-3, communicationStepSize=2e-3)
+    assert fmu.getBooleanStatus(fmi2Terminated)
+    with pytest.raises(FMICallException, match="status 2"):  # and it stays so
+        fmu.doStep(currentCommunicationPoint=21e-3, communicationStepSize=1e-3)
+
+
+def test_changing_a_parameter_after_the_first_step_is_an_error(instance):
+    fmu, vr = instance
+    fmu.setReal([vr["x"], vr["f"]], [0.0, 10.0])
+    fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=1e-3)
+    fmu.setReal([vr["gamma"]], [20.0])  # unchanged value: fine
+    fmu.doStep(currentCommunicationPoint=1e-3, communicationStepSize=1e-3)
+    fmu.setReal([vr["window"]], [0.2])
+    with pytest.raises(FMICallException, match="status 2"):
+        fmu.doStep(currentCommunicationPoint=2e-3, communicationStepSize=1e-3)
+
+
+def test_non_finite_input_is_an_error(instance):
+    fmu, vr = instance
+    fmu.setReal([vr["x"], vr["f"]], [0.0, 10.0])
+    fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=1e-3)
+    fmu.setReal([vr["x"]], [float("nan")])
+    with pytest.raises(FMICallException, match="status 2"):
+        fmu.doStep(currentCommunicationPoint=1e-3, communicationStepSize=1e-3)
+    assert np.isnan(fmu.getReal([vr["m_hat"]])[0]) and not fmu.getBoolean([vr["identified"]])[0]
+
+
+def test_unknown_model_is_rejected(tmp_path):
+    with pytest.raises(ValueError, match="duffing1"):
+        build_python_fmu("circuit", tmp_path)
