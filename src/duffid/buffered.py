@@ -532,7 +532,7 @@ class BufferedIdentifier:
     def identify_record(self, record: Record) -> "BufferedIdentification":
         """Identify over a whole record (vectorised; the same estimates as :meth:`update`)."""
         reg = self.regression
-        _check_shapes(record, reg)
+        _check_record(record, reg)
         if abs(record.dt - self.dt) > 1e-9 * self.dt:
             raise RecordError(f"{record.source}: sampled every {record.dt} s, the identifier expects {self.dt} s")
         N = self.n_intervals
@@ -615,15 +615,6 @@ def _stack(systems, eqs: list[int], names: list[str], unknowns) -> tuple[np.ndar
         As.append(full / scale)
         Ds.append(D / scale)
     return np.vstack(As), np.concatenate(Ds)
-
-
-def _check_shapes(record: Record, reg: Regression) -> None:
-    if record.n_dof != reg.n_dof:
-        raise RecordError(f"{record.source}: {reg.name} needs {reg.n_dof} displacement column(s), "
-                          f"the record has {record.n_dof}")
-    if record.n_forces != reg.n_forces:
-        raise RecordError(f"{record.source}: {reg.name} needs {reg.n_forces} force column(s), "
-                          f"the record has {record.n_forces}")
 
 
 # ---------------------------------------------------------------------- result

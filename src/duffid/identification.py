@@ -723,7 +723,8 @@ class Identification:
         return json.dumps(self.to_dict())
 
 
-def _check_record(record: Record, model: Chain, dt: float | None = None) -> None:
+def _check_record(record: Record, model: Any, dt: float | None = None) -> None:
+    """Check that ``record`` fits ``model`` (anything with ``name``, ``n_dof``, ``n_forces``)."""
     if record.n_dof != model.n_dof:
         raise RecordError(f"{record.source}: model {model.name} needs {model.n_dof} displacement column(s), "
                           f"the record has {record.n_dof}")

@@ -134,13 +134,7 @@ def model_description_fmi2(info: FmuInfo, table: list[FmuVariable]) -> bytes:
     _experiment(root, info)
     variables = ET.SubElement(root, "ModelVariables")
     for v in table:
-        attrs = {"name": v.name, "valueReference": str(v.vr)}
-        if v.description:
-            attrs["description"] = v.description
-        attrs["causality"] = v.causality
-        attrs["variability"] = v.variability
-        if v.initial is not None and v.causality not in ("input", "independent"):
-            attrs["initial"] = v.initial
+        attrs = _variable_attributes(v)
         sv = ET.SubElement(variables, "ScalarVariable", attrs)
         real = {}
         if v.unit:
@@ -173,6 +167,19 @@ def model_description_fmi2(info: FmuInfo, table: list[FmuVariable]) -> bytes:
     return _serialize(root)
 
 
+def _variable_attributes(v: FmuVariable) -> dict[str, str]:
+    """The attributes FMI 2 and FMI 3 variables share: name, reference, description,
+    causality, variability and initial."""
+    attrs = {"name": v.name, "valueReference": str(v.vr)}
+    if v.description:
+        attrs["description"] = v.description
+    attrs["causality"] = v.causality
+    attrs["variability"] = v.variability
+    if v.initial is not None and v.causality not in ("input", "independent"):
+        attrs["initial"] = v.initial
+    return attrs
+
+
 def model_description_fmi3(info: FmuInfo, table: list[FmuVariable]) -> bytes:
     """modelDescription.xml for FMI 3.0 (Model Exchange and/or Co-Simulation)."""
     root = ET.Element("fmiModelDescription", {
@@ -192,13 +199,7 @@ def model_description_fmi3(info: FmuInfo, table: list[FmuVariable]) -> bytes:
     _experiment(root, info)
     variables = ET.SubElement(root, "ModelVariables")
     for v in table:
-        attrs = {"name": v.name, "valueReference": str(v.vr)}
-        if v.description:
-            attrs["description"] = v.description
-        attrs["causality"] = v.causality
-        attrs["variability"] = v.variability
-        if v.initial is not None and v.causality not in ("input", "independent"):
-            attrs["initial"] = v.initial
+        attrs = _variable_attributes(v)
         if v.unit:
             attrs["unit"] = v.unit
         if v.minimum is not None:
