@@ -143,16 +143,14 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 
 fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[])
 {
-    (void)value;
     if (check(c, "fmi2GetInteger", ALL_GET) != fmi2OK) return fmi2Error;
-    return (fmi2Status)fmu_no_variables(as_instance(c), "fmi2GetInteger", vr, nvr);
+    return (fmi2Status)fmu_get_int(as_instance(c), "fmi2GetInteger", VARTYPE_INTEGER, vr, nvr, value);
 }
 
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[])
 {
-    (void)value;
     if (check(c, "fmi2GetBoolean", ALL_GET) != fmi2OK) return fmi2Error;
-    return (fmi2Status)fmu_no_variables(as_instance(c), "fmi2GetBoolean", vr, nvr);
+    return (fmi2Status)fmu_get_int(as_instance(c), "fmi2GetBoolean", VARTYPE_BOOLEAN, vr, nvr, value);
 }
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[])
@@ -170,16 +168,14 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[])
 {
-    (void)value;
     if (check(c, "fmi2SetInteger", ALL_SET) != fmi2OK) return fmi2Error;
-    return (fmi2Status)fmu_no_variables(as_instance(c), "fmi2SetInteger", vr, nvr);
+    return (fmi2Status)fmu_set_int(as_instance(c), "fmi2SetInteger", VARTYPE_INTEGER, vr, nvr, value);
 }
 
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[])
 {
-    (void)value;
     if (check(c, "fmi2SetBoolean", ALL_SET) != fmi2OK) return fmi2Error;
-    return (fmi2Status)fmu_no_variables(as_instance(c), "fmi2SetBoolean", vr, nvr);
+    return (fmi2Status)fmu_set_int(as_instance(c), "fmi2SetBoolean", VARTYPE_BOOLEAN, vr, nvr, value);
 }
 
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[])

@@ -205,7 +205,47 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueR
                                        nValueReferences, values);
 }
 
-/* The FMU has Float64 variables only: other getters and setters accept empty requests. */
+/* Int32 and Boolean variables (ModelInfo.types); values are stored as doubles. */
+typedef char int32_is_int[(sizeof(fmi3Int32) == sizeof(int)) ? 1 : -1];
+typedef char boolean_is_a_byte[(sizeof(fmi3Boolean) == 1) ? 1 : -1];
+
+fmi3Status fmi3GetInt32(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                        size_t nValueReferences, fmi3Int32 values[], size_t nValues)
+{
+    if (check(instance, "fmi3GetInt32", ALL_GET) != fmi3OK) return fmi3Error;
+    if (check_n_values(as_instance(instance), "fmi3GetInt32", nValueReferences, nValues)) return fmi3Error;
+    return (fmi3Status)fmu_get_int(as_instance(instance), "fmi3GetInt32", VARTYPE_INTEGER, valueReferences,
+                                   nValueReferences, (int *)values);
+}
+
+fmi3Status fmi3SetInt32(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                        size_t nValueReferences, const fmi3Int32 values[], size_t nValues)
+{
+    if (check(instance, "fmi3SetInt32", ALL_SET) != fmi3OK) return fmi3Error;
+    if (check_n_values(as_instance(instance), "fmi3SetInt32", nValueReferences, nValues)) return fmi3Error;
+    return (fmi3Status)fmu_set_int(as_instance(instance), "fmi3SetInt32", VARTYPE_INTEGER, valueReferences,
+                                   nValueReferences, (const int *)values);
+}
+
+fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                          size_t nValueReferences, fmi3Boolean values[], size_t nValues)
+{
+    if (check(instance, "fmi3GetBoolean", ALL_GET) != fmi3OK) return fmi3Error;
+    if (check_n_values(as_instance(instance), "fmi3GetBoolean", nValueReferences, nValues)) return fmi3Error;
+    return (fmi3Status)fmu_get_bool8(as_instance(instance), "fmi3GetBoolean", valueReferences,
+                                     nValueReferences, (unsigned char *)values);
+}
+
+fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                          size_t nValueReferences, const fmi3Boolean values[], size_t nValues)
+{
+    if (check(instance, "fmi3SetBoolean", ALL_SET) != fmi3OK) return fmi3Error;
+    if (check_n_values(as_instance(instance), "fmi3SetBoolean", nValueReferences, nValues)) return fmi3Error;
+    return (fmi3Status)fmu_set_bool8(as_instance(instance), "fmi3SetBoolean", valueReferences,
+                                     nValueReferences, (const unsigned char *)values);
+}
+
+/* Other types: no variables; their getters and setters accept empty requests. */
 #define NO_VARIABLES_GET(NAME, TYPE)                                                                  \
     fmi3Status NAME(fmi3Instance instance, const fmi3ValueReference valueReferences[],               \
                     size_t nValueReferences, TYPE values[], size_t nValues)                          \
@@ -232,22 +272,18 @@ NO_VARIABLES_GET(fmi3GetInt8, fmi3Int8)
 NO_VARIABLES_GET(fmi3GetUInt8, fmi3UInt8)
 NO_VARIABLES_GET(fmi3GetInt16, fmi3Int16)
 NO_VARIABLES_GET(fmi3GetUInt16, fmi3UInt16)
-NO_VARIABLES_GET(fmi3GetInt32, fmi3Int32)
 NO_VARIABLES_GET(fmi3GetUInt32, fmi3UInt32)
 NO_VARIABLES_GET(fmi3GetInt64, fmi3Int64)
 NO_VARIABLES_GET(fmi3GetUInt64, fmi3UInt64)
-NO_VARIABLES_GET(fmi3GetBoolean, fmi3Boolean)
 NO_VARIABLES_GET(fmi3GetString, fmi3String)
 NO_VARIABLES_SET(fmi3SetFloat32, fmi3Float32)
 NO_VARIABLES_SET(fmi3SetInt8, fmi3Int8)
 NO_VARIABLES_SET(fmi3SetUInt8, fmi3UInt8)
 NO_VARIABLES_SET(fmi3SetInt16, fmi3Int16)
 NO_VARIABLES_SET(fmi3SetUInt16, fmi3UInt16)
-NO_VARIABLES_SET(fmi3SetInt32, fmi3Int32)
 NO_VARIABLES_SET(fmi3SetUInt32, fmi3UInt32)
 NO_VARIABLES_SET(fmi3SetInt64, fmi3Int64)
 NO_VARIABLES_SET(fmi3SetUInt64, fmi3UInt64)
-NO_VARIABLES_SET(fmi3SetBoolean, fmi3Boolean)
 NO_VARIABLES_SET(fmi3SetString, fmi3String)
 
 fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[],

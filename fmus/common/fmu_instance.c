@@ -149,9 +149,16 @@ Instance *instance_new(const ModelInfo *model, const char *name, const char *tok
     return inst;
 }
 
+static void free_model_data(Instance *inst)
+{
+    if (inst->model->free_data != NULL) inst->model->free_data(inst);
+    inst->model_data = NULL;
+}
+
 void instance_free(Instance *inst)
 {
     if (inst == NULL) return;
+    free_model_data(inst);
     free(inst->name);
     free(inst->vars);
     free(inst->work);
@@ -163,6 +170,7 @@ void instance_free(Instance *inst)
 
 void instance_reset(Instance *inst)
 {
+    free_model_data(inst);
     set_start_values(inst);
 }
 
@@ -171,8 +179,10 @@ void instance_reset(Instance *inst)
 static int first_non_finite(const Instance *inst)
 {
     size_t i;
-    for (i = 0; i < inst->model->n_vars; i++)
+    for (i = 0; i < inst->model->n_vars; i++) {
+        if (inst->model->non_finite_outputs && inst->model->causality[i] == CAUSALITY_OUTPUT) continue;
         if (!isfinite(inst->vars[i])) return (int)i;
+    }
     return -1;
 }
 
@@ -267,6 +277,34 @@ static int set_allowed(const Instance *inst, size_t vr)
     return modes & inst->mode;
 }
 
+static int var_type(const ModelInfo *m, size_t vr)
+{
+    return m->types != NULL ? m->types[vr] : VARTYPE_FLOAT64;
+}
+
+static const char *type_name(int type)
+{
+    return type == VARTYPE_INTEGER ? "an Integer" : type == VARTYPE_BOOLEAN ? "a Boolean" : "a Float64";
+}
+
+/* Nonzero (logged) unless every reference is a variable of the type. */
+static int check_refs(Instance *inst, const char *function, int type, const unsigned vr[], size_t nvr)
+{
+    size_t i;
+    for (i = 0; i < nvr; i++) {
+        if (vr[i] >= inst->model->n_vars) {
+            log_error(inst, "%s: unknown value reference %u", function, vr[i]);
+            return 1;
+        }
+        if (var_type(inst->model, vr[i]) != type) {
+            log_error(inst, "%s: variable %s (value reference %u) is not %s variable", function,
+                      inst->model->names[vr[i]], vr[i], type_name(type));
+            return 1;
+        }
+    }
+    return 0;
+}
+
 FmuStatus fmu_get_float64(Instance *inst, const char *function, const unsigned vr[], size_t nvr,
                           double value[])
 {
@@ -274,12 +312,7 @@ FmuStatus fmu_get_float64(Instance *inst, const char *function, const unsigned v
     if (fmu_null_arg(inst, function, "valueReferences", vr, nvr) ||
         fmu_null_arg(inst, function, "values", value, nvr))
         return FMU_ERROR;
-    for (i = 0; i < nvr; i++) {
-        if (vr[i] >= inst->model->n_vars) {
-            log_error(inst, "%s: unknown value reference %u", function, vr[i]);
-            return FMU_ERROR;
-        }
-    }
+    if (check_refs(inst, function, VARTYPE_FLOAT64, vr, nvr)) return FMU_ERROR;
     if (inst->mode != MODE_INSTANTIATED && inst->mode != MODE_ERROR && evaluate(inst, function) != 0) {
         inst->mode = MODE_ERROR;
         return FMU_ERROR;
@@ -295,11 +328,8 @@ FmuStatus fmu_set_float64(Instance *inst, const char *function, const unsigned v
     if (fmu_null_arg(inst, function, "valueReferences", vr, nvr) ||
         fmu_null_arg(inst, function, "values", value, nvr))
         return FMU_ERROR;
+    if (check_refs(inst, function, VARTYPE_FLOAT64, vr, nvr)) return FMU_ERROR;
     for (i = 0; i < nvr; i++) { /* all or nothing */
-        if (vr[i] >= inst->model->n_vars) {
-            log_error(inst, "%s: unknown value reference %u", function, vr[i]);
-            return FMU_ERROR;
-        }
         if (!set_allowed(inst, vr[i])) {
             log_error(inst, "%s: variable %s (value reference %u) cannot be set in state %s",
                       function, inst->model->names[vr[i]], vr[i], mode_name(inst->mode));
@@ -315,6 +345,81 @@ FmuStatus fmu_set_float64(Instance *inst, const char *function, const unsigned v
         if (inst->vars[vr[i]] != value[i]) inst->dirty = 1;
         inst->vars[vr[i]] = value[i];
     }
+    return FMU_OK;
+}
+
+/* Checks of a get (and evaluation); nonzero on failure (logged). */
+static int get_checks(Instance *inst, const char *function, int type, const unsigned vr[], size_t nvr,
+                      const void *value)
+{
+    if (fmu_null_arg(inst, function, "valueReferences", vr, nvr) ||
+        fmu_null_arg(inst, function, "values", value, nvr) || check_refs(inst, function, type, vr, nvr))
+        return 1;
+    if (inst->mode != MODE_INSTANTIATED && inst->mode != MODE_ERROR && evaluate(inst, function) != 0) {
+        inst->mode = MODE_ERROR;
+        return 1;
+    }
+    return 0;
+}
+
+/* Checks of a set (all or nothing); nonzero on failure (logged). */
+static int set_checks(Instance *inst, const char *function, int type, const unsigned vr[], size_t nvr,
+                      const void *value)
+{
+    size_t i;
+    if (fmu_null_arg(inst, function, "valueReferences", vr, nvr) ||
+        fmu_null_arg(inst, function, "values", value, nvr) || check_refs(inst, function, type, vr, nvr))
+        return 1;
+    for (i = 0; i < nvr; i++) {
+        if (!set_allowed(inst, vr[i])) {
+            log_error(inst, "%s: variable %s (value reference %u) cannot be set in state %s",
+                      function, inst->model->names[vr[i]], vr[i], mode_name(inst->mode));
+            return 1;
+        }
+    }
+    return 0;
+}
+
+static void store(Instance *inst, unsigned vr, double v)
+{
+    if (inst->vars[vr] != v) inst->dirty = 1;
+    inst->vars[vr] = v;
+}
+
+FmuStatus fmu_get_int(Instance *inst, const char *function, int type, const unsigned vr[], size_t nvr,
+                      int value[])
+{
+    size_t i;
+    if (get_checks(inst, function, type, vr, nvr, value)) return FMU_ERROR;
+    for (i = 0; i < nvr; i++) value[i] = (int)inst->vars[vr[i]];
+    return FMU_OK;
+}
+
+FmuStatus fmu_set_int(Instance *inst, const char *function, int type, const unsigned vr[], size_t nvr,
+                      const int value[])
+{
+    size_t i;
+    if (set_checks(inst, function, type, vr, nvr, value)) return FMU_ERROR;
+    for (i = 0; i < nvr; i++)
+        store(inst, vr[i], type == VARTYPE_BOOLEAN ? (value[i] != 0 ? 1.0 : 0.0) : (double)value[i]);
+    return FMU_OK;
+}
+
+FmuStatus fmu_get_bool8(Instance *inst, const char *function, const unsigned vr[], size_t nvr,
+                        unsigned char value[])
+{
+    size_t i;
+    if (get_checks(inst, function, VARTYPE_BOOLEAN, vr, nvr, value)) return FMU_ERROR;
+    for (i = 0; i < nvr; i++) value[i] = inst->vars[vr[i]] != 0.0 ? 1u : 0u;
+    return FMU_OK;
+}
+
+FmuStatus fmu_set_bool8(Instance *inst, const char *function, const unsigned vr[], size_t nvr,
+                        const unsigned char value[])
+{
+    size_t i;
+    if (set_checks(inst, function, VARTYPE_BOOLEAN, vr, nvr, value)) return FMU_ERROR;
+    for (i = 0; i < nvr; i++) store(inst, vr[i], value[i] != 0 ? 1.0 : 0.0);
     return FMU_OK;
 }
 
@@ -582,22 +687,27 @@ FmuStatus fmu_do_step(Instance *inst, const char *function, double current_time,
 typedef struct Snapshot {
     unsigned magic;
     unsigned kind;
-    unsigned long long n_vars, n_states, size;
+    unsigned long long n_vars, n_states, size, model_bytes;
     int mode, stop_time_defined;
     double time, start_time, stop_time, tolerance, h_next;
-    double data[1]; /* n_vars values, then n_states error scales */
+    double data[1]; /* n_vars values, n_states error scales, then model_bytes of model data */
 } Snapshot;
 
-static size_t snapshot_size(const ModelInfo *m)
+static size_t snapshot_size(const ModelInfo *m, unsigned long long model_bytes)
 {
-    return sizeof(Snapshot) + (m->n_vars + m->n_states) * sizeof(double);
+    return sizeof(Snapshot) + (m->n_vars + m->n_states) * sizeof(double) + (size_t)model_bytes;
+}
+
+static size_t model_state_size(const Instance *inst)
+{
+    return inst->model->state_size != NULL ? inst->model->state_size(inst) : 0;
 }
 
 static int snapshot_valid(Instance *inst, const char *function, const Snapshot *s, size_t size)
 {
     const ModelInfo *m = inst->model;
     if (s == NULL || size < sizeof(Snapshot) || s->magic != SNAPSHOT_MAGIC || s->n_vars != m->n_vars ||
-        s->n_states != m->n_states || s->size != snapshot_size(m) || size < s->size ||
+        s->n_states != m->n_states || s->size != snapshot_size(m, s->model_bytes) || size < s->size ||
         s->kind != (unsigned)inst->kind) {
         log_error(inst, "%s: not an FMU state of this FMU", function);
         return 0;
@@ -609,12 +719,18 @@ FmuStatus fmu_get_state(Instance *inst, const char *function, void **state)
 {
     const ModelInfo *m = inst->model;
     Snapshot *s;
+    size_t model_bytes = model_state_size(inst);
     if (fmu_null_arg(inst, function, "FMUState", state, 1)) return FMU_ERROR;
     if (*state != NULL) {
         s = (Snapshot *)*state;
         if (!snapshot_valid(inst, function, s, s->size)) return FMU_ERROR;
-    } else {
-        s = (Snapshot *)calloc(1, snapshot_size(m));
+        if (s->model_bytes != model_bytes) { /* model data changed size: a new snapshot */
+            free(s);
+            *state = NULL;
+        }
+    }
+    if (*state == NULL) {
+        s = (Snapshot *)calloc(1, snapshot_size(m, model_bytes));
         if (s == NULL) {
             log_error(inst, "%s: out of memory", function);
             return FMU_ERROR;
@@ -624,7 +740,8 @@ FmuStatus fmu_get_state(Instance *inst, const char *function, void **state)
     s->kind = (unsigned)inst->kind;
     s->n_vars = m->n_vars;
     s->n_states = m->n_states;
-    s->size = snapshot_size(m);
+    s->model_bytes = model_bytes;
+    s->size = snapshot_size(m, model_bytes);
     s->mode = (int)inst->mode;
     s->stop_time_defined = inst->stop_time_defined;
     s->time = inst->time;
@@ -634,6 +751,7 @@ FmuStatus fmu_get_state(Instance *inst, const char *function, void **state)
     s->h_next = inst->h_next;
     memcpy(s->data, inst->vars, m->n_vars * sizeof(double));
     memcpy(s->data + m->n_vars, inst->yscale, m->n_states * sizeof(double));
+    if (model_bytes > 0) m->save_state(inst, (void *)(s->data + m->n_vars + m->n_states));
     *state = s;
     return FMU_OK;
 }
@@ -644,6 +762,11 @@ FmuStatus fmu_set_state(Instance *inst, const char *function, const void *state)
     const Snapshot *s = (const Snapshot *)state;
     if (fmu_null_arg(inst, function, "FMUState", state, 1)) return FMU_ERROR;
     if (!snapshot_valid(inst, function, s, s->size)) return FMU_ERROR;
+    if (m->load_state != NULL &&
+        m->load_state(inst, (const void *)(s->data + m->n_vars + m->n_states), (size_t)s->model_bytes) != 0) {
+        log_error(inst, "%s: the model data of the FMU state could not be restored", function);
+        return FMU_ERROR;
+    }
     inst->mode = (Mode)s->mode;
     inst->stop_time_defined = s->stop_time_defined;
     inst->time = s->time;

@@ -55,6 +55,7 @@ typedef struct Instance {
     double *vars;                  /* all Float64 variables, indexed by value reference */
     int dirty;                     /* vars changed since the last evaluation */
     double *work;                  /* model scratch memory */
+    void *model_data;              /* model-owned data (ModelInfo.free_data), NULL: none */
     long long *iwork;
     /* integrator (co-simulation) */
     double *y, *y1, *ytmp, *err, *yscale, *k[7];
@@ -91,7 +92,18 @@ FmuStatus fmu_get_float64(Instance *inst, const char *function, const unsigned v
                           double value[]);
 FmuStatus fmu_set_float64(Instance *inst, const char *function, const unsigned vr[], size_t nvr,
                           const double value[]);
-/* Other variable types: this glue has only Float64 variables, so any reference is invalid. */
+/* Integer (FMI 2 Integer, FMI 3 Int32) and Boolean variables (type VARTYPE_INTEGER or
+ * VARTYPE_BOOLEAN), as ints; Boolean values are 0/1 (any nonzero sets 1). */
+FmuStatus fmu_get_int(Instance *inst, const char *function, int type, const unsigned vr[], size_t nvr,
+                      int value[]);
+FmuStatus fmu_set_int(Instance *inst, const char *function, int type, const unsigned vr[], size_t nvr,
+                      const int value[]);
+/* Booleans stored in one byte each (FMI 3 fmi3Boolean, a C99 bool). */
+FmuStatus fmu_get_bool8(Instance *inst, const char *function, const unsigned vr[], size_t nvr,
+                        unsigned char value[]);
+FmuStatus fmu_set_bool8(Instance *inst, const char *function, const unsigned vr[], size_t nvr,
+                        const unsigned char value[]);
+/* Other variable types: none exist, so any reference is invalid. */
 FmuStatus fmu_no_variables(Instance *inst, const char *function, const unsigned vr[], size_t nvr);
 
 FmuStatus fmu_set_time(Instance *inst, const char *function, double time);

@@ -1,7 +1,8 @@
 /* What a model provides to the shared FMI glue (fmus/common).
  *
- * A model has n_vars Float64 variables with value references 0 .. n_vars-1, stored in
- * Instance.vars. The glue handles the FMI state machine, argument checks, logging,
+ * A model has n_vars variables with value references 0 .. n_vars-1, stored as doubles
+ * in Instance.vars: Float64, or (ModelInfo.types) Integer / Boolean holding whole
+ * numbers and 0/1. The glue handles the FMI state machine, argument checks, logging,
  * FMU state snapshots and (for co-simulation) the integration of the ODE
  *     der(x) = f(t, x, inputs, parameters)
  * with an adaptive Dormand-Prince 5(4) method. A model supplies only its variable
@@ -30,6 +31,14 @@ enum {
     CAUSALITY_INDEPENDENT = 5
 };
 
+/* Type of a variable (ModelInfo.types). Every value is stored as a double in
+ * Instance.vars; Integer and Boolean variables hold whole numbers and 0/1. */
+enum {
+    VARTYPE_FLOAT64 = 0,
+    VARTYPE_INTEGER = 1, /* FMI 2 Integer, FMI 3 Int32 */
+    VARTYPE_BOOLEAN = 2
+};
+
 /* Variability of a variable. */
 enum {
     VARIABILITY_CONSTANT = 0,
@@ -47,10 +56,19 @@ typedef int (*ModelEvaluate)(struct Instance *inst);
 /* Advance a discrete-time model from inst->time to t + h (inputs held); 0 on success. */
 typedef int (*ModelDoStep)(struct Instance *inst, double t, double h);
 
+/* Optional model data beyond the Float64 variables (Instance.model_data, owned by the
+ * model): released by free_data (at fmiFreeInstance and fmiReset) and part of the FMU
+ * state: state_size bytes written by save_state and read back by load_state (which may
+ * allocate; nonzero on failure, logged by the model). */
+typedef void (*ModelFreeData)(struct Instance *inst);
+typedef size_t (*ModelStateSize)(const struct Instance *inst);
+typedef void (*ModelSaveState)(const struct Instance *inst, void *bytes);
+typedef int (*ModelLoadState)(struct Instance *inst, const void *bytes, size_t size);
+
 typedef struct ModelInfo {
     const char *model_identifier;
     const char *instantiation_token;   /* guid (FMI 2) / instantiationToken (FMI 3) */
-    size_t n_vars;                     /* Float64 variables, value references 0..n_vars-1 */
+    size_t n_vars;                     /* variables, value references 0..n_vars-1 */
     const char *const *names;          /* variable names, for messages */
     const double *start;               /* start values (NaN: none) */
     const unsigned char *causality;    /* CAUSALITY_* */
@@ -65,6 +83,13 @@ typedef struct ModelInfo {
     ModelDoStep do_step;               /* NULL: integrate the ODE */
     double default_tolerance;          /* co-simulation tolerance without SetupExperiment */
     unsigned interfaces;               /* INTERFACE_* bits declared in modelDescription.xml */
+    /* optional (zero in the plants' positional initialisers) */
+    ModelFreeData free_data;           /* NULL: no model data */
+    ModelStateSize state_size;         /* NULL: no model data in the FMU state */
+    ModelSaveState save_state;
+    ModelLoadState load_state;
+    int non_finite_outputs;            /* 1: outputs may be NaN/Inf (e.g. "not yet estimated") */
+    const unsigned char *types;        /* VARTYPE_* per variable; NULL: all Float64 */
 } ModelInfo;
 
 /* Interfaces of ModelInfo.interfaces. */

@@ -631,6 +631,31 @@ int duffid_init(duffid_estimator **out, void *memory, size_t size, const duffid_
     return DUFFID_OK;
 }
 
+duffid_estimator *duffid_relocate(void *memory)
+{
+    duffid_estimator *est;
+    uintptr_t base;
+    double *dyn;
+    int i;
+    if (memory == NULL) {
+        return NULL;
+    }
+    base = ((uintptr_t)memory + (ALIGNMENT - 1u)) & ~(uintptr_t)(ALIGNMENT - 1u);
+    est = (duffid_estimator *)base;
+    dyn = (double *)(base + ALIGN_UP(sizeof(struct duffid_estimator)));
+    if (est->cfg.method == DUFFID_ROBUST) {
+        est->ring = dyn;
+    } else {
+        for (i = 0; i < est->n_eq; i++) {
+            equation_t *eq = &est->eq[i];
+            dyn = integrators_setup(&eq->reg, 3 * est->n_ch, eq->n_unk + 1, dyn);
+            dyn = integrators_setup(&eq->det, eq->n_unk + 1, 2, dyn);
+        }
+    }
+    est->block = NULL;
+    return est;
+}
+
 int duffid_create(duffid_estimator **out, const duffid_config *cfg, char *msg, size_t msg_size)
 {
     size_t size;

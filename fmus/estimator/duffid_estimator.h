@@ -126,6 +126,13 @@ size_t duffid_memory_size(const duffid_config *cfg);
 int duffid_init(duffid_estimator **est, void *memory, size_t size, const duffid_config *cfg,
                 char *msg, size_t msg_size);
 
+/* Adopt a byte copy of an estimator's memory: memory holds, from its first
+ * DUFFID-aligned (8-byte) address on, a copy of an estimator built by duffid_init
+ * (copied from the estimator pointer on). Fixes the internal pointers and returns the
+ * estimator (the copy is caller memory: never duffid_destroy it); NULL for NULL. This is
+ * how FMU states are restored: copying the memory block is the estimator's state. */
+duffid_estimator *duffid_relocate(void *memory);
+
 /* Same, with one malloc; release with duffid_destroy. */
 int duffid_create(duffid_estimator **est, const duffid_config *cfg, char *msg, size_t msg_size);
 void duffid_destroy(duffid_estimator *est);

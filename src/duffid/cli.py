@@ -126,7 +126,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fs", type=_positive_float, default=None, help=".mat: sampling frequency [Hz]")
 
     silverbox.add_cli(sub)
-    modelica.add_cli(sub)
+    p = modelica.add_cli(sub)
+    p.description = ("Build every Modelica example plant as <Name>.fmu (FMI 2.0) and <Name>_fmi3.fmu "
+                     "(FMI 3.0), and the estimator FMUs DuffingEstimator{1,2}.fmu, _fmi3.fmu (C) and "
+                     "_python.fmu (pythonfmu).")
+    p.add_argument("--no-estimators", action="store_true", help="build the plant FMUs only")
 
     p = sub.add_parser("demo", help="the main job: identify the paper's 1-DOF and 2-DOF cases")
     p.add_argument("--out", type=Path, default=Path("out"), help="output folder (default out/)")
@@ -222,6 +226,17 @@ def _nonlinearity(args: argparse.Namespace) -> int:
     return 0
 
 
+def _build_fmus(args: argparse.Namespace) -> int:
+    """Plant FMUs (Modelica export), then the estimator FMUs (C core and pythonfmu)."""
+    status = modelica.run_cli(args)
+    if status or args.no_estimators or args.plant:
+        return status
+    from .fmu_estimator import build_estimator_fmus
+    for path in build_estimator_fmus(args.out):
+        print(path)
+    return 0
+
+
 def _simulate(args: argparse.Namespace) -> int:
     model = _model(args)
     values = {}
@@ -263,7 +278,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``duffid`` command; returns the exit status."""
     args = build_parser().parse_args(argv)
     handlers = {"identify": _identify, "simulate": _simulate, "nonlinearity": _nonlinearity,
-                "silverbox": silverbox.run_cli, "build-fmus": modelica.run_cli, "demo": _demo}
+                "silverbox": silverbox.run_cli, "build-fmus": _build_fmus, "demo": _demo}
     try:
         return handlers[args.command](args)
     except (RecordError, ValueError, TypeError, SimulationError) as exc:

@@ -1,0 +1,332 @@
+/* duffid's online identifier as a discrete-time co-simulation model of the shared FMI
+ * glue (fmus/common): DuffingEstimator1 (inputs x, f) and DuffingEstimator2 (inputs x1,
+ * x2, f1), FMI 2.0 and 3.0.
+ *
+ * The variable table (names, start values, causality, variability) comes from the
+ * generated header estimator_fmu_config.h (duffid.fmu_estimator), which also selects the
+ * model (ESTIMATOR_MODEL) and sets ESTIMATOR_IDENTIFIER and ESTIMATOR_TOKEN. Layout, by
+ * value reference:
+ *
+ *   0                        time
+ *   1 .. n_dof               displacements (inputs)
+ *   n_dof + 1                force (input)
+ *   then n_params            estimates (outputs, NaN until published)
+ *   then 4                   identified (Boolean), condition, uncertainty, window_length
+ *   then N_OPTIONS           options (fixed parameters; codes are Integer, see below)
+ *   then n_params            nominal parameter values <name>_nominal
+ *
+ * Semantics: each doStep(t, h) consumes one sample, the inputs set for time t, with h as
+ * the sampling period. The first doStep fixes the period and builds the estimator (one
+ * allocation; the options are read then: an option left at its start value keeps
+ * duffid_default_config's default of the chosen method, exactly as identify() does); a
+ * later step of another size (relative difference above 1e-9) fails with Discard and a
+ * logged error. The estimator lives in one flat block of memory: the FMU state is a byte
+ * copy of it (duffid_relocate fixes its internal pointers after a restore).
+ */
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "duffid_estimator.h"
+#include "fmu_instance.h"
+#include "fmu_model.h"
+#include "estimator_fmu_config.h"
+
+#if ESTIMATOR_MODEL == DUFFID_DUFFING1
+#define N_DOF 1
+#define N_PARAMS 4
+#else
+#define N_DOF 2
+#define N_PARAMS 8
+#endif
+
+/* Options, in value-reference order after the outputs. */
+enum {
+    OPT_METHOD,          /* 0 robust, 1 paper */
+    OPT_WINDOW,          /* s, 0: auto */
+    OPT_WINDOW_PERIODS,
+    OPT_MAX_WINDOW,      /* s */
+    OPT_FORGETTING,      /* s, 0: none */
+    OPT_ROWS,            /* 0 integrals, 1 bernstein, 2 paper */
+    OPT_N_ROWS,          /* 0: default */
+    OPT_MAX_CONDITION,
+    OPT_MAX_UNCERTAINTY,
+    OPT_MIN_TIME,        /* s */
+    OPT_SETTLE,          /* s */
+    OPT_GAMMA,
+    OPT_QUADRATURE,      /* 0 adams3, 1 trapezoid */
+    OPT_SIGN_IN_NUMERATOR, /* 0/1 */
+    N_OPTIONS
+};
+
+#define VR_X 1
+#define VR_F (1 + N_DOF)
+#define VR_EST (VR_F + 1)
+#define VR_IDENTIFIED (VR_EST + N_PARAMS)
+#define VR_CONDITION (VR_IDENTIFIED + 1)
+#define VR_UNCERTAINTY (VR_IDENTIFIED + 2)
+#define VR_WINDOW_LENGTH (VR_IDENTIFIED + 3)
+#define VR_OPT (VR_IDENTIFIED + 4)
+#define VR_NOMINAL (VR_OPT + N_OPTIONS)
+#define N_VARS_EXPECTED (VR_NOMINAL + N_PARAMS)
+
+typedef char estimator_layout_check[(N_VARS_EXPECTED == ESTIMATOR_N_VARS) ? 1 : -1];
+
+#define DT_RTOL 1e-9
+
+/* Model data (Instance.model_data). */
+typedef struct EstData {
+    int started;              /* the first doStep built the estimator */
+    int have_out;             /* out holds the result of the last sample */
+    double dt;                /* sampling period fixed by the first doStep */
+    duffid_config cfg;
+    duffid_output out;
+    void *mem;                /* estimator memory (calloc, kept across resets of the data) */
+    size_t mem_size;
+    duffid_estimator *est;    /* inside mem */
+} EstData;
+
+/* Header of the model data in an FMU state, followed by est_bytes of estimator memory. */
+typedef struct EstState {
+    unsigned long long est_bytes;
+    int started, have_out;
+    double dt;
+    duffid_config cfg;
+    duffid_output out;
+} EstState;
+
+static int evaluate(Instance *inst)
+{
+    const EstData *d = (const EstData *)inst->model_data;
+    double *v = inst->vars;
+    int i;
+    if (d != NULL && d->have_out) {
+        for (i = 0; i < N_PARAMS; i++) v[VR_EST + i] = d->out.parameters[i];
+        v[VR_IDENTIFIED] = d->out.identified ? 1.0 : 0.0;
+        v[VR_CONDITION] = d->out.condition;
+        v[VR_UNCERTAINTY] = d->out.uncertainty;
+        v[VR_WINDOW_LENGTH] = d->out.window;
+    } else {
+        for (i = 0; i < N_PARAMS; i++) v[VR_EST + i] = NAN;
+        v[VR_IDENTIFIED] = 0.0;
+        v[VR_CONDITION] = NAN;
+        v[VR_UNCERTAINTY] = NAN;
+        v[VR_WINDOW_LENGTH] = NAN;
+    }
+    return 0;
+}
+
+static EstData *data_of(Instance *inst)
+{
+    if (inst->model_data == NULL) inst->model_data = calloc(1, sizeof(EstData));
+    return (EstData *)inst->model_data;
+}
+
+/* Ensures at least size bytes of estimator memory (allocates only when it grows). */
+static int reserve(Instance *inst, EstData *d, size_t size)
+{
+    void *mem;
+    if (d->mem != NULL && d->mem_size >= size) return 0;
+    mem = calloc(1, size);
+    if (mem == NULL) {
+        fmu_log(inst, FMU_ERROR, "logStatusError", "out of memory (%lu bytes for the estimator)",
+                (unsigned long)size);
+        return 1;
+    }
+    free(d->mem);
+    d->mem = mem;
+    d->mem_size = size;
+    d->est = NULL;
+    return 0;
+}
+
+/* An option coded as a small non-negative integer: its value, or -1 (logged). */
+static int coded_option(Instance *inst, int option, int max_value)
+{
+    double v = inst->vars[VR_OPT + option];
+    if (!(v >= 0.0 && v <= (double)max_value && v == floor(v))) {
+        fmu_log(inst, FMU_ERROR, "logStatusError", "parameter %s must be an integer in 0 .. %d, got %g",
+                inst->model->names[VR_OPT + option], max_value, v);
+        return -1;
+    }
+    return (int)v;
+}
+
+/* The configuration from the parameters: method defaults, then every option or nominal
+ * value that differs from its start value. */
+static int make_config(Instance *inst, double dt, duffid_config *cfg)
+{
+    const double *v = inst->vars, *start = inst->model->start;
+    int method = coded_option(inst, OPT_METHOD, 1), i, code;
+    char msg[256];
+#define CHANGED(opt) (v[VR_OPT + (opt)] != start[VR_OPT + (opt)])
+    if (method < 0) return 1;
+    duffid_default_config(cfg, ESTIMATOR_MODEL, method == 0 ? DUFFID_ROBUST : DUFFID_PAPER, dt);
+    for (i = 0; i < N_PARAMS; i++)
+        if (v[VR_NOMINAL + i] != start[VR_NOMINAL + i]) cfg->nominal[i] = v[VR_NOMINAL + i];
+    if (CHANGED(OPT_WINDOW)) cfg->window = v[VR_OPT + OPT_WINDOW];
+    if (CHANGED(OPT_WINDOW_PERIODS)) cfg->window_periods = v[VR_OPT + OPT_WINDOW_PERIODS];
+    if (CHANGED(OPT_MAX_WINDOW)) cfg->max_window = v[VR_OPT + OPT_MAX_WINDOW];
+    if (CHANGED(OPT_FORGETTING)) cfg->forgetting = v[VR_OPT + OPT_FORGETTING];
+    if (CHANGED(OPT_MAX_CONDITION)) cfg->max_condition = v[VR_OPT + OPT_MAX_CONDITION];
+    if (CHANGED(OPT_MAX_UNCERTAINTY)) cfg->max_uncertainty = v[VR_OPT + OPT_MAX_UNCERTAINTY];
+    if (CHANGED(OPT_MIN_TIME)) cfg->min_time = v[VR_OPT + OPT_MIN_TIME];
+    if (CHANGED(OPT_SETTLE)) cfg->settle = v[VR_OPT + OPT_SETTLE];
+    if (CHANGED(OPT_GAMMA)) cfg->gamma = v[VR_OPT + OPT_GAMMA];
+    if (CHANGED(OPT_ROWS)) {
+        if ((code = coded_option(inst, OPT_ROWS, 2)) < 0) return 1;
+        cfg->rows = code;
+    }
+    if (CHANGED(OPT_N_ROWS)) {
+        if ((code = coded_option(inst, OPT_N_ROWS, DUFFID_MAX_ROWS)) < 0) return 1;
+        cfg->n_rows = code;
+    }
+    if (CHANGED(OPT_QUADRATURE)) {
+        if ((code = coded_option(inst, OPT_QUADRATURE, 1)) < 0) return 1;
+        cfg->quadrature = code;
+    }
+    if (CHANGED(OPT_SIGN_IN_NUMERATOR)) {
+        if ((code = coded_option(inst, OPT_SIGN_IN_NUMERATOR, 1)) < 0) return 1;
+        cfg->sign_in_numerator = code;
+    }
+#undef CHANGED
+    if (duffid_check_config(cfg, msg, sizeof msg) != DUFFID_OK) {
+        fmu_log(inst, FMU_ERROR, "logStatusError", "invalid estimator parameters: %s", msg);
+        return 1;
+    }
+    return 0;
+}
+
+static int start_estimator(Instance *inst, EstData *d, double h)
+{
+    duffid_config cfg;
+    char msg[256];
+    if (make_config(inst, h, &cfg) != 0) return 1;
+    if (reserve(inst, d, duffid_memory_size(&cfg)) != 0) return 1;
+    if (duffid_init(&d->est, d->mem, d->mem_size, &cfg, msg, sizeof msg) != DUFFID_OK) {
+        fmu_log(inst, FMU_ERROR, "logStatusError", "the estimator could not be built: %s", msg);
+        return 1;
+    }
+    d->cfg = cfg;
+    d->dt = h;
+    d->started = 1;
+    d->have_out = 0;
+    return 0;
+}
+
+static int do_step(Instance *inst, double t, double h)
+{
+    EstData *d = data_of(inst);
+    double x[N_DOF], f[1];
+    duffid_output out;
+    int i;
+    if (d == NULL) {
+        fmu_log(inst, FMU_ERROR, "logStatusError", "out of memory");
+        return 1;
+    }
+    if (!d->started) {
+        if (start_estimator(inst, d, h) != 0) return 1;
+    } else if (fabs(h - d->dt) > DT_RTOL * d->dt) {
+        fmu_log(inst, FMU_ERROR, "logStatusError",
+                "communicationStepSize %.17g at t = %.17g differs from the sampling period %.17g "
+                "fixed by the first step", h, t, d->dt);
+        return 1;
+    }
+    for (i = 0; i < N_DOF; i++) x[i] = inst->vars[VR_X + i];
+    f[0] = inst->vars[VR_F];
+    if (duffid_update(d->est, x, f, &out) != DUFFID_OK) {
+        fmu_log(inst, FMU_ERROR, "logStatusError", "sample at t = %.17g is not finite; rejected", t);
+        return 1;
+    }
+    d->out = out;
+    d->have_out = 1;
+    return 0;
+}
+
+static void free_data(Instance *inst)
+{
+    EstData *d = (EstData *)inst->model_data;
+    if (d == NULL) return;
+    free(d->mem);
+    free(d);
+    inst->model_data = NULL;
+}
+
+static size_t est_bytes(const EstData *d)
+{
+    if (d == NULL || !d->started || d->est == NULL) return 0;
+    return d->mem_size - (size_t)((const char *)d->est - (const char *)d->mem);
+}
+
+static size_t state_size(const Instance *inst)
+{
+    return sizeof(EstState) + est_bytes((const EstData *)inst->model_data);
+}
+
+static void save_state(const Instance *inst, void *bytes)
+{
+    const EstData *d = (const EstData *)inst->model_data;
+    EstState h;
+    memset(&h, 0, sizeof h);
+    h.est_bytes = est_bytes(d);
+    if (d != NULL) {
+        h.started = d->started;
+        h.have_out = d->have_out;
+        h.dt = d->dt;
+        h.cfg = d->cfg;
+        h.out = d->out;
+    }
+    memcpy(bytes, &h, sizeof h);
+    if (h.est_bytes > 0) memcpy((char *)bytes + sizeof h, d->est, (size_t)h.est_bytes);
+}
+
+static int load_state(Instance *inst, const void *bytes, size_t size)
+{
+    EstState h;
+    EstData *d;
+    char *base;
+    if (size < sizeof h) return 1;
+    memcpy(&h, bytes, sizeof h);
+    if (size != sizeof h + (size_t)h.est_bytes || (h.started && h.est_bytes == 0)) return 1;
+    d = data_of(inst);
+    if (d == NULL) return 1;
+    if (h.started) {
+        if (reserve(inst, d, (size_t)h.est_bytes + 8u) != 0) return 1;
+        base = (char *)(((uintptr_t)d->mem + 7u) & ~(uintptr_t)7u);
+        memcpy(base, (const char *)bytes + sizeof h, (size_t)h.est_bytes);
+        d->est = duffid_relocate(d->mem);
+    }
+    d->started = h.started;
+    d->have_out = h.have_out;
+    d->dt = h.dt;
+    d->cfg = h.cfg;
+    d->out = h.out;
+    return 0;
+}
+
+const ModelInfo fmu_model_info = {
+    .model_identifier = ESTIMATOR_IDENTIFIER,
+    .instantiation_token = ESTIMATOR_TOKEN,
+    .n_vars = ESTIMATOR_N_VARS,
+    .names = estimator_names,
+    .start = estimator_start,
+    .causality = estimator_causality,
+    .variability = estimator_variability,
+    .settable_start = estimator_settable_start,
+    .n_states = 0,
+    .state_vr = NULL,
+    .derivative_vr = NULL,
+    .n_work = 0,
+    .n_iwork = 0,
+    .evaluate = evaluate,
+    .do_step = do_step,
+    .default_tolerance = 1e-8,
+    .interfaces = INTERFACE_CO_SIMULATION,
+    .free_data = free_data,
+    .state_size = state_size,
+    .save_state = save_state,
+    .load_state = load_state,
+    .non_finite_outputs = 1,
+    .types = estimator_types,
+};

@@ -1,0 +1,262 @@
+"""The online identifier as C co-simulation FMUs (FMI 2.0 and 3.0) on the shared FMI glue.
+
+:func:`build_estimator_fmus` compiles the portable estimator core
+(``fmus/estimator/duffid_estimator.c``, ``duffid_linalg.c``) with the discrete-time FMU
+model ``fmus/estimator/fmu_model_estimator.c`` and the glue of ``fmus/common`` into
+
+- ``DuffingEstimator1.fmu`` (FMI 2.0 CS) and ``DuffingEstimator1_fmi3.fmu`` (FMI 3.0 CS):
+  inputs ``x``, ``f``; outputs ``m_hat``, ``b_hat``, ``k_hat``, ``kp_hat``;
+- ``DuffingEstimator2.fmu`` and ``DuffingEstimator2_fmi3.fmu``: inputs ``x1``, ``x2``,
+  ``f1``; outputs ``m1_hat``, ``b1_hat``, ``k1_hat``, ``kp1_hat``, ``b2_hat``, ``k2_hat``,
+  ``kp2_hat``, ``m2_hat``;
+
+each also with the outputs ``identified`` (0/1), ``condition``, ``uncertainty`` and
+``window_length`` [s], and adds the pythonfmu fallbacks of :mod:`duffid.fmu_python`.
+
+Interface differences to the pythonfmu FMU: the glue has no String variables, so the
+options ``method`` (0 robust, 1 paper), ``rows`` (0 integrals, 1 bernstein, 2 paper) and
+``quadrature`` (0 adams3, 1 trapezoid) are Integer (FMI 3: Int32) codes; ``n_rows`` is
+Integer, ``sign_in_numerator`` and ``identified`` Boolean as there; all parameters are
+``fixed`` (set them before initialisation ends). Start values are ``duffid_default_config``'s (those of
+identify()); an option left at its start value keeps the default of the chosen method.
+
+Semantics are those of the pythonfmu FMU: each ``doStep(t, h)`` consumes the inputs set
+for time ``t`` with ``h`` as sampling period; the first step fixes the period (and builds
+the estimator, its only allocation), a later step of another size fails with Discard and
+a logged error; non-finite inputs are rejected when set (Error, logged). Estimates are
+NaN until published. To identify a record of ``n`` samples, simulate from ``t[0]`` to
+``t[-1] + dt`` with communication step ``dt``.
+"""
+from __future__ import annotations
+
+import ctypes
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+from .fmu_export.fmi_xml import FmuInfo, build_description, model_description_fmi2, model_description_fmi3
+from .fmu_export.package import COMMON_FILES, build_fmu_archive, token_from
+from .fmu_export.variables import FmuVariable
+from .models import Duffing1, Duffing2
+
+__all__ = ["build_estimator_fmus", "build_estimator_fmu", "estimator_variables", "C_FMU_NAMES",
+           "OPTIONS", "TYPES"]
+
+#: Model name -> model identifier of the C FMUs (FMI 3 files get a ``_fmi3`` suffix).
+C_FMU_NAMES = {"duffing1": "DuffingEstimator1", "duffing2": "DuffingEstimator2"}
+_CODES = {"duffing1": 1, "duffing2": 2}
+_INPUTS = {"duffing1": (("x", "m", "displacement of the mass"), ("f", "N", "force on the mass")),
+           "duffing2": (("x1", "m", "displacement of m1"), ("x2", "m", "displacement of m2"),
+                        ("f1", "N", "force on m1"))}
+_PARAM_UNITS = {"m": "kg", "b": "N.s/m", "k": "N/m", "kp": "N/m3"}
+#: Options in value-reference order (name, unit, description); must match
+#: ``fmus/estimator/fmu_model_estimator.c`` (OPT_*).
+OPTIONS = (
+    ("method", None, "identification method: 0 robust, 1 paper"),
+    ("window", "s", "robust: window length, 0 = auto"),
+    ("window_periods", None, "robust: auto window in natural periods"),
+    ("max_window", "s", "robust: longest window (buffer capacity)"),
+    ("forgetting", "s", "robust: forgetting time constant, 0 = none"),
+    ("rows", None, "robust: row kernels: 0 integrals, 1 bernstein, 2 paper"),
+    ("n_rows", None, "robust: rows per window, 0 = default"),
+    ("max_condition", None, "largest condition number of an identified solution"),
+    ("max_uncertainty", None, "robust: largest relative standard error of an identified parameter"),
+    ("min_time", "s", "shortest window of an identified solution"),
+    ("settle", "s", "robust: time an estimate must stay trustworthy"),
+    ("gamma", None, "paper: filter gain"),
+    ("quadrature", None, "paper: 0 adams3, 1 trapezoid"),
+    ("sign_in_numerator", None, "paper: the sign convention of the numerator (sign_in_numerator)"),
+)
+#: Variables that are not Float64.
+TYPES = {"method": "Integer", "rows": "Integer", "n_rows": "Integer", "quadrature": "Integer",
+         "sign_in_numerator": "Boolean", "identified": "Boolean"}
+_TYPE_CODES = {"Float64": 0, "Integer": 1, "Boolean": 2}
+_ESTIMATOR_DIR = Path(__file__).resolve().parents[2] / "fmus" / "estimator"
+_CORE_FILES = ("duffid_estimator.c", "duffid_estimator.h", "duffid_linalg.c", "duffid_linalg.h",
+               "fmu_model_estimator.c")
+
+
+def _param_unit(name: str) -> str:
+    return _PARAM_UNITS[name.rstrip("0123456789")]
+
+
+def _defaults(model_name: str) -> dict[str, float]:
+    """Option start values: ``duffid_default_config`` (robust) of the C core."""
+    from .estimator_c import _Config, load_library
+
+    lib = load_library()
+    cfg = _Config()
+    lib.duffid_default_config(ctypes.byref(cfg), _CODES[model_name], 0, 1e-3)
+    values = {name: float(getattr(cfg, name)) for name, _, _ in OPTIONS}
+    values["method"] = 0.0
+    model = Duffing1() if model_name == "duffing1" else Duffing2()
+    for i, name in enumerate(model.parameters):
+        values[f"{name}_nominal"] = float(cfg.nominal[i])
+    return values
+
+
+def estimator_variables(model_name: str) -> list[FmuVariable]:
+    """The variable table of an estimator FMU (value references 0, 1, ...)."""
+    if model_name not in C_FMU_NAMES:
+        raise ValueError(f"unknown model {model_name!r}; choose {', '.join(C_FMU_NAMES)}")
+    model = Duffing1() if model_name == "duffing1" else Duffing2()
+    defaults = _defaults(model_name)
+    table: list[FmuVariable] = []
+
+    def add(name: str, causality: str, variability: str, initial: str | None, start: float | None,
+            unit: str | None, description: str) -> None:
+        table.append(FmuVariable(name=name, vr=len(table), causality=causality, variability=variability,
+                                 initial=initial, start=start, internal_start=start if start is not None
+                                 else float("nan"), unit=unit, description=description))
+
+    add("time", "independent", "continuous", None, None, "s", "simulation time")
+    for name, unit, text in _INPUTS[model_name]:
+        add(name, "input", "continuous", None, 0.0, unit, f"{text} (one sample per doStep)")
+    for name in model.parameters:
+        add(f"{name}_hat", "output", "discrete", "calculated", None, _param_unit(name),
+            f"estimate of {name} (NaN until published)")
+    add("identified", "output", "discrete", "calculated", None, None, "1 when every estimate is trustworthy")
+    add("condition", "output", "discrete", "calculated", None, "1", "largest condition number of the equations")
+    add("uncertainty", "output", "discrete", "calculated", None, "1", "largest relative standard error (robust)")
+    add("window_length", "output", "discrete", "calculated", None, "s", "window length")
+    for name, unit, text in OPTIONS:
+        add(name, "parameter", "fixed", "exact", defaults[name], unit, text)
+    for name in model.parameters:
+        add(f"{name}_nominal", "parameter", "fixed", "exact", defaults[f"{name}_nominal"], _param_unit(name),
+            f"nominal size of {name} (scale of the trust test)")
+    return table
+
+
+def _c_double(value: float | None) -> str:
+    if value is None or value != value:
+        return "NAN"
+    return repr(float(value))
+
+
+def _config_header(model_name: str, identifier: str, token: str, table: list[FmuVariable]) -> str:
+    from .fmu_export.variables import CAUSALITY_CODES, VARIABILITY_CODES
+
+    def array(ctype: str, name: str, items: list[str]) -> str:
+        return f"static const {ctype} {name}[ESTIMATOR_N_VARS] = {{\n    " + ",\n    ".join(items) + "\n};\n"
+
+    return (
+        "/* Generated by duffid.fmu_estimator: the variable table of one estimator FMU. */\n"
+        "#ifndef ESTIMATOR_FMU_CONFIG_H\n#define ESTIMATOR_FMU_CONFIG_H\n\n"
+        f"#define ESTIMATOR_MODEL {_CODES[model_name]}\n"
+        f'#define ESTIMATOR_IDENTIFIER "{identifier}"\n'
+        f'#define ESTIMATOR_TOKEN "{token}"\n'
+        f"#define ESTIMATOR_N_VARS {len(table)}\n\n"
+        + array("char *const", "estimator_names", [f'"{v.name}"' for v in table])
+        + array("double", "estimator_start", [_c_double(v.start) for v in table])
+        + array("unsigned char", "estimator_causality", [str(CAUSALITY_CODES[v.causality]) for v in table])
+        + array("unsigned char", "estimator_variability", [str(VARIABILITY_CODES[v.variability]) for v in table])
+        + array("unsigned char", "estimator_settable_start", ["0" for _ in table])
+        + array("unsigned char", "estimator_types", [str(_TYPE_CODES[TYPES.get(v.name, "Float64")])
+                                                      for v in table])
+        + "\n#endif\n")
+
+
+def _typed_start(kind: str, value: str) -> str:
+    number = float(value)
+    if kind == "Boolean":
+        return "true" if number != 0.0 else "false"
+    return str(int(number))
+
+
+def _retype(description: bytes, fmi_version: int) -> bytes:
+    """Give the Integer and Boolean variables of :data:`TYPES` their type in a
+    modelDescription.xml written (all Float64) by :mod:`duffid.fmu_export.fmi_xml`."""
+    root = ET.fromstring(description)
+    variables = root.find("ModelVariables")
+    if fmi_version == 2:
+        for sv in variables:
+            kind = TYPES.get(sv.get("name"))
+            if kind is None:
+                continue
+            real = sv.find("Real")
+            start = real.get("start")
+            sv.remove(real)
+            ET.SubElement(sv, kind, {} if start is None else {"start": _typed_start(kind, start)})
+    else:
+        for element in variables:
+            kind = TYPES.get(element.get("name"))
+            if kind is None:
+                continue
+            element.tag = "Int32" if kind == "Integer" else "Boolean"
+            for attribute in ("unit", "min", "max", "nominal"):
+                element.attrib.pop(attribute, None)
+            if element.get("start") is not None:
+                element.set("start", _typed_start(kind, element.get("start")))
+    ET.indent(root, space="  ")
+    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
+
+
+def build_estimator_fmu(model_name: str, out_dir: str | Path, fmi_version: int = 2,
+                        compiler: str = "gcc") -> Path:
+    """Build one C estimator FMU.
+
+    Parameters
+    ----------
+    model_name : str
+        ``"duffing1"`` or ``"duffing2"``.
+    out_dir : str or Path
+        Output folder; the file is ``<identifier>.fmu`` (FMI 2) or ``<identifier>_fmi3.fmu``.
+    fmi_version : int
+        2 or 3.
+    compiler : str
+        C compiler (gcc compatible).
+
+    Returns
+    -------
+    Path
+        The FMU written.
+    """
+    if fmi_version not in (2, 3):
+        raise ValueError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
+    table = estimator_variables(model_name)
+    identifier = C_FMU_NAMES[model_name]
+    out = Path(out_dir) / (f"{identifier}.fmu" if fmi_version == 2 else f"{identifier}_fmi3.fmu")
+    core = {name: (_ESTIMATOR_DIR / name).read_bytes() for name in _CORE_FILES}
+    token = token_from(f"fmi{fmi_version}", "estimator", identifier, *core.values(),
+                       *[f"{v.name}|{v.causality}|{v.start}|{v.unit}" for v in table])
+    header = _config_header(model_name, identifier, token, table)
+    c_sources = tuple(sorted([n for n in COMMON_FILES[fmi_version] if n.endswith(".c")] +
+                             [n for n in core if n.endswith(".c")]))
+    model = "Duffing1" if model_name == "duffing1" else "Duffing2"
+    info = FmuInfo(model_name=identifier, model_identifier=identifier, token=token,
+                   description=f"duffid online algebraic identification of {model} (C estimator core)",
+                   sources=c_sources, model_exchange=False, co_simulation=True,
+                   experiment={"StartTime": 0.0, "StopTime": 1.0, "Interval": 1e-3})
+    if fmi_version == 2:
+        description = _retype(model_description_fmi2(info, table), 2)
+        extra = dict(core)
+    else:
+        description = _retype(model_description_fmi3(info, table), 3)
+        extra = {**core, "buildDescription.xml": build_description(identifier, c_sources)}
+    build_fmu_archive(out, identifier, fmi_version, description, {"estimator_fmu_config.h": header}, extra,
+                      compiler)
+    return out
+
+
+def build_estimator_fmus(out_dir: str | Path = Path("build/fmus"), *, python: bool = True) -> list[Path]:
+    """Build the four C estimator FMUs and (``python=True``) the two pythonfmu fallbacks.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        Output folder (created).
+    python : bool
+        Also build ``DuffingEstimator{1,2}_python.fmu`` (needs pythonfmu).
+
+    Returns
+    -------
+    list of Path
+        The FMUs written.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = [build_estimator_fmu(name, out_dir, version) for name in C_FMU_NAMES for version in (2, 3)]
+    if python:
+        from .fmu_python import build_python_fmu
+
+        paths += [build_python_fmu(name, out_dir) for name in C_FMU_NAMES]
+    return paths

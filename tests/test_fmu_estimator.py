@@ -1,0 +1,378 @@
+"""The C estimator FMUs (duffid.fmu_estimator) on the shared FMI glue, through fmpy."""
+from __future__ import annotations
+
+import shutil
+import subprocess
+import zipfile
+
+import numpy as np
+import pytest
+
+fmpy = pytest.importorskip("fmpy")
+
+from fmpy.fmi1 import FMICallException  # noqa: E402
+from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE  # noqa: E402
+from fmpy.validation import validate_fmu  # noqa: E402
+
+from duffid import Duffing1, Duffing2, identify  # noqa: E402
+from duffid.fmu_estimator import TYPES, build_estimator_fmu, build_estimator_fmus  # noqa: E402
+from duffid.identification import OnlineIdentifier  # noqa: E402
+
+if shutil.which("gcc") is None:
+    pytest.skip("gcc is needed to build the C FMUs", allow_module_level=True)
+
+INPUTS = {"duffing1": ["x", "f"], "duffing2": ["x1", "x2", "f1"]}
+C_FILES = {("duffing1", 2): "DuffingEstimator1.fmu", ("duffing1", 3): "DuffingEstimator1_fmi3.fmu",
+           ("duffing2", 2): "DuffingEstimator2.fmu", ("duffing2", 3): "DuffingEstimator2_fmi3.fmu"}
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory):
+    out = tmp_path_factory.mktemp("estimator_fmus")
+    try:
+        import pythonfmu  # noqa: F401
+        python = True
+    except ImportError:
+        python = False
+    return {path.name: path for path in build_estimator_fmus(out, python=python)}
+
+
+def _signals(record, names):
+    """fmpy input: the record's samples on fmpy's communication grid t0 + k dt."""
+    sig = np.zeros(record.n_samples, dtype=[("time", float)] + [(name, float) for name in names])
+    sig["time"] = np.arange(record.n_samples) * record.dt
+    values = np.column_stack([record.x, record.f])
+    for i, name in enumerate(names):
+        sig[name] = values[:, i]
+    return sig
+
+
+def _simulate(fmu, record, names, start_values=None):
+    # never pass logger= here (fmpy's logger proxy outlives the callback)
+    return fmpy.simulate_fmu(str(fmu), start_time=0.0, stop_time=record.n_samples * record.dt,
+                             output_interval=record.dt, input=_signals(record, names),
+                             start_values=start_values or {})
+
+
+def test_files_and_validation(fmus):
+    assert set(C_FILES.values()) <= set(fmus)
+    for path in fmus.values():
+        assert validate_fmu(str(path)) == [], path.name
+    for (model_name, version), name in C_FILES.items():
+        with zipfile.ZipFile(fmus[name]) as z:
+            names = z.namelist()
+        assert "sources/duffid_estimator.c" in names and "sources/fmu_model_estimator.c" in names
+        assert "sources/fmu_instance.c" in names and "sources/estimator_fmu_config.h" in names
+        assert ("sources/buildDescription.xml" in names) == (version == 3)
+
+
+def test_archives_are_deterministic(fmus, tmp_path):
+    again = build_estimator_fmu("duffing1", tmp_path, 2)
+    assert again.read_bytes() == fmus["DuffingEstimator1.fmu"].read_bytes()
+
+
+@pytest.mark.parametrize("model_name, version", sorted(C_FILES))
+def test_interface(fmus, model_name, version):
+    md = fmpy.read_model_description(str(fmus[C_FILES[model_name, version]]))
+    assert md.fmiVersion == f"{version}.0" and md.coSimulation is not None and md.modelExchange is None
+    model = Duffing1() if model_name == "duffing1" else Duffing2()
+    variables = {v.name: v for v in md.modelVariables}
+    assert [v.name for v in md.modelVariables if v.causality == "input"] == INPUTS[model_name]
+    outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+    assert outputs == [f"{n}_hat" for n in model.parameters] + ["identified", "condition", "uncertainty",
+                                                                   "window_length"]
+    assert len(md.outputs) == len(outputs)
+    for name, value in model.parameters.items():
+        assert float(variables[f"{name}_nominal"].start) == value
+    assert float(variables["method"].start) == 0.0 and float(variables["window"].start) == 0.0
+    assert float(variables["gamma"].start) == 20.0 and float(variables["forgetting"].start) == 0.0
+    assert variables["k_hat" if model_name == "duffing1" else "k1_hat"].unit == "N/m"
+    assert md.defaultExperiment is not None and float(md.defaultExperiment.stepSize) == 1e-3
+    integer = "Integer" if version == 2 else "Int32"
+    assert variables["identified"].type == "Boolean" and variables["sign_in_numerator"].type == "Boolean"
+    assert variables["method"].type == integer and variables["n_rows"].type == integer
+    assert variables["gamma"].type == ("Real" if version == 2 else "Float64")
+
+
+@pytest.mark.parametrize("name", ["DuffingEstimator1.fmu", "DuffingEstimator1_fmi3.fmu"])
+def test_case_a_gives_identify_answer(fmus, case_a, name):
+    result = _simulate(fmus[name], case_a, ["x", "f"])
+    expected = identify(case_a, Duffing1())
+    assert len(result) == case_a.n_samples + 1
+    assert np.isnan(result["m_hat"][0]) and result["identified"][0] == 0.0
+    for pname, value in expected.parameters.items():
+        assert result[f"{pname}_hat"][-1] == pytest.approx(value, rel=1e-9)
+        np.testing.assert_allclose(result[f"{pname}_hat"][1:], expected.history[pname], rtol=1e-9)
+    assert np.array_equal(result["identified"][1:] == 1.0, expected.identified)
+
+
+def test_c_fmu_equals_python_fmu_and_online_identifier(fmus, case_a):
+    if "DuffingEstimator1_python.fmu" not in fmus:
+        pytest.skip("pythonfmu not installed")
+    c = _simulate(fmus["DuffingEstimator1.fmu"], case_a, ["x", "f"])
+    py = _simulate(fmus["DuffingEstimator1_python.fmu"], case_a, ["x", "f"])
+    ident = OnlineIdentifier(Duffing1(), dt=case_a.dt)
+    x, f = np.asarray(case_a.x).reshape(case_a.n_samples, -1), np.asarray(case_a.f).reshape(case_a.n_samples, -1)
+    estimates = [ident.update(x[i], f[i]) for i in range(case_a.n_samples)]
+    for pname in Duffing1().parameters:
+        online = np.array([e.parameters[pname] for e in estimates])
+        np.testing.assert_allclose(c[f"{pname}_hat"], py[f"{pname}_hat"], rtol=1e-9)
+        np.testing.assert_allclose(c[f"{pname}_hat"][1:], online, rtol=1e-9)
+    assert np.array_equal(c["identified"] == 1.0, py["identified"].astype(bool))
+
+
+@pytest.mark.parametrize("name", ["DuffingEstimator2.fmu", "DuffingEstimator2_fmi3.fmu"])
+def test_two_dof_gives_identify_answer(fmus, two_dof_exact, name):
+    result = _simulate(fmus[name], two_dof_exact, ["x1", "x2", "f1"])
+    expected = identify(two_dof_exact, Duffing2())
+    for pname, value in expected.parameters.items():
+        assert result[f"{pname}_hat"][-1] == pytest.approx(value, rel=1e-9)
+    assert bool(result["identified"][-1]) == bool(expected.identified[-1])
+
+
+def test_options_and_nominal_parameters(fmus, case_a):
+    fmu = fmus["DuffingEstimator1.fmu"]
+    result = _simulate(fmu, case_a, ["x", "f"], {"method": 1, "sign_in_numerator": True, "gamma": 10.0})
+    expected = identify(case_a, Duffing1(), "paper", sign_in_numerator=True, gamma=10.0)
+    for pname, value in expected.parameters.items():
+        assert result[f"{pname}_hat"][-1] == pytest.approx(value, rel=1e-9)
+    result = _simulate(fmu, case_a, ["x", "f"], {"window": 0.1, "m_nominal": 3.0})
+    expected = identify(case_a, Duffing1(m=3.0), window=0.1)
+    for pname, value in expected.parameters.items():
+        assert result[f"{pname}_hat"][-1] == pytest.approx(value, rel=1e-9)
+
+
+# ---------------------------------------------------------------------- low-level API
+def _start(path, tmp_path, messages, start=None, logging_on=False):
+    """Instantiate with our own callbacks (never fmpy's logger= proxy, see test_fmu_python)."""
+    unzipdir = fmpy.extract(str(path), str(tmp_path / f"unzipped_{len(list(tmp_path.iterdir()))}"))
+    md = fmpy.read_model_description(str(path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
+                    instanceName="est")
+
+    def log(env, name, status, category, message):
+        messages.append((status, category.decode(), message.decode()))
+
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(log)
+    fmu.instantiate(callbacks=callbacks, loggingOn=logging_on)
+    fmu._duffid_callbacks = callbacks  # keep the ctypes callbacks alive as long as the instance
+    fmu.setupExperiment(startTime=0.0)
+    for name, value in (start or {}).items():
+        if TYPES.get(name) == "Integer":
+            fmu.setInteger([vr[name]], [value])
+        elif TYPES.get(name) == "Boolean":
+            fmu.setBoolean([vr[name]], [value])
+        else:
+            fmu.setReal([vr[name]], [value])
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    return fmu, vr
+
+
+def _step(fmu, vr, k, x, f=10.0, dt=1e-3):
+    fmu.setReal([vr["x"], vr["f"]], [float(np.ravel(x)[0]), float(np.ravel(f)[0])])
+    fmu.doStep(currentCommunicationPoint=k * dt, communicationStepSize=dt)
+
+
+def _outputs(fmu, vr):
+    values = fmu.getReal([vr[n] for n in ("m_hat", "b_hat", "k_hat", "kp_hat", "condition")])
+    return values + [float(fmu.getBoolean([vr["identified"]])[0])]
+
+
+@pytest.fixture
+def instance(fmus, tmp_path):
+    messages = []
+    fmu, vr = _start(fmus["DuffingEstimator1.fmu"], tmp_path, messages)
+    yield fmu, vr, messages
+    fmu.freeInstance()
+
+
+def test_changing_the_step_size_is_discarded_and_logged(instance, case_a):
+    fmu, vr, messages = instance
+    for k in range(20):
+        _step(fmu, vr, k, case_a.x[k])
+    fmu.doStep(currentCommunicationPoint=20e-3, communicationStepSize=1e-3 * (1 + 1e-12))  # rounding: fine
+    with pytest.raises(FMICallException, match="status 2"):  # fmi2Discard
+        fmu.doStep(currentCommunicationPoint=21e-3, communicationStepSize=2e-3)
+    assert any(status == 3 and "differs from the sampling period" in text for status, _, text in messages)
+
+
+def test_non_finite_input_is_an_error_logged_with_logging_off(instance):
+    fmu, vr, messages = instance
+    _step(fmu, vr, 0, 0.0)
+    with pytest.raises(FMICallException, match="status 3"):
+        fmu.setReal([vr["x"]], [float("nan")])
+    assert any(status == 3 and "not finite" in text for status, _, text in messages)
+    fmu.doStep(currentCommunicationPoint=1e-3, communicationStepSize=1e-3)  # the old input is kept
+
+
+def test_bad_parameter_is_discarded_and_logged(fmus, tmp_path):
+    messages = []
+    fmu, vr = _start(fmus["DuffingEstimator1.fmu"], tmp_path, messages, {"method": 5})
+    try:
+        fmu.setReal([vr["x"], vr["f"]], [0.0, 10.0])
+        with pytest.raises(FMICallException, match="status 2"):
+            fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=1e-3)
+    finally:
+        fmu.freeInstance()
+    assert any(status == 3 and "parameter method must be an integer in 0 .. 1" in text
+               for status, _, text in messages)
+
+
+def test_parameters_are_fixed_after_initialisation(instance):
+    fmu, vr, messages = instance
+    with pytest.raises(FMICallException, match="status 3"):
+        fmu.setReal([vr["gamma"]], [10.0])
+    with pytest.raises(FMICallException, match="status 3"):
+        fmu.setInteger([vr["method"]], [1])
+
+
+def test_typed_access(instance):
+    fmu, vr, messages = instance
+    assert fmu.getInteger([vr["method"], vr["n_rows"]]) == [0, 0]
+    assert fmu.getBoolean([vr["identified"], vr["sign_in_numerator"]]) == [False, False]
+    with pytest.raises(FMICallException, match="status 3"):
+        fmu.getReal([vr["method"]])
+    with pytest.raises(FMICallException, match="status 3"):
+        fmu.getInteger([vr["gamma"]])
+    with pytest.raises(FMICallException, match="status 3"):
+        fmu.setBoolean([vr["x"]], [True])
+    assert any("is not a Float64 variable" in text for _, _, text in messages)
+    assert any("is not an Integer variable" in text for _, _, text in messages)
+
+
+def test_get_set_and_serialized_fmu_state(fmus, instance, case_a, tmp_path):
+    fmu, vr, _ = instance
+    for k in range(100):
+        _step(fmu, vr, k, case_a.x[k], case_a.f[k])
+    state = fmu.getFMUstate()
+    for k in range(100, 180):
+        _step(fmu, vr, k, case_a.x[k], case_a.f[k])
+    reference = _outputs(fmu, vr)
+    assert np.all(np.isfinite(reference[:4]))
+    fmu.setFMUstate(state)
+    for k in range(100, 180):
+        _step(fmu, vr, k, case_a.x[k], case_a.f[k])
+    np.testing.assert_array_equal(_outputs(fmu, vr), reference)
+    # the serialised state in a second instance (other memory: the estimator is relocated)
+    data = fmu.serializeFMUstate(state)
+    fmu.freeFMUstate(state)
+    other, vr2 = _start(fmus["DuffingEstimator1.fmu"], tmp_path, [])
+    try:
+        restored = other.deSerializeFMUstate(data)
+        other.setFMUstate(restored)
+        other.freeFMUstate(restored)
+        for k in range(100, 180):
+            _step(other, vr2, k, case_a.x[k], case_a.f[k])
+        np.testing.assert_array_equal(_outputs(other, vr2), reference)
+    finally:
+        other.freeInstance()
+
+
+def test_reset_starts_a_new_identification(instance, case_a):
+    fmu, vr, _ = instance
+    for k in range(60):
+        _step(fmu, vr, k, case_a.x[k], case_a.f[k])
+    first = _outputs(fmu, vr)
+    fmu.reset()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    assert np.isnan(_outputs(fmu, vr)[0])
+    for k in range(60):
+        _step(fmu, vr, k, case_a.x[k], case_a.f[k])
+    np.testing.assert_array_equal(_outputs(fmu, vr), first)
+
+
+def test_fmi3_fmu_state_and_step_size(fmus, case_a, tmp_path):
+    from fmpy.fmi3 import FMU3Slave, fmi3LogMessageCallback
+
+    path = fmus["DuffingEstimator1_fmi3.fmu"]
+    md = fmpy.read_model_description(str(path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    messages = []
+
+    def log(env, status, category, message):
+        messages.append((status, category.decode(), message.decode()))
+
+    def start(name):
+        unzipdir = fmpy.extract(str(path), str(tmp_path / name))
+        fmu = FMU3Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
+                        instanceName=name)
+        fmu.instantiate(loggingOn=False, logMessage=log)
+        fmu.enterInitializationMode(startTime=0.0)
+        fmu.exitInitializationMode()
+        return fmu
+
+    def step(fmu, k):
+        fmu.setFloat64([vr["x"], vr["f"]], [float(case_a.x[k, 0]), float(case_a.f[k, 0])])
+        fmu.doStep(currentCommunicationPoint=k * 1e-3, communicationStepSize=1e-3)
+
+    outputs = [vr[n] for n in ("m_hat", "b_hat", "k_hat", "kp_hat")]
+    fmu, other = start("a"), start("b")
+    try:
+        for k in range(120):
+            step(fmu, k)
+        data = fmu.serializeFMUState(fmu.getFMUState())
+        for k in range(120, 200):
+            step(fmu, k)
+        reference = fmu.getFloat64(outputs)
+        other.setFMUState(other.deserializeFMUState(data))
+        for k in range(120, 200):
+            step(other, k)
+        np.testing.assert_array_equal(other.getFloat64(outputs), reference)
+        assert other.getBoolean([vr["identified"]]) == fmu.getBoolean([vr["identified"]])
+        assert other.getInt32([vr["method"]]) == [0]
+        with pytest.raises(FMICallException, match="status 2"):  # fmi3Discard
+            other.doStep(currentCommunicationPoint=0.2, communicationStepSize=2e-3)
+    finally:
+        fmu.freeInstance()
+        other.freeInstance()
+    assert any(status == 3 and "differs from the sampling period" in text for status, _, text in messages)
+
+
+# ---------------------------------------------------------------------- C host, rebuild
+@pytest.mark.slow
+@pytest.mark.skipif(shutil.which("cmake") is None, reason="fmpy's rebuild needs cmake")
+@pytest.mark.parametrize("name", ["DuffingEstimator1.fmu", "DuffingEstimator1_fmi3.fmu"])
+def test_rebuild_from_sources_with_fmpy_gives_identical_results(fmus, case_a, tmp_path, name):
+    from fmpy.build import build_platform_binary
+
+    directory = (tmp_path / "unzipped").resolve()
+    fmpy.extract(str(fmus[name]), str(directory))
+    binary = next((directory / "binaries").glob("*/*.so"))
+    binary.unlink()
+    (tmp_path / "cmake").mkdir()
+    build_platform_binary(directory, build_dir=tmp_path / "cmake")
+    assert binary.exists()
+    rebuilt = tmp_path / name
+    shutil.make_archive(str(rebuilt.with_suffix("")), "zip", directory)
+    rebuilt.with_suffix(".zip").rename(rebuilt)
+    a = _simulate(fmus[name], case_a, ["x", "f"])
+    b = _simulate(rebuilt, case_a, ["x", "f"])
+    for pname in Duffing1().parameters:
+        np.testing.assert_array_equal(b[f"{pname}_hat"], a[f"{pname}_hat"])
+
+
+def test_c_host_program_matches_python(fmus, case_a, tmp_path):
+    """tests/c/fmu_host.c dlopens the FMU's binary and steps it; same numbers as fmpy."""
+    from pathlib import Path
+
+    host_src = Path(__file__).parent / "c" / "fmu_host.c"
+    unzipdir = Path(fmpy.extract(str(fmus["DuffingEstimator1.fmu"]), str(tmp_path / "host")))
+    md = fmpy.read_model_description(str(fmus["DuffingEstimator1.fmu"]))
+    include = Path(fmpy.__file__).parent / "c-code"
+    exe = tmp_path / "fmu_host"
+    subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-Werror", f"-I{include}", str(host_src), "-o",
+                    str(exe), "-ldl"], check=True)
+    samples = tmp_path / "samples.txt"
+    np.savetxt(samples, np.column_stack([case_a.x, case_a.f]), fmt="%.17g")
+    binary = unzipdir / "binaries" / "linux64" / "DuffingEstimator1.so"
+    done = subprocess.run([str(exe), str(binary), md.guid, unzipdir.as_uri(), str(case_a.dt), str(samples)],
+                          capture_output=True, text=True, check=True)
+    host = np.array([float(v) for v in done.stdout.split()])
+    result = _simulate(fmus["DuffingEstimator1.fmu"], case_a, ["x", "f"])
+    expected = np.array([result[f"{p}_hat"][-1] for p in Duffing1().parameters])
+    np.testing.assert_array_equal(host, expected)
