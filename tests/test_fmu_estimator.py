@@ -14,7 +14,7 @@ from fmpy.fmi1 import FMICallException  # noqa: E402
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 
-from duffid import Duffing1, Duffing2, identify  # noqa: E402
+from duffid import Duffing1, Duffing2, identify, measure  # noqa: E402
 from duffid.fmu_estimator import TYPES, build_estimator_fmu, build_estimator_fmus  # noqa: E402
 from duffid.identification import OnlineIdentifier  # noqa: E402
 
@@ -106,14 +106,17 @@ def test_case_a_gives_identify_answer(fmus, case_a, name):
     assert np.array_equal(result["identified"][1:] == 1.0, expected.identified)
 
 
-def test_c_fmu_equals_python_fmu_and_online_identifier(fmus, case_a):
+@pytest.mark.parametrize("case", ["A", "B"])
+def test_c_fmu_equals_python_fmu_and_online_identifier(fmus, case_a, case_b_exact, case):
+    """The paper's cases A (14 N, quantised) and B (10 N, 2 s, quantised + 40 dB noise)."""
     if "DuffingEstimator1_python.fmu" not in fmus:
         pytest.skip("pythonfmu not installed")
-    c = _simulate(fmus["DuffingEstimator1.fmu"], case_a, ["x", "f"])
-    py = _simulate(fmus["DuffingEstimator1_python.fmu"], case_a, ["x", "f"])
-    ident = OnlineIdentifier(Duffing1(), dt=case_a.dt)
-    x, f = np.asarray(case_a.x).reshape(case_a.n_samples, -1), np.asarray(case_a.f).reshape(case_a.n_samples, -1)
-    estimates = [ident.update(x[i], f[i]) for i in range(case_a.n_samples)]
+    record = case_a if case == "A" else measure(case_b_exact, snr_db=40, seed=3)
+    c = _simulate(fmus["DuffingEstimator1.fmu"], record, ["x", "f"])
+    py = _simulate(fmus["DuffingEstimator1_python.fmu"], record, ["x", "f"])
+    ident = OnlineIdentifier(Duffing1(), dt=record.dt)
+    x, f = np.asarray(record.x).reshape(record.n_samples, -1), np.asarray(record.f).reshape(record.n_samples, -1)
+    estimates = [ident.update(x[i], f[i]) for i in range(record.n_samples)]
     for pname in Duffing1().parameters:
         online = np.array([e.parameters[pname] for e in estimates])
         np.testing.assert_allclose(c[f"{pname}_hat"], py[f"{pname}_hat"], rtol=1e-9)
