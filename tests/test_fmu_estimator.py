@@ -14,6 +14,7 @@ from fmpy.fmi1 import FMICallException  # noqa: E402
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 
+from fmu_helpers import simulate_record  # noqa: E402
 from duffid import Duffing1, Duffing2, identify, measure  # noqa: E402
 from duffid.fmu_estimator import TYPES, build_estimator_fmu, build_estimator_fmus  # noqa: E402
 from duffid.identification import OnlineIdentifier  # noqa: E402
@@ -35,23 +36,6 @@ def fmus(tmp_path_factory):
     except ImportError:
         python = False
     return {path.name: path for path in build_estimator_fmus(out, python=python)}
-
-
-def _signals(record, names):
-    """fmpy input: the record's samples on fmpy's communication grid t0 + k dt."""
-    sig = np.zeros(record.n_samples, dtype=[("time", float)] + [(name, float) for name in names])
-    sig["time"] = np.arange(record.n_samples) * record.dt
-    values = np.column_stack([record.x, record.f])
-    for i, name in enumerate(names):
-        sig[name] = values[:, i]
-    return sig
-
-
-def _simulate(fmu, record, names, start_values=None):
-    # never pass logger= here (fmpy's logger proxy outlives the callback)
-    return fmpy.simulate_fmu(str(fmu), start_time=0.0, stop_time=record.n_samples * record.dt,
-                             output_interval=record.dt, input=_signals(record, names),
-                             start_values=start_values or {})
 
 
 def test_files_and_validation(fmus):
@@ -96,7 +80,7 @@ def test_interface(fmus, model_name, version):
 
 @pytest.mark.parametrize("name", ["DuffingEstimator1.fmu", "DuffingEstimator1_fmi3.fmu"])
 def test_case_a_gives_identify_answer(fmus, case_a, name):
-    result = _simulate(fmus[name], case_a, ["x", "f"])
+    result = simulate_record(fmus[name], case_a, ["x", "f"])
     expected = identify(case_a, Duffing1())
     assert len(result) == case_a.n_samples + 1
     assert np.isnan(result["m_hat"][0]) and result["identified"][0] == 0.0
@@ -112,8 +96,8 @@ def test_c_fmu_equals_python_fmu_and_online_identifier(fmus, case_a, case_b_exac
     if "DuffingEstimator1_python.fmu" not in fmus:
         pytest.skip("pythonfmu not installed")
     record = case_a if case == "A" else measure(case_b_exact, snr_db=40, seed=3)
-    c = _simulate(fmus["DuffingEstimator1.fmu"], record, ["x", "f"])
-    py = _simulate(fmus["DuffingEstimator1_python.fmu"], record, ["x", "f"])
+    c = simulate_record(fmus["DuffingEstimator1.fmu"], record, ["x", "f"])
+    py = simulate_record(fmus["DuffingEstimator1_python.fmu"], record, ["x", "f"])
     ident = OnlineIdentifier(Duffing1(), dt=record.dt)
     x, f = np.asarray(record.x).reshape(record.n_samples, -1), np.asarray(record.f).reshape(record.n_samples, -1)
     estimates = [ident.update(x[i], f[i]) for i in range(record.n_samples)]
@@ -126,7 +110,7 @@ def test_c_fmu_equals_python_fmu_and_online_identifier(fmus, case_a, case_b_exac
 
 @pytest.mark.parametrize("name", ["DuffingEstimator2.fmu", "DuffingEstimator2_fmi3.fmu"])
 def test_two_dof_gives_identify_answer(fmus, two_dof_exact, name):
-    result = _simulate(fmus[name], two_dof_exact, ["x1", "x2", "f1"])
+    result = simulate_record(fmus[name], two_dof_exact, ["x1", "x2", "f1"])
     expected = identify(two_dof_exact, Duffing2())
     for pname, value in expected.parameters.items():
         assert result[f"{pname}_hat"][-1] == pytest.approx(value, rel=1e-9)
@@ -135,11 +119,11 @@ def test_two_dof_gives_identify_answer(fmus, two_dof_exact, name):
 
 def test_options_and_nominal_parameters(fmus, case_a):
     fmu = fmus["DuffingEstimator1.fmu"]
-    result = _simulate(fmu, case_a, ["x", "f"], {"method": 1, "sign_in_numerator": True, "gamma": 10.0})
+    result = simulate_record(fmu, case_a, ["x", "f"], {"method": 1, "sign_in_numerator": True, "gamma": 10.0})
     expected = identify(case_a, Duffing1(), "paper", sign_in_numerator=True, gamma=10.0)
     for pname, value in expected.parameters.items():
         assert result[f"{pname}_hat"][-1] == pytest.approx(value, rel=1e-9)
-    result = _simulate(fmu, case_a, ["x", "f"], {"window": 0.1, "m_nominal": 3.0})
+    result = simulate_record(fmu, case_a, ["x", "f"], {"window": 0.1, "m_nominal": 3.0})
     expected = identify(case_a, Duffing1(m=3.0), window=0.1)
     for pname, value in expected.parameters.items():
         assert result[f"{pname}_hat"][-1] == pytest.approx(value, rel=1e-9)
@@ -353,8 +337,8 @@ def test_rebuild_from_sources_with_fmpy_gives_identical_results(fmus, case_a, tm
     rebuilt = tmp_path / name
     shutil.make_archive(str(rebuilt.with_suffix("")), "zip", directory)
     rebuilt.with_suffix(".zip").rename(rebuilt)
-    a = _simulate(fmus[name], case_a, ["x", "f"])
-    b = _simulate(rebuilt, case_a, ["x", "f"])
+    a = simulate_record(fmus[name], case_a, ["x", "f"])
+    b = simulate_record(rebuilt, case_a, ["x", "f"])
     for pname in Duffing1().parameters:
         np.testing.assert_array_equal(b[f"{pname}_hat"], a[f"{pname}_hat"])
 
@@ -376,6 +360,6 @@ def test_c_host_program_matches_python(fmus, case_a, tmp_path):
     done = subprocess.run([str(exe), str(binary), md.guid, unzipdir.as_uri(), str(case_a.dt), str(samples)],
                           capture_output=True, text=True, check=True)
     host = np.array([float(v) for v in done.stdout.split()])
-    result = _simulate(fmus["DuffingEstimator1.fmu"], case_a, ["x", "f"])
+    result = simulate_record(fmus["DuffingEstimator1.fmu"], case_a, ["x", "f"])
     expected = np.array([result[f"{p}_hat"][-1] for p in Duffing1().parameters])
     np.testing.assert_array_equal(host, expected)

@@ -14,6 +14,7 @@ from fmpy.fmi2 import (FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE,
                        fmi2Terminated)
 from fmpy.validation import validate_fmu  # noqa: E402
 
+from fmu_helpers import simulate_record  # noqa: E402
 from duffid import Duffing1, Duffing2, identify  # noqa: E402
 from duffid.fmu_python import FMU_NAMES, build_python_fmu  # noqa: E402
 
@@ -22,23 +23,6 @@ from duffid.fmu_python import FMU_NAMES, build_python_fmu  # noqa: E402
 def fmus(tmp_path_factory):
     out = tmp_path_factory.mktemp("fmus")
     return {name: build_python_fmu(name, out) for name in FMU_NAMES}
-
-
-def _signals(record, names):
-    """fmpy input: the record's samples on fmpy's communication grid t0 + k dt."""
-    columns = [("time", float)] + [(name, float) for name in names]
-    sig = np.zeros(record.n_samples, dtype=columns)
-    sig["time"] = np.arange(record.n_samples) * record.dt
-    values = np.column_stack([record.x, record.f])
-    for i, name in enumerate(names):
-        sig[name] = values[:, i]
-    return sig
-
-
-def _simulate(fmu, record, names, start_values=None):
-    return fmpy.simulate_fmu(str(fmu), start_time=0.0, stop_time=record.n_samples * record.dt,
-                             output_interval=record.dt, input=_signals(record, names),
-                             start_values=start_values or {})
 
 
 def test_file_names_and_validation(fmus):
@@ -77,7 +61,7 @@ def test_interface(fmus, model_name, inputs, outputs):
 
 
 def test_case_a_gives_identify_answer(fmus, case_a):
-    result = _simulate(fmus["duffing1"], case_a, ["x", "f"])
+    result = simulate_record(fmus["duffing1"], case_a, ["x", "f"])
     expected = identify(case_a, Duffing1())
     assert len(result) == case_a.n_samples + 1  # the initial values, then one row per sample
     for name, value in expected.parameters.items():
@@ -91,18 +75,18 @@ def test_case_a_gives_identify_answer(fmus, case_a):
 
 def test_options_and_nominal_parameters(fmus, case_a):
     start = {"method": "paper", "sign_in_numerator": True, "gamma": 10.0}
-    result = _simulate(fmus["duffing1"], case_a, ["x", "f"], start)
+    result = simulate_record(fmus["duffing1"], case_a, ["x", "f"], start)
     expected = identify(case_a, Duffing1(), "paper", sign_in_numerator=True, gamma=10.0)
     for name, value in expected.parameters.items():
         assert result[f"{name}_hat"][-1] == pytest.approx(value, rel=1e-9)
-    result = _simulate(fmus["duffing1"], case_a, ["x", "f"], {"window": 0.1, "m_nominal": 3.0})
+    result = simulate_record(fmus["duffing1"], case_a, ["x", "f"], {"window": 0.1, "m_nominal": 3.0})
     expected = identify(case_a, Duffing1(m=3.0), window=0.1)
     for name, value in expected.parameters.items():
         assert result[f"{name}_hat"][-1] == pytest.approx(value, rel=1e-9)
 
 
 def test_two_dof_gives_identify_answer(fmus, two_dof_exact):
-    result = _simulate(fmus["duffing2"], two_dof_exact, ["x1", "x2", "f1"])
+    result = simulate_record(fmus["duffing2"], two_dof_exact, ["x1", "x2", "f1"])
     expected = identify(two_dof_exact, Duffing2())
     for name, value in expected.parameters.items():
         assert result[f"{name}_hat"][-1] == pytest.approx(value, rel=1e-9)

@@ -136,17 +136,9 @@ def model_description_fmi2(info: FmuInfo, table: list[FmuVariable]) -> bytes:
     for v in table:
         attrs = _variable_attributes(v)
         sv = ET.SubElement(variables, "ScalarVariable", attrs)
-        real = {}
-        if v.unit:
-            real["unit"] = v.unit
+        real = _value_attributes(v)
         if v.derivative_of is not None:
             real["derivative"] = str(v.derivative_of + 1)
-        if v.minimum is not None:
-            real["min"] = _num(v.minimum)
-        if v.maximum is not None:
-            real["max"] = _num(v.maximum)
-        if v.start is not None:
-            real["start"] = _num(v.start)
         ET.SubElement(sv, "Real", real)
     structure = ET.SubElement(root, "ModelStructure")
     outputs = [v for v in table if v.causality == "output"]
@@ -180,6 +172,20 @@ def _variable_attributes(v: FmuVariable) -> dict[str, str]:
     return attrs
 
 
+def _value_attributes(v: FmuVariable) -> dict[str, str]:
+    """Unit, min, max and start of a Float64 variable (FMI 2 Real element, FMI 3 Float64)."""
+    attrs = {}
+    if v.unit:
+        attrs["unit"] = v.unit
+    if v.minimum is not None:
+        attrs["min"] = _num(v.minimum)
+    if v.maximum is not None:
+        attrs["max"] = _num(v.maximum)
+    if v.start is not None:
+        attrs["start"] = _num(v.start)
+    return attrs
+
+
 def model_description_fmi3(info: FmuInfo, table: list[FmuVariable]) -> bytes:
     """modelDescription.xml for FMI 3.0 (Model Exchange and/or Co-Simulation)."""
     root = ET.Element("fmiModelDescription", {
@@ -199,15 +205,7 @@ def model_description_fmi3(info: FmuInfo, table: list[FmuVariable]) -> bytes:
     _experiment(root, info)
     variables = ET.SubElement(root, "ModelVariables")
     for v in table:
-        attrs = _variable_attributes(v)
-        if v.unit:
-            attrs["unit"] = v.unit
-        if v.minimum is not None:
-            attrs["min"] = _num(v.minimum)
-        if v.maximum is not None:
-            attrs["max"] = _num(v.maximum)
-        if v.start is not None:
-            attrs["start"] = _num(v.start)
+        attrs = {**_variable_attributes(v), **_value_attributes(v)}
         if v.derivative_of is not None:
             attrs["derivative"] = str(v.derivative_of)
         ET.SubElement(variables, "Float64", attrs)
