@@ -24,6 +24,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/identification.py
 	$(BIN)/python benchmarks/nonlinearity.py --out out
 	$(BIN)/python benchmarks/silverbox.py
+	$(BIN)/python benchmarks/cosim.py
 
 clean:
 	rm -rf $(VENV) out build *.egg-info src/*.egg-info

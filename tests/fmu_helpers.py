@@ -24,3 +24,39 @@ def simulate_record(fmu, record, names, start_values=None):
     return fmpy.simulate_fmu(str(fmu), start_time=0.0, stop_time=record.n_samples * record.dt,
                              output_interval=record.dt, input=input_signals(record, names),
                              start_values=start_values or {})
+
+
+def start_fmi2(path, tmp_path, messages, start=None, types=None, logging_on=False, name="instance"):
+    """Instantiate an FMI 2 co-simulation FMU with our own logger callback, set start values
+    (``types``: name -> "Integer" or "Boolean"; others Real) and initialise at t = 0.
+
+    Messages are appended to ``messages`` as (status, category, text). Never fmpy's
+    ``logger=`` proxy: it dangles after the callback is freed.
+    """
+    from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+
+    unzipdir = fmpy.extract(str(path), str(tmp_path / f"unzipped_{len(list(tmp_path.iterdir()))}"))
+    md = fmpy.read_model_description(str(path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
+                    instanceName=name)
+
+    def log(env, instance, status, category, message):
+        messages.append((status, category.decode(), message.decode()))
+
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(log)
+    fmu.instantiate(callbacks=callbacks, loggingOn=logging_on)
+    fmu._duffid_callbacks = callbacks  # keep the ctypes callbacks alive as long as the instance
+    fmu.setupExperiment(startTime=0.0)
+    types = types or {}
+    for var, value in (start or {}).items():
+        if types.get(var) == "Integer":
+            fmu.setInteger([vr[var]], [int(value)])
+        elif types.get(var) == "Boolean":
+            fmu.setBoolean([vr[var]], [bool(value)])
+        else:
+            fmu.setReal([vr[var]], [float(value)])
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    return fmu, vr

@@ -78,8 +78,8 @@ def test_unknown_excitation_is_rejected(capsys, tmp_path):
 
 
 @pytest.mark.slow
-def test_demo_json(capsys, tmp_path):
-    code, out, _ = _run(capsys, "demo", "--out", str(tmp_path), "--json")
+def test_paper_cases_json(capsys, tmp_path):
+    code, out, _ = _run(capsys, "paper-cases", "--out", str(tmp_path), "--json")
     data = json.loads(out)
     assert code == 0 and set(data) == {"duffing1", "duffing2"}
     assert np.isfinite(data["duffing1"]["robust"]["parameters"]["kp"])

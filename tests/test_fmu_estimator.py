@@ -11,10 +11,9 @@ import pytest
 fmpy = pytest.importorskip("fmpy")
 
 from fmpy.fmi1 import FMICallException  # noqa: E402
-from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 
-from fmu_helpers import simulate_record  # noqa: E402
+from fmu_helpers import simulate_record, start_fmi2  # noqa: E402
 from duffid import Duffing1, Duffing2, identify, measure  # noqa: E402
 from duffid.fmu_estimator import TYPES, build_estimator_fmu, build_estimator_fmus  # noqa: E402
 from duffid.identification import OnlineIdentifier  # noqa: E402
@@ -132,30 +131,7 @@ def test_options_and_nominal_parameters(fmus, case_a):
 # ---------------------------------------------------------------------- low-level API
 def _start(path, tmp_path, messages, start=None, logging_on=False):
     """Instantiate with our own callbacks (never fmpy's logger= proxy, see test_fmu_python)."""
-    unzipdir = fmpy.extract(str(path), str(tmp_path / f"unzipped_{len(list(tmp_path.iterdir()))}"))
-    md = fmpy.read_model_description(str(path))
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
-                    instanceName="est")
-
-    def log(env, name, status, category, message):
-        messages.append((status, category.decode(), message.decode()))
-
-    callbacks = fmi2CallbackFunctions()
-    callbacks.logger = fmi2CallbackLoggerTYPE(log)
-    fmu.instantiate(callbacks=callbacks, loggingOn=logging_on)
-    fmu._duffid_callbacks = callbacks  # keep the ctypes callbacks alive as long as the instance
-    fmu.setupExperiment(startTime=0.0)
-    for name, value in (start or {}).items():
-        if TYPES.get(name) == "Integer":
-            fmu.setInteger([vr[name]], [value])
-        elif TYPES.get(name) == "Boolean":
-            fmu.setBoolean([vr[name]], [value])
-        else:
-            fmu.setReal([vr[name]], [value])
-    fmu.enterInitializationMode()
-    fmu.exitInitializationMode()
-    return fmu, vr
+    return start_fmi2(path, tmp_path, messages, start, TYPES, logging_on, name="est")
 
 
 def _step(fmu, vr, k, x, f=10.0, dt=1e-3):

@@ -176,11 +176,18 @@ void instance_reset(Instance *inst)
 
 /* ------------------------------------------------------------------ evaluation */
 
+/* Nonzero when variable vr may hold a non-finite value (ModelInfo.non_finite). */
+static int may_be_non_finite(const ModelInfo *m, size_t vr)
+{
+    return m->non_finite != NULL && m->non_finite[vr];
+}
+
 static int first_non_finite(const Instance *inst)
 {
     size_t i;
     for (i = 0; i < inst->model->n_vars; i++) {
         if (inst->model->non_finite_outputs && inst->model->causality[i] == CAUSALITY_OUTPUT) continue;
+        if (may_be_non_finite(inst->model, i)) continue;
         if (!isfinite(inst->vars[i])) return (int)i;
     }
     return -1;
@@ -305,6 +312,12 @@ static int check_refs(Instance *inst, const char *function, int type, const unsi
     return 0;
 }
 
+static void store(Instance *inst, unsigned vr, double v)
+{
+    if (inst->vars[vr] != v) inst->dirty = 1;
+    inst->vars[vr] = v;
+}
+
 FmuStatus fmu_get_float64(Instance *inst, const char *function, const unsigned vr[], size_t nvr,
                           double value[])
 {
@@ -335,16 +348,13 @@ FmuStatus fmu_set_float64(Instance *inst, const char *function, const unsigned v
                       function, inst->model->names[vr[i]], vr[i], mode_name(inst->mode));
             return FMU_ERROR;
         }
-        if (!isfinite(value[i])) {
+        if (!isfinite(value[i]) && !may_be_non_finite(inst->model, vr[i])) {
             log_error(inst, "%s: value %g of variable %s (value reference %u) is not finite; rejected",
                       function, value[i], inst->model->names[vr[i]], vr[i]);
             return FMU_ERROR;
         }
     }
-    for (i = 0; i < nvr; i++) {
-        if (inst->vars[vr[i]] != value[i]) inst->dirty = 1;
-        inst->vars[vr[i]] = value[i];
-    }
+    for (i = 0; i < nvr; i++) store(inst, vr[i], value[i]);
     return FMU_OK;
 }
 
@@ -378,12 +388,6 @@ static int set_checks(Instance *inst, const char *function, int type, const unsi
         }
     }
     return 0;
-}
-
-static void store(Instance *inst, unsigned vr, double v)
-{
-    if (inst->vars[vr] != v) inst->dirty = 1;
-    inst->vars[vr] = v;
 }
 
 FmuStatus fmu_get_int(Instance *inst, const char *function, int type, const unsigned vr[], size_t nvr,

@@ -90,6 +90,9 @@ typedef struct ModelInfo {
     ModelLoadState load_state;
     int non_finite_outputs;            /* 1: outputs may be NaN/Inf (e.g. "not yet estimated") */
     const unsigned char *types;        /* VARTYPE_* per variable; NULL: all Float64 */
+    const unsigned char *non_finite;   /* per variable, 1: may be set to and hold NaN/Inf (an input
+                                        * such as an estimate "not yet known"); NULL: none. Every
+                                        * other input or parameter is rejected when not finite. */
 } ModelInfo;
 
 /* Interfaces of ModelInfo.interfaces. */

@@ -1,4 +1,5 @@
-"""Command-line interface ``duffid`` (argparse: identify, simulate, nonlinearity, silverbox, build-fmus, demo)."""
+"""Command-line interface ``duffid`` (argparse: identify, simulate, nonlinearity, silverbox, build-fmus, demo,
+paper-cases)."""
 from __future__ import annotations
 
 import argparse
@@ -128,11 +129,20 @@ def build_parser() -> argparse.ArgumentParser:
     silverbox.add_cli(sub)
     p = modelica.add_cli(sub)
     p.description = ("Build every Modelica example plant as <Name>.fmu (FMI 2.0) and <Name>_fmi3.fmu "
-                     "(FMI 3.0), and the estimator FMUs DuffingEstimator{1,2}.fmu, _fmi3.fmu (C) and "
-                     "_python.fmu (pythonfmu).")
-    p.add_argument("--no-estimators", action="store_true", help="build the plant FMUs only")
+                     "(FMI 3.0), the estimator FMUs DuffingEstimator{1,2}.fmu, _fmi3.fmu (C) and "
+                     "_python.fmu (pythonfmu), the controller FMUs AdaptiveController{1,2}.fmu and the "
+                     "whole 1-DOF loop as the container FMU ClosedLoop1DOF.fmu.")
+    p.add_argument("--no-estimators", action="store_true",
+                   help="build the plant FMUs only (no estimators, controllers or ClosedLoop1DOF)")
 
-    p = sub.add_parser("demo", help="the main job: identify the paper's 1-DOF and 2-DOF cases")
+    p = sub.add_parser("demo", help="the main job: plant <-> identifier <-> adaptive controller co-simulation")
+    p.add_argument("--out", type=Path, default=Path("out"), help="output folder (default out/)")
+    p.add_argument("--fmu-dir", type=Path, default=Path("build/fmus"),
+                   help="FMU folder, built there if missing or stale (default build/fmus)")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of tables")
+    p.add_argument("--progress", action="store_true", help="progress bars for the co-simulation runs")
+
+    p = sub.add_parser("paper-cases", help="identify the paper's 1-DOF and 2-DOF cases from simulated records")
     p.add_argument("--out", type=Path, default=Path("out"), help="output folder (default out/)")
     p.add_argument("--json", action="store_true", help="print a JSON summary instead of tables")
     return parser
@@ -231,9 +241,13 @@ def _build_fmus(args: argparse.Namespace) -> int:
     status = modelica.run_cli(args)
     if status or args.no_estimators or args.plant:
         return status
+    from .closed_loop import build_closed_loop_fmu, mark_fmus_current
+    from .fmu_controller import build_controller_fmus
     from .fmu_estimator import build_estimator_fmus
-    for path in build_estimator_fmus(args.out):
+    for path in [*build_estimator_fmus(args.out), *build_controller_fmus(args.out)]:
         print(path)
+    mark_fmus_current(args.out)
+    print(build_closed_loop_fmu(args.out))
     return 0
 
 
@@ -267,10 +281,21 @@ def _demo(args: argparse.Namespace) -> int:
     from .demo import run_demo
     if args.json:
         import io
-        summary = run_demo(args.out, stream=io.StringIO())
+        summary = run_demo(args.out, fmu_dir=args.fmu_dir, stream=io.StringIO(), progress=args.progress)
         print(json.dumps(summary))
     else:
-        run_demo(args.out)
+        run_demo(args.out, fmu_dir=args.fmu_dir, progress=args.progress)
+    return 0
+
+
+def _paper_cases(args: argparse.Namespace) -> int:
+    from .paper_cases import run_paper_cases
+    if args.json:
+        import io
+        summary = run_paper_cases(args.out, stream=io.StringIO())
+        print(json.dumps(summary))
+    else:
+        run_paper_cases(args.out)
     return 0
 
 
@@ -278,7 +303,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``duffid`` command; returns the exit status."""
     args = build_parser().parse_args(argv)
     handlers = {"identify": _identify, "simulate": _simulate, "nonlinearity": _nonlinearity,
-                "silverbox": silverbox.run_cli, "build-fmus": _build_fmus, "demo": _demo}
+                "silverbox": silverbox.run_cli, "build-fmus": _build_fmus, "demo": _demo,
+                "paper-cases": _paper_cases}
     try:
         return handlers[args.command](args)
     except (RecordError, ValueError, TypeError, SimulationError) as exc:

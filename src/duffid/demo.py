@@ -1,102 +1,61 @@
-"""The main job: identify the paper's 1-DOF and 2-DOF plants from simulated records.
+"""The main job: identify and control the paper's plants in co-simulation.
 
-``make demo`` and ``duffid demo`` run :func:`run_demo`: both cases are simulated with
-scipy, quantised by the paper's encoder (2266 pulses/cm), identified with the paper's
-estimator and the robust one, printed next to the paper's Tables 2 and 4, and plotted
-(estimates vs time, like Figures 8, 12 and 13) into the output folder.
+``make demo`` and ``duffid demo`` run :func:`run_demo`: the FMUs are built if they are
+missing or stale (:func:`duffid.closed_loop.ensure_fmus`), then each loop of
+:func:`duffid.closed_loop.loop_cases` (1-DOF oscillator, 2-DOF chain, Duffing circuit) runs
+plant <-> estimator <-> adaptive controller and the mismatched baseline; estimates vs
+truth and tracking errors are printed, and plots (excitation and response, estimates vs
+time, control force, tracking error) and the recorded outputs (CSV) are written to the
+output folder.
 """
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 from typing import Any, TextIO
 
-import numpy as np
+from .closed_loop import LoopResult, ensure_fmus, loop_cases, run_loop, summary_lines
+from .plots import plot_closed_loop
 
-from .identification import Identification, identify
-from .models import Duffing1, Duffing2
-from .plots import plot_estimates, plot_record
-from .signals import Step
-from .simulation import measure, simulate
-
-__all__ = ["run_demo", "PAPER_TABLE2", "PAPER_TABLE4", "format_table"]
-
-#: The paper's Table 2 (1-DOF, 14 N step): estimated values.
-PAPER_TABLE2 = {"m": 2.55, "b": 12.47, "k": 1290.34, "kp": -114.83e4}
-#: The paper's Table 4 (2-DOF), with kp1 read as -130.47e4 (NOTES.md: the printed
-#: -1304.7e4 contradicts its stated 5.4 % difference).
-PAPER_TABLE4 = {"m1": 2.56, "b1": 12.48, "k1": 1280.7, "kp1": -130.47e4,
-                "m2": 2.80, "b2": 11.67, "k2": 1585.0, "kp2": -144.8e4}
+__all__ = ["run_demo"]
 
 
-def format_table(truth: dict[str, float], columns: dict[str, dict[str, float]]) -> str:
-    """Fixed-width table: parameter, truth, then each column's value and error in %."""
-    head = f"{'parameter':>10} {'truth':>12}" + "".join(f" {name:>14} {'err %':>8}" for name in columns)
-    lines = [head, "-" * len(head)]
-    for p, true in truth.items():
-        row = f"{p:>10} {true:>12.6g}"
-        for values in columns.values():
-            v = values.get(p, np.nan)
-            err = 100.0 * (v - true) / true if np.isfinite(v) and true else np.nan
-            row += f" {v:>14.6g} {err:>8.3f}" if np.isfinite(v) else f" {'-':>14} {'-':>8}"
-        lines.append(row)
-    return "\n".join(lines)
-
-
-def _case(name: str, model, force: float, t_end: float, out: Path, stream: TextIO,
-          paper_table: dict[str, float], paper_label: str) -> dict[str, Any]:
-    exact = simulate(model, Step(force), t_end, 1e-3)
-    record = measure(exact)  # encoder quantisation, 2266 pulses/cm
-    record.to_csv(out / f"{name}_record.csv")
-    plot_record(record, out / f"{name}_record.png", title=f"{name}: {force:g} N step, quantised")
-    results: dict[str, Identification] = {m: identify(record, model, m) for m in ("robust", "paper")}
-    truth = model.parameters
-    print(f"\n== {name}: {model.name}, {force:g} N step, {t_end:g} s, 1 ms, encoder-quantised ==", file=stream)
-    columns = {paper_label: paper_table}
-    columns.update({f"duffid {m}": r.parameters for m, r in results.items()})
-    print(format_table(truth, columns), file=stream)
-    for m, r in results.items():
-        t_id = "never" if r.t_identified is None else f"{r.t_identified:.3f} s"
-        print(f"  {m}: identified at {t_id}, window {r.window:.3f} s", file=stream)
-        plot_estimates(r, out / f"{name}_{m}_estimates.png", truth=truth,
-                       title=f"{name}: estimates vs time ({m})")
-    if model.n_dof == 2:  # Figure 13: the normalised parameters of the second DOF
-        r = results["robust"]
-        ratios = {f"{p}/m2": r.history[p] / r.history["m2"] for p in ("b2", "k2", "kp2")}
-        true_ratios = {f"{p}/m2": truth[p] / truth["m2"] for p in ("b2", "k2", "kp2")}
-        plot_estimates(r, out / f"{name}_robust_theta2.png", truth=true_ratios, series=ratios,
-                       title=f"{name}: second DOF, normalised by m2 (robust)")
-    return {"truth": truth, **{m: r.to_dict() for m, r in results.items()}}
-
-
-def run_demo(out: str | os.PathLike[str] = "out", stream: TextIO | None = None) -> dict[str, Any]:
-    """Run the main job and write its tables and plots.
+def run_demo(out: str | os.PathLike[str] = "out", *, fmu_dir: str | os.PathLike[str] = "build/fmus",
+             stream: TextIO | None = None, progress: bool = False) -> dict[str, Any]:
+    """Run the main job and write its plots and records.
 
     Parameters
     ----------
     out : path
         Output folder (created).
+    fmu_dir : path
+        Where the FMUs are (built there if missing or stale).
     stream : file, optional
         Where the tables are printed (default stdout).
+    progress : bool
+        Progress bars for the co-simulation runs.
 
     Returns
     -------
     dict
-        Per case: truth and the JSON summaries of both methods.
+        The 1-DOF loop's summary at the top level (``identified``, ``truth``,
+        ``tracking_rms``, ...) and every loop's under ``cases``.
     """
-    import sys
-
     stream = stream or sys.stdout
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    print("duffid demo: algebraic identification of the paper's Duffing oscillators", file=stream)
-    print("(paper columns are the published experimental estimates, not simulations)", file=stream)
-    summary = {
-        # 14 N as in the paper; the plant leaves its potential well near 0.3 s (NOTES.md)
-        "duffing1": _case("duffing1", Duffing1(), 14.0, 0.25, out, stream, PAPER_TABLE2, "paper Table 2"),
-        # 10 N: a large deflection of the second spring (kp2 needs it) while staying below
-        # the ~12 N step at which the 2-DOF chain escapes its potential well
-        "duffing2": _case("duffing2", Duffing2(), 10.0, 1.0, out, stream, PAPER_TABLE4, "paper Table 4"),
-    }
-    print(f"\nplots and records written to {out}/", file=stream)
+    print("duffid demo: plant <-> online identifier <-> adaptive controller (FMI co-simulation)", file=stream)
+    fmus = ensure_fmus(fmu_dir, log=lambda line: print(line, file=stream))
+    results: dict[str, LoopResult] = {}
+    for name, case in loop_cases().items():
+        result = run_loop(case, fmus, progress=progress)
+        results[name] = result
+        print("", *summary_lines(result), sep="\n", file=stream)
+        result.adaptive.to_csv(out / f"{name}_adaptive.csv")
+        result.baseline.to_csv(out / f"{name}_baseline.csv")
+        plot_closed_loop(result, out / f"{name}_closed_loop.png")
+    print(f"\nplots and recorded outputs written to {out}/", file=stream)
+    summary = results["oscillator1dof"].to_dict()
+    summary["cases"] = {name: r.to_dict() for name, r in results.items()}
     return summary

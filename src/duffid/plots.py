@@ -13,7 +13,7 @@ import numpy as np  # noqa: E402
 from .identification import Identification  # noqa: E402
 from .record import Record  # noqa: E402
 
-__all__ = ["plot_estimates", "plot_record", "plot_hilbert", "plot_eta_vs_amplitude"]
+__all__ = ["plot_estimates", "plot_record", "plot_hilbert", "plot_eta_vs_amplitude", "plot_closed_loop"]
 
 
 def plot_estimates(result: Identification, path: str | os.PathLike[str], *,
@@ -144,6 +144,77 @@ def plot_eta_vs_amplitude(series, path: str | os.PathLike[str], *, threshold: fl
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     ax.set_title(title or "Hilbert-transform nonlinearity index")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_closed_loop(result, path: str | os.PathLike[str], *, title: str | None = None) -> None:
+    """Four panels of a closed loop (:class:`duffid.closed_loop.LoopResult`).
+
+    Response (tracked position, reference, reference model, baseline), control force with
+    its limit (the step before the switch is the identification excitation), relative
+    error of the estimates vs time (log scale) and tracking error of both runs.
+
+    Parameters
+    ----------
+    result : LoopResult
+        Outcome of :func:`duffid.closed_loop.run_loop`.
+    path : path
+        PNG file to write.
+    title : str, optional
+        Figure title (default: the loop's title).
+    """
+    case = result.case
+    a, b = result.adaptive, result.baseline
+    unit, scale = case.position_unit
+    funit, fscale = case.force_unit
+    t = a.time
+    fig, axes = plt.subplots(4, 1, figsize=(9, 11), sharex=True)
+    ax = axes[0]
+    ax.plot(t, case.reference(t) * scale, "k--", lw=0.9, label="reference r")
+    ax.plot(t, a["controller.x_ref"] * scale, color="0.6", lw=0.9, label="reference model")
+    ax.plot(b.time, b[f"plant.{case.tracked}"] * scale, color="tab:red", lw=0.9, alpha=0.8,
+            label=f"baseline ({case.mismatch:.0%} mismatch)")
+    ax.plot(t, a[f"plant.{case.tracked}"] * scale, color="tab:blue", lw=1.1, label="adaptive")
+    ax.set_ylabel(f"{case.tracked} [{unit}]")
+    ax.legend(loc="best", fontsize=8)
+    ax = axes[1]
+    ax.plot(b.time, b["controller.f"] * fscale, color="tab:red", lw=0.8, alpha=0.8, label="baseline")
+    ax.plot(t, a["controller.f"] * fscale, color="tab:blue", lw=1.0, label="adaptive")
+    for sign in (1, -1):
+        ax.axhline(sign * case.force_limit * fscale, color="k", ls=":", lw=0.8)
+    ax.set_ylabel(f"force [{funit}]")
+    ax.legend(loc="best", fontsize=8)
+    ax = axes[2]
+    for p, true in case.truth.items():
+        estimate = a[f"estimator.{p}_hat"]
+        error = np.full_like(estimate, np.nan)
+        finite = np.isfinite(estimate)
+        error[finite] = np.maximum(np.abs(estimate[finite] - true) / abs(true) * 100.0, 1e-6)
+        ax.semilogy(t, error, lw=1.0, label=case.labels.get(p, p))
+    ax.axhline(0.5, color="k", ls=":", lw=0.8)
+    ax.set_ylabel("|estimate error| [%]")
+    ax.legend(loc="best", fontsize=8, ncol=4)
+    ax = axes[3]
+    for run, color in (("baseline", "tab:red"), ("adaptive", "tab:blue")):
+        time, error = result.tracking_error(run)
+        after = time >= result.switch_time
+        ax.plot(time[after], error[after] * scale, color=color, lw=0.9,
+                label=f"{run}: RMS {result.tracking_rms[run] * scale:.4g} {unit}")
+    t_from = result.switch_time + case.settle_after
+    ax.axvline(t_from, color="0.5", ls=":", lw=0.8)
+    time, error = result.tracking_error("baseline")
+    span = np.max(np.abs(error[time >= t_from])) * scale
+    if np.isfinite(span) and span > 0:  # zoom on the compared interval, not the switch transient
+        ax.set_ylim(-1.5 * span, 1.5 * span)
+    ax.set_ylabel(f"{case.tracked} - r [{unit}]")
+    ax.set_xlabel("t [s]")
+    ax.legend(loc="best", fontsize=8)
+    for ax in axes:
+        ax.axvline(result.switch_time, color="g", lw=0.8, alpha=0.7)
+        ax.grid(alpha=0.3)
+    fig.suptitle(title or f"{case.title}\nswitch to control at {result.switch_time:.3f} s (green)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -1,0 +1,352 @@
+/* duffid adaptive controller: portable C99 core (see duffid_controller.h). Every
+ * floating-point expression mirrors duffid.control.AdaptiveController operation for
+ * operation; keep them in step. */
+#include "duffid_controller.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#define DT_RTOL 1e-9
+#define SWITCH_RTOL 1e-6
+#define PI 3.14159265358979323846
+
+static void message(char *msg, size_t size, const char *text, const char *name, double value)
+{
+    if (msg == NULL || size == 0) return;
+    snprintf(msg, size, text, name, value);
+}
+
+static int bad(char *msg, size_t size, const char *name, const char *rule, double value)
+{
+    char text[160];
+    snprintf(text, sizeof text, "parameter %%s %s, got %%.17g", rule);
+    message(msg, size, text, name, value);
+    return DUFFID_CTRL_ERR_CONFIG;
+}
+
+int duffid_ctrl_check(const duffid_ctrl_config *cfg, char *msg, size_t msg_size)
+{
+    static const char *const names1[] = {"m_nominal", "b_nominal", "k_nominal", "kp_nominal"};
+    static const char *const names2[] = {"m1_nominal", "b1_nominal", "k1_nominal", "kp1_nominal",
+                                         "b2_nominal", "k2_nominal", "kp2_nominal", "m2_nominal"};
+    const struct { const char *name; double value; } finite[] = {
+        {"sample_period", cfg->sample_period}, {"excitation_amplitude", cfg->excitation_amplitude},
+        {"chirp_f0", cfg->chirp_f0}, {"chirp_f1", cfg->chirp_f1}, {"chirp_duration", cfg->chirp_duration},
+        {"min_excitation", cfg->min_excitation}, {"settle_time", cfg->settle_time},
+        {"settle_tolerance", cfg->settle_tolerance}, {"K1", cfg->K[0]}, {"K2", cfg->K[1]},
+        {"L1", cfg->L[0]}, {"L2", cfg->L[1]}, {"reference_bandwidth", cfg->reference_bandwidth},
+        {"force_limit", cfg->force_limit}, {"fixed_switch_time", cfg->switch_time}};
+    const struct { const char *name; double value; } positive[] = {
+        {"sample_period", cfg->sample_period}, {"force_limit", cfg->force_limit},
+        {"reference_bandwidth", cfg->reference_bandwidth}, {"settle_tolerance", cfg->settle_tolerance},
+        {"chirp_duration", cfg->chirp_duration}};
+    const struct { const char *name; double value; } non_negative[] = {
+        {"chirp_f0", cfg->chirp_f0}, {"chirp_f1", cfg->chirp_f1}, {"min_excitation", cfg->min_excitation},
+        {"settle_time", cfg->settle_time}};
+    size_t i;
+    int n;
+    if (cfg->dofs != 1 && cfg->dofs != 2) return bad(msg, msg_size, "dofs", "must be 1 or 2", cfg->dofs);
+    if (cfg->mode != 0 && cfg->mode != 1)
+        return bad(msg, msg_size, "mode", "must be 0 or 1 (adaptive/fixed)", cfg->mode);
+    if (cfg->excitation != 0 && cfg->excitation != 1)
+        return bad(msg, msg_size, "excitation", "must be 0 or 1 (step/chirp)", cfg->excitation);
+    if (cfg->reference_model != 0 && cfg->reference_model != 1)
+        return bad(msg, msg_size, "reference_model", "must be 0 or 1 (filter/derivatives)", cfg->reference_model);
+    if (cfg->differentiator_samples < 3 || cfg->differentiator_samples > DUFFID_CTRL_MAX_SAMPLES)
+        return bad(msg, msg_size, "differentiator_samples", "must be an integer in 3 .. 64",
+                   cfg->differentiator_samples);
+    n = cfg->dofs == 1 ? 4 : 8;
+    for (i = 0; i < sizeof finite / sizeof finite[0]; i++)
+        if (!isfinite(finite[i].value)) return bad(msg, msg_size, finite[i].name, "must be finite", finite[i].value);
+    for (i = 0; i < (size_t)n; i++) {
+        const char *name = cfg->dofs == 1 ? names1[i] : names2[i];
+        if (!isfinite(cfg->nominal[i])) return bad(msg, msg_size, name, "must be finite", cfg->nominal[i]);
+        if (name[0] == 'm' && !(cfg->nominal[i] > 0.0))
+            return bad(msg, msg_size, name, "must be positive", cfg->nominal[i]);
+    }
+    for (i = 0; i < sizeof positive / sizeof positive[0]; i++)
+        if (!(positive[i].value > 0.0)) return bad(msg, msg_size, positive[i].name, "must be positive", positive[i].value);
+    for (i = 0; i < sizeof non_negative / sizeof non_negative[0]; i++)
+        if (!(non_negative[i].value >= 0.0))
+            return bad(msg, msg_size, non_negative[i].name, "must not be negative", non_negative[i].value);
+    if (fabs(cfg->excitation_amplitude) > cfg->force_limit) {
+        if (msg != NULL && msg_size > 0)
+            snprintf(msg, msg_size, "excitation_amplitude %.17g exceeds force_limit %.17g",
+                     cfg->excitation_amplitude, cfg->force_limit);
+        return DUFFID_CTRL_ERR_CONFIG;
+    }
+    return DUFFID_CTRL_OK;
+}
+
+/* Weights of the derivative at the newest sample of the least-squares quadratic through
+ * n samples (tau_j = -j); all sums and cofactors are integers below 2^53 for n <= 64. */
+static void diff_coefficients(int n, double *c)
+{
+    double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, det, c0, c1, c2;
+    int j;
+    for (j = 0; j < n; j++) {
+        double tau = -(double)j;
+        s0 += 1.0;
+        s1 += tau;
+        s2 += tau * tau;
+        s3 += tau * tau * tau;
+        s4 += tau * tau * tau * tau;
+    }
+    det = s0 * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s3 * s2) + s2 * (s1 * s3 - s2 * s2);
+    c0 = -(s1 * s4 - s3 * s2);
+    c1 = s0 * s4 - s2 * s2;
+    c2 = -(s0 * s3 - s1 * s2);
+    for (j = 0; j < n; j++) c[j] = (c0 + c1 * (-(double)j) + c2 * ((double)j * (double)j)) / det;
+}
+
+static double excitation(const duffid_ctrl *ctrl, double t)
+{
+    const duffid_ctrl_config *p = &ctrl->cfg;
+    double tau, f0, f1, T, phi;
+    if (p->excitation == 0) return p->excitation_amplitude;
+    tau = t - ctrl->t0;
+    f0 = p->chirp_f0;
+    f1 = p->chirp_f1;
+    T = p->chirp_duration;
+    if (tau <= T)
+        phi = f0 * tau + 0.5 * (f1 - f0) / T * (tau * tau);
+    else
+        phi = f0 * T + 0.5 * (f1 - f0) * T + f1 * (tau - T);
+    return p->excitation_amplitude * sin(2.0 * PI * phi);
+}
+
+/* Restoring force on m1 (elements 1 and 2) into *g, force of element 2 into *f2. */
+static void coupling(int dofs, const double *th, const double *x, const double *v, double *g, double *f2)
+{
+    double f1 = th[1] * v[0] + th[2] * x[0] + th[3] * (x[0] * x[0] * x[0]);
+    if (dofs == 1) {
+        *g = f1;
+        *f2 = 0.0;
+    } else {
+        double d = x[0] - x[1];
+        *f2 = th[4] * (v[0] - v[1]) + th[5] * d + th[6] * (d * d * d);
+        *g = f1 + *f2;
+    }
+}
+
+/* y = (x[0..n-1], v[0..n-1]) -> dy. */
+static void deriv(int dofs, const double *th, double f, const double *y, double *dy)
+{
+    double g, f2;
+    coupling(dofs, th, y, y + dofs, &g, &f2);
+    if (dofs == 1) {
+        dy[0] = y[1];
+        dy[1] = (f - g) / th[0];
+    } else {
+        dy[0] = y[2];
+        dy[1] = y[3];
+        dy[2] = (f - g) / th[0];
+        dy[3] = f2 / th[7];
+    }
+}
+
+static void predict(duffid_ctrl *ctrl, double f, double h)
+{
+    int n = ctrl->cfg.dofs, m = 2 * n, i;
+    double y[4], yt[4], k1[4], k2[4], k3[4], k4[4], h2 = 0.5 * h, h6 = h / 6.0;
+    for (i = 0; i < n; i++) {
+        y[i] = ctrl->xh[i];
+        y[n + i] = ctrl->vh[i];
+    }
+    deriv(n, ctrl->theta, f, y, k1);
+    for (i = 0; i < m; i++) yt[i] = y[i] + h2 * k1[i];
+    deriv(n, ctrl->theta, f, yt, k2);
+    for (i = 0; i < m; i++) yt[i] = y[i] + h2 * k2[i];
+    deriv(n, ctrl->theta, f, yt, k3);
+    for (i = 0; i < m; i++) yt[i] = y[i] + h * k3[i];
+    deriv(n, ctrl->theta, f, yt, k4);
+    for (i = 0; i < m; i++) y[i] = y[i] + h6 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+    for (i = 0; i < n; i++) {
+        ctrl->xh[i] = y[i];
+        ctrl->vh[i] = y[n + i];
+    }
+}
+
+static void ref_deriv(const duffid_ctrl *ctrl, double r, const double *y, double *dy)
+{
+    dy[0] = y[1];
+    dy[1] = y[2];
+    dy[2] = ctrl->w3 * (r - y[0]) - ctrl->w2 * y[1] - ctrl->w1 * y[2];
+}
+
+/* One RK4 step of the reference model from y (in place) with r held; r = 0: the
+ * homogeneous system of the transient z. */
+static void advance_reference(const duffid_ctrl *ctrl, double *y, double r, double h)
+{
+    double yt[3], k1[3], k2[3], k3[3], k4[3], h2 = 0.5 * h, h6 = h / 6.0;
+    int i;
+    ref_deriv(ctrl, r, y, k1);
+    for (i = 0; i < 3; i++) yt[i] = y[i] + h2 * k1[i];
+    ref_deriv(ctrl, r, yt, k2);
+    for (i = 0; i < 3; i++) yt[i] = y[i] + h2 * k2[i];
+    ref_deriv(ctrl, r, yt, k3);
+    for (i = 0; i < 3; i++) yt[i] = y[i] + h * k3[i];
+    ref_deriv(ctrl, r, yt, k4);
+    for (i = 0; i < 3; i++) y[i] = y[i] + h6 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+}
+
+/* (r, r', r'') at t_{k+1} from the samples at t_k (second-order Taylor). */
+static void predicted_reference(const duffid_ctrl_input *in, double h, double *rp)
+{
+    rp[0] = in->r + h * in->r_dot + 0.5 * (h * h) * in->r_ddot;
+    rp[1] = in->r_dot + h * in->r_ddot;
+    rp[2] = in->r_ddot;
+}
+
+static double derivative(const duffid_ctrl *ctrl, int dof, double h)
+{
+    int n = ctrl->cfg.differentiator_samples, j;
+    double acc = 0.0;
+    for (j = 0; j < n; j++) acc += ctrl->c[j] * ctrl->buf[dof][(ctrl->head - j + n) % n];
+    return acc / h;
+}
+
+static void law(duffid_ctrl *ctrl)
+{
+    const duffid_ctrl_config *p = &ctrl->cfg;
+    double w, g, f2, f, limit = p->force_limit;
+    w = ctrl->ref[2] - p->K[0] * (ctrl->xh[0] - ctrl->ref[0]) - p->K[1] * (ctrl->vh[0] - ctrl->ref[1]);
+    coupling(p->dofs, ctrl->theta, ctrl->xh, ctrl->vh, &g, &f2);
+    f = ctrl->theta[0] * w + g;
+    ctrl->saturated = f > limit || f < -limit;
+    ctrl->f = f > limit ? limit : (f < -limit ? -limit : f);
+}
+
+static int usable(const duffid_ctrl *ctrl, const duffid_ctrl_input *in)
+{
+    int i;
+    if (!in->identified) return 0;
+    for (i = 0; i < ctrl->n_params; i++)
+        if (!isfinite(in->estimate[i])) return 0;
+    return in->estimate[0] > 0.0 && (ctrl->cfg.dofs == 1 || in->estimate[7] > 0.0);
+}
+
+void duffid_ctrl_outputs(const duffid_ctrl *ctrl, duffid_ctrl_output *out)
+{
+    int i;
+    out->f = ctrl->f;
+    out->phase = ctrl->phase;
+    out->x_ref = ctrl->ref[0];
+    out->v_hat[0] = ctrl->vh[0];
+    out->v_hat[1] = ctrl->vh[1]; /* NaN for 1 DOF */
+    out->saturated = ctrl->saturated;
+    out->switch_time = ctrl->switch_time;
+    for (i = 0; i < DUFFID_CTRL_MAX_PARAMS; i++) out->used[i] = ctrl->theta[i]; /* NaN beyond n_params */
+}
+
+int duffid_ctrl_init(duffid_ctrl *ctrl, const duffid_ctrl_config *cfg, double t0, duffid_ctrl_output *out,
+                     char *msg, size_t msg_size)
+{
+    int rc = duffid_ctrl_check(cfg, msg, msg_size), i;
+    double wr;
+    if (rc != DUFFID_CTRL_OK) return rc;
+    memset(ctrl, 0, sizeof *ctrl);
+    ctrl->cfg = *cfg;
+    ctrl->n_params = cfg->dofs == 1 ? 4 : 8;
+    diff_coefficients(cfg->differentiator_samples, ctrl->c);
+    wr = cfg->reference_bandwidth;
+    ctrl->w3 = wr * wr * wr;
+    ctrl->w2 = 3.0 * wr * wr;
+    ctrl->w1 = 3.0 * wr;
+    ctrl->t0 = t0;
+    ctrl->head = cfg->differentiator_samples - 1;
+    ctrl->count = 0;
+    ctrl->have_ref = 0;
+    ctrl->settle_start = 0.0;
+    ctrl->phase = 0;
+    for (i = 0; i < DUFFID_CTRL_MAX_PARAMS; i++) ctrl->theta[i] = NAN;
+    for (i = 0; i < 2; i++) ctrl->xh[i] = ctrl->vh[i] = NAN;
+    for (i = 0; i < 3; i++) ctrl->ref[i] = ctrl->z[i] = NAN;
+    ctrl->switch_time = NAN;
+    ctrl->saturated = 0;
+    ctrl->f = excitation(ctrl, t0);
+    ctrl->initialized = 1;
+    if (out != NULL) duffid_ctrl_outputs(ctrl, out);
+    return DUFFID_CTRL_OK;
+}
+
+int duffid_ctrl_step(duffid_ctrl *ctrl, double t, double h, const duffid_ctrl_input *in,
+                     duffid_ctrl_output *out)
+{
+    const duffid_ctrl_config *p = &ctrl->cfg;
+    int n = p->dofs, i, ok, changed, sw;
+    double f_k = ctrl->f, g, f2, e, rp[3];
+    if (!ctrl->initialized) return DUFFID_CTRL_ERR_STATE;
+    if (fabs(h - p->sample_period) > DT_RTOL * p->sample_period) return DUFFID_CTRL_ERR_STEP;
+    if (!isfinite(in->r) || !isfinite(in->r_dot) || !isfinite(in->r_ddot)) return DUFFID_CTRL_ERR_INPUT;
+    for (i = 0; i < n; i++)
+        if (!isfinite(in->x[i])) return DUFFID_CTRL_ERR_INPUT;
+    ok = usable(ctrl, in);
+    if (ctrl->phase == 0) {
+        int size = p->differentiator_samples;
+        ctrl->head = (ctrl->head + 1) % size;
+        for (i = 0; i < n; i++) ctrl->buf[i][ctrl->head] = in->x[i];
+        if (ctrl->count < size) ctrl->count++;
+        if (!ok) {
+            ctrl->have_ref = 0;
+        } else if (!ctrl->have_ref) {
+            memcpy(ctrl->p_ref, in->estimate, sizeof ctrl->p_ref);
+            ctrl->settle_start = t;
+            ctrl->have_ref = 1;
+        } else {
+            changed = 0;
+            for (i = 0; i < ctrl->n_params; i++)
+                if (fabs(in->estimate[i] - ctrl->p_ref[i]) > p->settle_tolerance * fabs(ctrl->p_ref[i])) changed = 1;
+            if (changed) {
+                memcpy(ctrl->p_ref, in->estimate, sizeof ctrl->p_ref);
+                ctrl->settle_start = t;
+            }
+        }
+        if (p->mode == 0)
+            sw = ctrl->count >= size && ctrl->have_ref && t - ctrl->settle_start >= p->settle_time &&
+                 t - ctrl->t0 >= p->min_excitation;
+        else
+            sw = ctrl->count >= size && t + h >= p->switch_time - SWITCH_RTOL * h;
+        if (!sw) {
+            ctrl->f = excitation(ctrl, t + h);
+        } else {
+            for (i = 0; i < ctrl->n_params; i++) ctrl->theta[i] = p->mode == 0 ? in->estimate[i] : p->nominal[i];
+            for (i = 0; i < n; i++) {
+                ctrl->xh[i] = in->x[i];
+                ctrl->vh[i] = derivative(ctrl, i, h);
+            }
+            predict(ctrl, f_k, h);
+            coupling(n, ctrl->theta, ctrl->xh, ctrl->vh, &g, &f2);
+            ctrl->ref[0] = ctrl->xh[0];
+            ctrl->ref[1] = ctrl->vh[0];
+            ctrl->ref[2] = (f_k - g) / ctrl->theta[0];
+            if (p->reference_model == 1) { /* x_d = r + z: z starts at the filter's start */
+                predicted_reference(in, h, rp);
+                for (i = 0; i < 3; i++) ctrl->z[i] = ctrl->ref[i] - rp[i];
+            }
+            ctrl->phase = 1;
+            ctrl->switch_time = t + h;
+            law(ctrl);
+        }
+    } else {
+        if (p->mode == 0 && !p->freeze && ok)
+            for (i = 0; i < ctrl->n_params; i++) ctrl->theta[i] = in->estimate[i];
+        for (i = 0; i < n; i++) {
+            e = in->x[i] - ctrl->xh[i];
+            ctrl->xh[i] = ctrl->xh[i] + p->L[0] * e;
+            ctrl->vh[i] = ctrl->vh[i] + p->L[1] * e;
+        }
+        predict(ctrl, f_k, h);
+        if (p->reference_model == 0) {
+            advance_reference(ctrl, ctrl->ref, in->r, h);
+        } else {
+            advance_reference(ctrl, ctrl->z, 0.0, h);
+            predicted_reference(in, h, rp);
+            for (i = 0; i < 3; i++) ctrl->ref[i] = rp[i] + ctrl->z[i];
+        }
+        law(ctrl);
+    }
+    if (out != NULL) duffid_ctrl_outputs(ctrl, out);
+    return DUFFID_CTRL_OK;
+}

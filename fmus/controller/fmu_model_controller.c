@@ -1,0 +1,195 @@
+/* duffid's adaptive controller as a discrete-time co-simulation model of the shared FMI
+ * glue (fmus/common): AdaptiveController1 (1 DOF) and AdaptiveController2 (2 DOF),
+ * FMI 2.0 and 3.0.
+ *
+ * The variable table and the value references of its groups come from the generated
+ * header controller_fmu_config.h (duffid.fmu_controller): CONTROLLER_DOFS, CONTROLLER_VR_*.
+ *
+ * Semantics: the outputs at initialisation are the controller's start (the force over
+ * [t0, t0 + h)); each doStep(t, h) consumes the inputs set for t and gives the outputs at
+ * t + h (the force over [t + h, t + 2h)). h must equal the parameter sample_period
+ * (otherwise Discard, logged). The estimate inputs may be NaN (the glue's non_finite
+ * flag); every other input is rejected when not finite. The controller is a plain struct
+ * (duffid_ctrl): the FMU state holds a byte copy of it.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "duffid_controller.h"
+#include "fmu_instance.h"
+#include "fmu_model.h"
+#include "controller_fmu_config.h"
+
+#define N_DOF CONTROLLER_DOFS
+#define N_PARAMS (N_DOF == 1 ? 4 : 8)
+
+/* Model data (Instance.model_data); no pointers, so the FMU state is a byte copy. */
+typedef struct CtrlData {
+    int started;            /* the first doStep latched the parameters */
+    duffid_ctrl ctrl;
+    duffid_ctrl_output out; /* outputs at the instance's time */
+} CtrlData;
+
+static CtrlData *data_of(Instance *inst)
+{
+    if (inst->model_data == NULL) inst->model_data = calloc(1, sizeof(CtrlData));
+    return (CtrlData *)inst->model_data;
+}
+
+static void make_config(const Instance *inst, duffid_ctrl_config *cfg)
+{
+    const double *v = inst->vars;
+    int i;
+    memset(cfg, 0, sizeof *cfg);
+    cfg->dofs = N_DOF;
+    cfg->mode = (int)v[CONTROLLER_VR_MODE];
+    cfg->sample_period = v[CONTROLLER_VR_SAMPLE_PERIOD];
+    cfg->excitation = (int)v[CONTROLLER_VR_EXCITATION];
+    cfg->excitation_amplitude = v[CONTROLLER_VR_EXCITATION_AMPLITUDE];
+    cfg->chirp_f0 = v[CONTROLLER_VR_CHIRP_F0];
+    cfg->chirp_f1 = v[CONTROLLER_VR_CHIRP_F1];
+    cfg->chirp_duration = v[CONTROLLER_VR_CHIRP_DURATION];
+    cfg->min_excitation = v[CONTROLLER_VR_MIN_EXCITATION];
+    cfg->settle_time = v[CONTROLLER_VR_SETTLE_TIME];
+    cfg->settle_tolerance = v[CONTROLLER_VR_SETTLE_TOLERANCE];
+    cfg->K[0] = v[CONTROLLER_VR_K1];
+    cfg->K[1] = v[CONTROLLER_VR_K2];
+    cfg->L[0] = v[CONTROLLER_VR_L1];
+    cfg->L[1] = v[CONTROLLER_VR_L2];
+    cfg->reference_bandwidth = v[CONTROLLER_VR_REFERENCE_BANDWIDTH];
+    cfg->reference_model = (int)v[CONTROLLER_VR_REFERENCE_MODEL];
+    cfg->force_limit = v[CONTROLLER_VR_FORCE_LIMIT];
+    cfg->differentiator_samples = (int)v[CONTROLLER_VR_DIFFERENTIATOR_SAMPLES];
+    cfg->freeze = v[CONTROLLER_VR_FREEZE] != 0.0;
+    for (i = 0; i < N_PARAMS; i++) cfg->nominal[i] = v[CONTROLLER_VR_NOMINAL + i];
+    cfg->switch_time = v[CONTROLLER_VR_FIXED_SWITCH_TIME];
+}
+
+/* (Re)starts the controller from the parameters at the start time; nonzero (logged) on
+ * an invalid configuration. */
+static int start(Instance *inst, CtrlData *d)
+{
+    duffid_ctrl_config cfg;
+    char msg[256];
+    make_config(inst, &cfg);
+    if (duffid_ctrl_init(&d->ctrl, &cfg, inst->start_time, &d->out, msg, sizeof msg) != DUFFID_CTRL_OK) {
+        fmu_log(inst, FMU_ERROR, "logStatusError", "invalid controller parameters: %s", msg);
+        return 1;
+    }
+    return 0;
+}
+
+static int evaluate(Instance *inst)
+{
+    CtrlData *d = data_of(inst);
+    double *v = inst->vars;
+    int i;
+    if (d == NULL) {
+        fmu_log(inst, FMU_ERROR, "logStatusError", "out of memory");
+        return 1;
+    }
+    if (!d->started && start(inst, d) != 0) return 1; /* parameters may still change */
+    v[CONTROLLER_VR_F] = d->out.f;
+    v[CONTROLLER_VR_PHASE] = (double)d->out.phase;
+    v[CONTROLLER_VR_X_REF] = d->out.x_ref;
+    for (i = 0; i < N_DOF; i++) v[CONTROLLER_VR_V_HAT + i] = d->out.v_hat[i];
+    v[CONTROLLER_VR_SATURATED] = d->out.saturated ? 1.0 : 0.0;
+    v[CONTROLLER_VR_SWITCH_TIME] = d->out.switch_time;
+    for (i = 0; i < N_PARAMS; i++) v[CONTROLLER_VR_USED + i] = d->out.used[i];
+    return 0;
+}
+
+static int do_step(Instance *inst, double t, double h)
+{
+    CtrlData *d = data_of(inst);
+    duffid_ctrl_input in;
+    duffid_ctrl_output out;
+    int i, rc;
+    if (d == NULL) {
+        fmu_log(inst, FMU_ERROR, "logStatusError", "out of memory");
+        return 1;
+    }
+    if (!d->started) {
+        if (start(inst, d) != 0) return 1;
+        d->started = 1;
+    }
+    memset(&in, 0, sizeof in);
+    in.r = inst->vars[CONTROLLER_VR_R];
+    in.r_dot = inst->vars[CONTROLLER_VR_R_DOT];
+    in.r_ddot = inst->vars[CONTROLLER_VR_R_DDOT];
+    for (i = 0; i < N_DOF; i++) in.x[i] = inst->vars[CONTROLLER_VR_X + i];
+    for (i = 0; i < N_PARAMS; i++) in.estimate[i] = inst->vars[CONTROLLER_VR_EST + i];
+    in.identified = inst->vars[CONTROLLER_VR_IDENTIFIED] != 0.0;
+    rc = duffid_ctrl_step(&d->ctrl, t, h, &in, &out);
+    if (rc == DUFFID_CTRL_ERR_STEP) {
+        fmu_log(inst, FMU_ERROR, "logStatusError",
+                "communicationStepSize %.17g at t = %.17g differs from the parameter sample_period %.17g", h, t,
+                d->ctrl.cfg.sample_period);
+        return 1;
+    }
+    if (rc != DUFFID_CTRL_OK) {
+        fmu_log(inst, FMU_ERROR, "logStatusError", "the controller rejected the inputs at t = %.17g (code %d)",
+                t, rc);
+        return 1;
+    }
+    d->out = out;
+    return 0;
+}
+
+static void free_data(Instance *inst)
+{
+    free(inst->model_data);
+    inst->model_data = NULL;
+}
+
+static size_t state_size(const Instance *inst)
+{
+    (void)inst;
+    return sizeof(CtrlData);
+}
+
+static void save_state(const Instance *inst, void *bytes)
+{
+    if (inst->model_data != NULL)
+        memcpy(bytes, inst->model_data, sizeof(CtrlData));
+    else
+        memset(bytes, 0, sizeof(CtrlData));
+}
+
+static int load_state(Instance *inst, const void *bytes, size_t size)
+{
+    CtrlData *d;
+    if (size != sizeof(CtrlData)) return 1;
+    d = data_of(inst);
+    if (d == NULL) return 1;
+    memcpy(d, bytes, sizeof(CtrlData));
+    return 0;
+}
+
+const ModelInfo fmu_model_info = {
+    .model_identifier = CONTROLLER_IDENTIFIER,
+    .instantiation_token = CONTROLLER_TOKEN,
+    .n_vars = CONTROLLER_N_VARS,
+    .names = controller_names,
+    .start = controller_start,
+    .causality = controller_causality,
+    .variability = controller_variability,
+    .settable_start = controller_settable_start,
+    .n_states = 0,
+    .state_vr = NULL,
+    .derivative_vr = NULL,
+    .n_work = 0,
+    .n_iwork = 0,
+    .evaluate = evaluate,
+    .do_step = do_step,
+    .default_tolerance = 1e-8,
+    .interfaces = INTERFACE_CO_SIMULATION,
+    .free_data = free_data,
+    .state_size = state_size,
+    .save_state = save_state,
+    .load_state = load_state,
+    .non_finite_outputs = 1,
+    .types = controller_types,
+    .non_finite = controller_non_finite,
+};
