@@ -229,12 +229,14 @@ def test_closed_loop_reference_forms():
         closed_loop(Duffing1(), c, (Ramp(),), 0.01)
 
 
-def compare(plant, dofs, truth, reference, t_end=4.0, **settings):
+def compare(plant, dofs, truth, reference, t_end=4.0, measurement=None, **settings):
     """Adaptive vs baseline (fixed mode, nominal 30 % wrong, same switch time)."""
-    adaptive = closed_loop(plant, AdaptiveController(dofs, design(H), **settings), reference, t_end)
+    adaptive = closed_loop(plant, AdaptiveController(dofs, design(H), **settings), reference, t_end,
+                           measurement=measurement)
     switch = adaptive["switch_time"][-1]
     baseline_settings = {**settings, "mode": "fixed", "switch_time": switch, "nominal": mismatched(truth, 0.3)}
-    baseline = closed_loop(plant, AdaptiveController(dofs, design(H), **baseline_settings), reference, t_end)
+    baseline = closed_loop(plant, AdaptiveController(dofs, design(H), **baseline_settings), reference, t_end,
+                           measurement=measurement)
     assert baseline["switch_time"][-1] == switch
     after = adaptive["t"] >= switch + 1.0
 
@@ -330,3 +332,20 @@ def test_closed_loop_circuit():
         assert abs(errors[name]) < 0.005, (name, errors)
     assert np.all(np.abs(adaptive["f"]) <= 30.0)
     assert rms["baseline_ref"] > 5 * rms["adaptive_ref"], rms
+
+
+@pytest.mark.slow
+def test_closed_loop_with_the_paper_encoder():
+    """The paper's plant measured by its encoder (2266 pulses/cm) in the loop: the
+    estimates of the switch stay within 0.5 % for m, k, kp and identification still pays
+    off by more than 5x in tracking (the quantisation floor limits the adaptive run)."""
+    from duffid.simulation import quantize
+
+    truth = Duffing1().parameters
+    reference = sines(4e-3, (3e-3, 1.0), (1e-3, 3.0))
+    _, _, switch, errors, rms = compare(Duffing1(), 1, truth, reference, reference_model="derivatives",
+                                        measurement=quantize)
+    assert 0.2 <= switch < 1.5
+    for name in ("m", "k", "kp"):
+        assert abs(errors[name]) < 0.005, (name, errors)
+    assert rms["baseline_r"] > 5 * rms["adaptive_r"], rms

@@ -99,6 +99,21 @@ typedef struct ModelInfo {
 #define INTERFACE_MODEL_EXCHANGE 1u
 #define INTERFACE_CO_SIMULATION 2u
 
+/* The fields of the ModelInfo of a discrete-time co-simulation model with model data
+ * (the estimator and controller FMUs): its tables <prefix>_names, _start, _causality,
+ * _variability, _settable_start and _types come from the generated config header, and
+ * the model defines evaluate, do_step, free_data, state_size, save_state and load_state.
+ * Use as  const ModelInfo fmu_model_info = { DUFFID_DISCRETE_MODEL_FIELDS(...), ... };  */
+#define DUFFID_DISCRETE_MODEL_FIELDS(prefix, identifier, token, count) \
+    .model_identifier = (identifier), .instantiation_token = (token), .n_vars = (count), \
+    .names = prefix##_names, .start = prefix##_start, .causality = prefix##_causality, \
+    .variability = prefix##_variability, .settable_start = prefix##_settable_start, \
+    .n_states = 0, .state_vr = NULL, .derivative_vr = NULL, .n_work = 0, .n_iwork = 0, \
+    .evaluate = evaluate, .do_step = do_step, .default_tolerance = 1e-8, \
+    .interfaces = INTERFACE_CO_SIMULATION, .free_data = free_data, .state_size = state_size, \
+    .save_state = save_state, .load_state = load_state, .non_finite_outputs = 1, \
+    .types = prefix##_types
+
 /* The model compiled into this FMU (defined by the model's own source file). */
 extern const ModelInfo fmu_model_info;
 

@@ -306,27 +306,5 @@ static int load_state(Instance *inst, const void *bytes, size_t size)
 }
 
 const ModelInfo fmu_model_info = {
-    .model_identifier = ESTIMATOR_IDENTIFIER,
-    .instantiation_token = ESTIMATOR_TOKEN,
-    .n_vars = ESTIMATOR_N_VARS,
-    .names = estimator_names,
-    .start = estimator_start,
-    .causality = estimator_causality,
-    .variability = estimator_variability,
-    .settable_start = estimator_settable_start,
-    .n_states = 0,
-    .state_vr = NULL,
-    .derivative_vr = NULL,
-    .n_work = 0,
-    .n_iwork = 0,
-    .evaluate = evaluate,
-    .do_step = do_step,
-    .default_tolerance = 1e-8,
-    .interfaces = INTERFACE_CO_SIMULATION,
-    .free_data = free_data,
-    .state_size = state_size,
-    .save_state = save_state,
-    .load_state = load_state,
-    .non_finite_outputs = 1,
-    .types = estimator_types,
+    DUFFID_DISCRETE_MODEL_FIELDS(estimator, ESTIMATOR_IDENTIFIER, ESTIMATOR_TOKEN, ESTIMATOR_N_VARS),
 };
