@@ -41,12 +41,12 @@ def build(out: Path) -> dict[str, Path]:
 
 
 def loop_system(fmus: dict[str, Path], with_r: bool = True) -> System:
-    """plant -> est, ctrl; est -> ctrl (estimates, identified); ctrl.f -> plant, est."""
+    """plant -> est, ctrl; est -> ctrl (estimates, identified); ctrl.f -> plant; ctrl.f_sample -> est."""
     s = System().add("plant", fmus["plant"]).add("est", fmus["est"]).add("ctrl", fmus["ctrl"])
     s.connect("plant.x", "est.x").connect("plant.x", "ctrl.x")
     for name in ESTIMATES:
         s.connect(f"est.{name}", f"ctrl.{name}")
-    s.connect("est.identified", "ctrl.identified").connect("ctrl.f", "plant.f").connect("ctrl.f", "est.f")
+    s.connect("est.identified", "ctrl.identified").connect("ctrl.f", "plant.f").connect("ctrl.f_sample", "est.f")
     if with_r:
         s.set_input("ctrl.r", R)
     return s
@@ -79,7 +79,7 @@ def plain_fmpy(fmus: dict[str, Path], n: int) -> np.ndarray:
         ctrl.setReal([cv["r"]], [R])
         est_vrs = [ev[name] for name in ESTIMATES] + [ev["condition"], ev["uncertainty"], ev["window_length"]]
         ctrl_in = [cv["x"]] + [cv[name] for name in ESTIMATES]
-        ctrl_out = [cv[name] for name in ("f", "x_ref", "v_hat", "switch_time", "m_used", "b_used", "k_used",
+        ctrl_out = [cv[name] for name in ("f", "f_sample", "x_ref", "v_hat", "switch_time", "m_used", "b_used", "k_used",
                                           "kp_used")]
         xs = np.empty(n + 1)
         rows = []
@@ -91,7 +91,7 @@ def plain_fmpy(fmus: dict[str, Path], n: int) -> np.ndarray:
         for k in range(n):
             t = k * H
             plant.setReal([pv["f"]], [outputs[0]])
-            est.setReal([ev["x"], ev["f"]], [x, outputs[0]])
+            est.setReal([ev["x"], ev["f"]], [x, outputs[1]])
             ctrl.setReal(ctrl_in, [x] + estimates[:4])
             ctrl.setBoolean([cv["identified"]], identified)
             plant.doStep(t, H)

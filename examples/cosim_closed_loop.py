@@ -26,7 +26,7 @@ def loop(fmus: dict[str, Path], controller: dict) -> System:
             .add("estimator", fmus["DuffingEstimator1"])
             .add("controller", fmus["AdaptiveController1"], parameters=controller)
             .connect("plant.x", "estimator.x").connect("plant.x", "controller.x")
-            .connect("controller.f", "plant.f").connect("controller.f", "estimator.f")
+            .connect("controller.f", "plant.f").connect("controller.f_sample", "estimator.f")
             .connect("estimator.m_hat", "controller.m_hat").connect("estimator.b_hat", "controller.b_hat")
             .connect("estimator.k_hat", "controller.k_hat").connect("estimator.kp_hat", "controller.kp_hat")
             .connect("estimator.identified", "controller.identified")

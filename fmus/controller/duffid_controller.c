@@ -231,6 +231,7 @@ void duffid_ctrl_outputs(const duffid_ctrl *ctrl, duffid_ctrl_output *out)
 {
     int i;
     out->f = ctrl->f;
+    out->f_sample = ctrl->f_sample;
     out->phase = ctrl->phase;
     out->x_ref = ctrl->ref[0];
     out->v_hat[0] = ctrl->vh[0];
@@ -266,6 +267,7 @@ int duffid_ctrl_init(duffid_ctrl *ctrl, const duffid_ctrl_config *cfg, double t0
     ctrl->switch_time = NAN;
     ctrl->saturated = 0;
     ctrl->f = excitation(ctrl, t0);
+    ctrl->f_sample = ctrl->f;
     ctrl->initialized = 1;
     if (out != NULL) duffid_ctrl_outputs(ctrl, out);
     return DUFFID_CTRL_OK;
@@ -347,6 +349,7 @@ int duffid_ctrl_step(duffid_ctrl *ctrl, double t, double h, const duffid_ctrl_in
         }
         law(ctrl);
     }
+    ctrl->f_sample = 0.5 * (f_k + ctrl->f);
     if (out != NULL) duffid_ctrl_outputs(ctrl, out);
     return DUFFID_CTRL_OK;
 }

@@ -64,6 +64,9 @@ typedef struct duffid_ctrl_input {
 
 typedef struct duffid_ctrl_output {
     double f;          /* force over [t_{k+1}, t_{k+2}) (after init: over [t_0, t_1)) */
+    double f_sample;   /* the force as a sample at t_{k+1} for an identifier: the mean of the
+                          forces over [t_k, t_{k+1}) and [t_{k+1}, t_{k+2}), which stands for the
+                          zero-order-hold staircase to O(h^2) (after init: f) */
     int phase;         /* 0 excitation, 1 control */
     double x_ref;      /* desired position x_d at t_{k+1} (NaN before the switch) */
     double v_hat[2];   /* observer velocities at t_{k+1} (NaN before the switch) */
@@ -91,6 +94,7 @@ typedef struct duffid_ctrl {
     double switch_time;
     int saturated;
     double f;
+    double f_sample;
     int initialized;
 } duffid_ctrl;
 

@@ -91,6 +91,7 @@ static int evaluate(Instance *inst)
     }
     if (!d->started && start(inst, d) != 0) return 1; /* parameters may still change */
     v[CONTROLLER_VR_F] = d->out.f;
+    v[CONTROLLER_VR_F_SAMPLE] = d->out.f_sample;
     v[CONTROLLER_VR_PHASE] = (double)d->out.phase;
     v[CONTROLLER_VR_X_REF] = d->out.x_ref;
     for (i = 0; i < N_DOF; i++) v[CONTROLLER_VR_V_HAT + i] = d->out.v_hat[i];

@@ -5,12 +5,16 @@ Three loops are defined (:func:`loop_cases`): the paper's 1-DOF oscillator
 mass 1) and the Duffing circuit (``DuffingCircuit``, charge tracked by the source
 voltage). Each is a :class:`duffid.cosim.System` of three FMUs::
 
-    plant.x ──> estimator.x, controller.x        controller.f ──> plant.f, estimator.f
-    estimator.{m,b,k,kp}_hat, identified ──> controller         r(t) ──> controller.r
+    plant.x ──> estimator.x, controller.x       controller.f ──> plant.f
+    estimator.{m,b,k,kp}_hat, identified ──> controller
+    controller.f_sample ──> estimator.f         r(t), r'(t), r''(t) ──> controller.r, r_dot, r_ddot
 
 run by the Jacobi master (every FMU reads the others' outputs of the same communication
 point; the controller compensates its one-sample computational delay by prediction, see
-:mod:`duffid.control`). The controller excites the plant with a force step until the
+:mod:`duffid.control`). The plant holds the force over each step; the estimator gets the
+controller's ``f_sample``, the mean of the forces before and after the sampling instant,
+which stands for that staircase as a sample to O(h^2) (the command itself would lag by
+half a step: 0.3 % on m and 13 % on kp under a 6 N chirp). The controller excites the plant with a force step until the
 estimator reports identified and the estimates have settled, then switches bumplessly to
 the certainty-equivalence law. The baseline is the same law on nominal parameters that
 are wrong by a set fraction (:func:`duffid.control.mismatched`), switching at the same
@@ -20,6 +24,7 @@ time, without an estimator.
 estimates the law uses, the tracking RMS of both runs over the same interval and the
 force peak; :func:`build_closed_loop_fmu` writes the 1-DOF loop as one container FMU
 (``ClosedLoop1DOF.fmu``, input ``r``; outputs ``x``, ``f`` and the estimates).
+:func:`ensure_fmus` builds the FMUs of the loops when missing or stale.
 """
 from __future__ import annotations
 
@@ -314,7 +319,8 @@ def loop_system(case: LoopCase, fmus: Mapping[str, Path], *, baseline: bool = Fa
             system.connect(f"plant.{output}", f"estimator.{port}", **generic)
     system.connect("controller.f", f"plant.{case.force}", **generic)
     if not baseline:
-        system.connect("controller.f", f"estimator.{case.estimator_force}", **generic)
+        # the plant holds f over each step; f_sample is that staircase as a sample at t_k
+        system.connect("controller.f_sample", f"estimator.{case.estimator_force}", **generic)
         for p in case.truth:
             system.connect(f"estimator.{p}_hat", f"controller.{p}_hat")
         system.connect("estimator.identified", "controller.identified")
@@ -476,10 +482,12 @@ def summary_lines(result: LoopResult) -> Sequence[str]:
     lines = [f"== {case.name}: {case.title} ==",
              f"identification: {case.excitation_amplitude:g} {case.force_unit[0]} step until identified "
              f"and settled; switched to control at {result.switch_time:.3f} s",
-             f"{'parameter':>10} {'truth':>13} {'used by law':>13} {'err %':>8}"]
+             f"{'parameter':>10} {'truth':>13} {'used by law':>13} {'err %':>8} {'estimate at end':>16} "
+             f"{'err %':>8}"]
     for p, true in case.truth.items():
+        final = result.final_estimates[p]
         lines.append(f"{case.labels.get(p, p):>10} {true:>13.6g} {result.identified[p]:>13.6g} "
-                     f"{result.errors_percent[p]:>8.3f}")
+                     f"{result.errors_percent[p]:>8.3f} {final:>16.6g} {100.0 * (final - true) / true:>8.3f}")
     unit, scale = case.position_unit
     lines.append(f"tracking RMS of {case.tracked} - r from {result.switch_time + case.settle_after:.3f} s "
                  f"to {case.t_end:g} s: adaptive {result.tracking_rms['adaptive'] * scale:.4g} {unit}, "

@@ -437,7 +437,8 @@ class AdaptiveController:
     @property
     def output_names(self) -> tuple[str, ...]:
         v = ("v_hat",) if self.dofs == 1 else ("v1_hat", "v2_hat")
-        return ("f", "phase", "x_ref", *v, "saturated", "switch_time", *(f"{n}_used" for n in self.names))
+        return ("f", "f_sample", "phase", "x_ref", *v, "saturated", "switch_time",
+                *(f"{n}_used" for n in self.names))
 
     # ------------------------------------------------------------------ model
     def _coupling(self, th: list[float], x: list[float], v: list[float]) -> tuple[float, float]:
@@ -530,10 +531,17 @@ class AdaptiveController:
         self._switch_time = math.nan
         self._saturated = False
         self._f = self._excitation(self._t0)
+        self._f_sample = self._f
+        return self._outputs()
+
+    def _finish(self, f_k: float) -> dict[str, float]:
+        """Outputs after a step; ``f_k`` is the force over [t_k, t_{k+1})."""
+        self._f_sample = 0.5 * (f_k + self._f)
         return self._outputs()
 
     def _outputs(self) -> dict[str, float]:
-        out: dict[str, float] = {"f": self._f, "phase": self._phase, "x_ref": self._ref[0]}
+        out: dict[str, float] = {"f": self._f, "f_sample": self._f_sample, "phase": self._phase,
+                                 "x_ref": self._ref[0]}
         if self.dofs == 1:
             out["v_hat"] = self._vh[0]
         else:
@@ -600,7 +608,7 @@ class AdaptiveController:
                 switch = buffered and t + h >= p["fixed_switch_time"] - _SWITCH_RTOL * h
             if not switch:
                 self._f = self._excitation(t + h)
-                return self._outputs()
+                return self._finish(f_k)
             self._theta = est if p["mode"] == 0 else [p[f"{name}_nominal"] for name in self.names]
             self._xh = list(x)
             self._vh = [self._derivative(i, h) for i in range(n)]
@@ -613,7 +621,7 @@ class AdaptiveController:
             self._phase = 1
             self._switch_time = t + h
             self._law(h)
-            return self._outputs()
+            return self._finish(f_k)
         if p["mode"] == 0 and not p["freeze"] and usable:
             self._theta = est
         L1, L2 = p["L1"], p["L2"]
@@ -629,7 +637,7 @@ class AdaptiveController:
             rp = self._predicted_reference(r, h)
             self._ref = [rp[i] + self._z[i] for i in range(3)]
         self._law(h)
-        return self._outputs()
+        return self._finish(f_k)
 
 
 def run(controller: AdaptiveController, t: Sequence[float], inputs: Mapping[str, Any],
@@ -697,8 +705,8 @@ def closed_loop(plant: Chain, controller: AdaptiveController, reference: Any,
     """Plant, online identifier and controller in a loop, all in Python (no FMUs).
 
     Each sample ``k``: the plant's positions ``x_k`` (through ``measurement``, e.g.
-    quantisation) and the force ``f_k`` applied over ``[t_k, t_{k+1})`` go to the
-    identifier; its estimates, ``x_k`` and the reference's ``r``, ``r'``, ``r''`` at
+    quantisation) and the controller's ``f_sample`` (the mean of the forces applied before
+    and after ``t_k``: the zero-order-hold staircase as a sample) go to the identifier; its estimates, ``x_k`` and the reference's ``r``, ``r'``, ``r''`` at
     ``t_k`` to the controller, whose output is the force over ``[t_{k+1}, t_{k+2})`` (the
     co-simulation's one-sample delay); the plant is integrated over ``[t_k, t_{k+1})`` with ``f_k`` held (DOP853).
 
@@ -754,7 +762,7 @@ def closed_loop(plant: Chain, controller: AdaptiveController, reference: Any,
         x_true = state[:n_dof].copy()
         x_meas = x_true if measurement is None else np.asarray(measurement(x_true), dtype=float)
         f = out["f"]
-        est = identifier.update(x_meas, [f])
+        est = identifier.update(x_meas, [out["f_sample"]])  # the staircase's sample at t_k
         r = signals(float(t[k]))
         inputs = {"r": r[0], "r_dot": r[1], "r_ddot": r[2], "identified": est.identified,
                   **{f"{name}_hat": value for name, value in _controller_estimates(plant, est.parameters).items()}}

@@ -113,6 +113,8 @@ def controller_variables(dofs: int) -> tuple[list[FmuVariable], dict[str, int]]:
         add(f"{name}_hat", "input", 0.0, _unit(name), f"estimate of {name} (NaN: not yet estimated)", "EST")
     add("identified", "input", 0.0, None, "the estimates are trustworthy")
     add("f", "output", None, "N", "force command (applied from the next communication point)")
+    add("f_sample", "output", None, "N", "the force as a sample for an identifier: mean of the forces "
+        "before and after the next communication point (zero-order hold)")
     add("phase", "output", None, None, "0 excitation, 1 control")
     add("x_ref", "output", None, "m", "desired position x_d at the next communication point (NaN before the switch)")
     for name in x_names:
