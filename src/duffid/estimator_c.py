@@ -46,7 +46,7 @@ __all__ = [
 SOURCES = ("duffid_estimator.c", "duffid_linalg.c")
 HEADERS = ("duffid_estimator.h", "duffid_linalg.h")
 #: Compiler flags of the shared library (the project's strict C99 set).
-CFLAGS = ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared")
+CFLAGS = ("-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared")
 
 _MAX_PARAMS = 10
 _MODELS = {"duffing1": 1, "duffing2": 2}

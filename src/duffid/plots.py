@@ -173,7 +173,7 @@ def plot_closed_loop(result, path: str | os.PathLike[str], *, title: str | None 
     fig, axes = plt.subplots(4, 1, figsize=(9, 11), sharex=True)
     ax = axes[0]
     ax.plot(t, case.reference(t) * scale, "k--", lw=0.9, label="reference r")
-    ax.plot(t, a["controller.x_ref"] * scale, color="0.6", lw=0.9, label="reference model")
+    ax.plot(t, a["controller.x_ref"] * scale, color="0.6", lw=0.9, label="desired trajectory (controller)")
     ax.plot(b.time, b[f"plant.{case.tracked}"] * scale, color="tab:red", lw=0.9, alpha=0.8,
             label=f"baseline ({case.mismatch:.0%} mismatch)")
     ax.plot(t, a[f"plant.{case.tracked}"] * scale, color="tab:blue", lw=1.1, label="adaptive")
@@ -184,7 +184,7 @@ def plot_closed_loop(result, path: str | os.PathLike[str], *, title: str | None 
     ax.plot(t, a["controller.f"] * fscale, color="tab:blue", lw=1.0, label="adaptive")
     for sign in (1, -1):
         ax.axhline(sign * case.force_limit * fscale, color="k", ls=":", lw=0.8)
-    ax.set_ylabel(f"force [{funit}]")
+    ax.set_ylabel(f"{case.force} [{funit}]")
     ax.legend(loc="best", fontsize=8)
     ax = axes[2]
     for p, true in case.truth.items():
