@@ -28,7 +28,7 @@ def simulate_record(fmu, record, names, start_values=None):
 
 def start_fmi2(path, tmp_path, messages, start=None, types=None, logging_on=False, name="instance"):
     """Instantiate an FMI 2 co-simulation FMU with our own logger callback, set start values
-    (``types``: name -> "Integer" or "Boolean"; others Real) and initialise at t = 0.
+    (``types``: name -> "Integer", "Boolean" or "String"; others Real) and initialise at t = 0.
 
     Messages are appended to ``messages`` as (status, category, text). Never fmpy's
     ``logger=`` proxy: it dangles after the callback is freed.
@@ -55,6 +55,8 @@ def start_fmi2(path, tmp_path, messages, start=None, types=None, logging_on=Fals
             fmu.setInteger([vr[var]], [int(value)])
         elif types.get(var) == "Boolean":
             fmu.setBoolean([vr[var]], [bool(value)])
+        elif types.get(var) == "String":
+            fmu.setString([vr[var]], [str(value)])
         else:
             fmu.setReal([vr[var]], [float(value)])
     fmu.enterInitializationMode()

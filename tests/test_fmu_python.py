@@ -10,11 +10,10 @@ fmpy = pytest.importorskip("fmpy")
 pytest.importorskip("pythonfmu")
 
 from fmpy.fmi1 import FMICallException  # noqa: E402
-from fmpy.fmi2 import (FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE,  # noqa: E402
-                       fmi2Terminated)
+from fmpy.fmi2 import fmi2Terminated  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 
-from fmu_helpers import simulate_record  # noqa: E402
+from fmu_helpers import simulate_record, start_fmi2  # noqa: E402
 from duffid import Duffing1, Duffing2, identify  # noqa: E402
 from duffid.fmu_python import FMU_NAMES, build_python_fmu  # noqa: E402
 
@@ -94,28 +93,10 @@ def test_two_dof_gives_identify_answer(fmus, two_dof_exact):
 
 
 def _start(path, tmp_path, messages, start_strings=None):
-    """Instantiate with our own callbacks. Never pass ``logger=`` to fmpy.simulate_fmu in
-    tests: fmpy's native logger proxy keeps a global pointer to that Python callback after
-    it is freed, and a later FMU logging through fmpy's default callbacks then crashes."""
-    unzipdir = fmpy.extract(str(path), str(tmp_path / "unzipped"))
-    md = fmpy.read_model_description(str(path))
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
-                    instanceName="est")
-
-    def log(env, name, status, category, message):
-        messages.append((status, category.decode(), message.decode()))
-
-    callbacks = fmi2CallbackFunctions()
-    callbacks.logger = fmi2CallbackLoggerTYPE(log)
-    fmu.instantiate(callbacks=callbacks, loggingOn=True)
-    fmu._duffid_callbacks = callbacks  # keep the ctypes callback alive as long as the instance
-    fmu.setupExperiment(startTime=0.0)
-    fmu.enterInitializationMode()
-    for name, value in (start_strings or {}).items():
-        fmu.setString([vr[name]], [value])
-    fmu.exitInitializationMode()
-    return fmu, vr
+    """Instantiate with our own callbacks and logging on, String parameters set."""
+    strings = start_strings or {}
+    return start_fmi2(path, tmp_path, messages, start=strings, types=dict.fromkeys(strings, "String"),
+                      logging_on=True, name="est")
 
 
 def test_bad_parameter_ends_the_simulation_with_a_logged_error(fmus, tmp_path):
