@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import replace
+from pathlib import Path
 import subprocess
 import sys
 
@@ -41,6 +42,22 @@ def test_references_stay_inside_the_safe_range():
     # the 1-DOF softening spring peaks at ~18.5 mm: the reference keeps well below it
     assert cases["oscillator1dof"].reference.peak <= 8.5e-3
     assert cases["oscillator2dof"].reference.peak <= 8.5e-3
+
+
+REFERENCE = Path(__file__).with_name("closed_loop_reference.json")
+
+
+@pytest.mark.parametrize("name", ["oscillator1dof", "oscillator2dof", "duffing_circuit"])
+def test_loops_reproduce_their_reference_results(loop_fmus, name):
+    """Regression guard: switch time, estimates, tracking and force peaks of each loop as
+    recorded in closed_loop_reference.json (regenerate it deliberately when the estimator,
+    the controller or the loops change)."""
+    expected = json.loads(REFERENCE.read_text())[name]
+    got = run_loop(loop_cases()[name], loop_fmus).to_dict()
+    assert got["switch_time"] == pytest.approx(expected["switch_time"], abs=1e-9)
+    for key in ("identified", "final_estimates", "tracking_rms", "force_peak"):
+        for item, value in expected[key].items():
+            assert got[key][item] == pytest.approx(value, rel=1e-6), (key, item)
 
 
 def test_ensure_fmus_reuses_current_builds(loop_fmus):
