@@ -16,11 +16,14 @@ Variables (1-DOF; 2-DOF in brackets):
   ``b_hat``, ``k_hat``, ``kp_hat`` [``m1_hat``, ``b1_hat``, ``k1_hat``, ``kp1_hat``,
   ``b2_hat``, ``k2_hat``, ``kp2_hat``, ``m2_hat``] (NaN accepted: not yet estimated)
   and ``identified`` (Boolean);
-- outputs: ``f`` (force command), ``phase`` (Integer: 0 excitation, 1 control),
+- outputs: ``f`` (force command), ``f_sample`` (the force as a sample for an identifier:
+  the mean of the forces before and after the next communication point, which stands
+  for the zero-order-hold staircase; connect it to the estimator's force input),
+  ``phase`` (Integer: 0 excitation, 1 control),
   ``x_ref`` (desired position x_d), ``v_hat`` [``v1_hat``, ``v2_hat``] (observer),
   ``saturated`` (Boolean), ``switch_time`` (the time from which the law acts) and
   ``<name>_used`` (the law's parameters);
-  NaN before the switch except ``f``, ``phase`` and ``saturated``;
+  NaN before the switch except ``f``, ``f_sample``, ``phase`` and ``saturated``;
 - fixed parameters: those of :func:`duffid.control.controller_parameters` (``mode``,
   ``excitation``, ``reference_model`` and ``differentiator_samples`` Integer, ``freeze``
   Boolean), start
