@@ -28,3 +28,11 @@ def case_b_exact():
 def two_dof_exact():
     """2-DOF chain of Table 3 (m1 2.53, b1 5, b2 4), 6 N step on DOF 1, 1 s, noise-free."""
     return simulate(Duffing2(), Step(6.0), 1.0, 1e-3)
+
+
+@pytest.fixture(scope="session")
+def loop_fmus(tmp_path_factory):
+    """The FMUs of the closed loops (duffid.closed_loop.ensure_fmus), built once."""
+    from duffid.closed_loop import ensure_fmus
+
+    return ensure_fmus(tmp_path_factory.mktemp("loop_fmus"))

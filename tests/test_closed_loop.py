@@ -19,11 +19,6 @@ from duffid.cosim import System
 
 
 @pytest.fixture(scope="session")
-def loop_fmus(tmp_path_factory):
-    return ensure_fmus(tmp_path_factory.mktemp("loop_fmus"))
-
-
-@pytest.fixture(scope="session")
 def loop_1dof(loop_fmus):
     return run_loop(loop_cases()["oscillator1dof"], loop_fmus)
 

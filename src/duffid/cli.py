@@ -1,5 +1,5 @@
-"""Command-line interface ``duffid`` (argparse: identify, simulate, nonlinearity, silverbox, build-fmus, demo,
-paper-cases)."""
+"""Command-line interface ``duffid`` (argparse: identify, simulate, nonlinearity, silverbox, build-fmus, cosim,
+demo, paper-cases)."""
 from __future__ import annotations
 
 import argparse
@@ -10,7 +10,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from . import modelica, silverbox
+from . import cosim_config, modelica, silverbox
 from .identification import METHODS, identify
 from .models import model_from_name
 from .record import Record, RecordError
@@ -134,6 +134,8 @@ def build_parser() -> argparse.ArgumentParser:
                      "whole 1-DOF loop as the container FMU ClosedLoop1DOF.fmu.")
     p.add_argument("--no-estimators", action="store_true",
                    help="build the plant FMUs only (no estimators, controllers or ClosedLoop1DOF)")
+
+    cosim_config.add_cli(sub)
 
     p = sub.add_parser("demo", help="the main job: plant <-> identifier <-> adaptive controller co-simulation")
     p.add_argument("--out", type=Path, default=Path("out"), help="output folder (default out/)")
@@ -304,6 +306,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     handlers = {"identify": _identify, "simulate": _simulate, "nonlinearity": _nonlinearity,
                 "silverbox": silverbox.run_cli, "build-fmus": _build_fmus, "demo": _demo,
+                "cosim": cosim_config.run_cli,
                 "paper-cases": _paper_cases}
     try:
         return handlers[args.command](args)

@@ -1,0 +1,125 @@
+"""Co-simulation systems from JSON/TOML files (duffid.cosim_config, ``duffid cosim``)."""
+from __future__ import annotations
+
+import csv
+import json
+
+import fmpy
+import numpy as np
+import pytest
+
+from duffid.cli import main
+from duffid.cosim import System, WiringError
+from duffid.cosim_config import ConfigError, load_config
+
+ESTIMATES = ("m_hat", "b_hat", "k_hat", "kp_hat", "identified")
+
+
+def _config(fmus, **overrides):
+    config = {
+        "components": {
+            "plant": {"fmu": str(fmus["Oscillator1DOF"])},
+            "estimator": {"fmu": str(fmus["DuffingEstimator1"])},
+            "controller": {"fmu": str(fmus["AdaptiveController1"]), "parameters": {"force_limit": 25.0}},
+        },
+        "connections": [["plant.x", "estimator.x"], ["plant.x", "controller.x"], ["controller.f", "plant.f"],
+                        ["controller.f_sample", "estimator.f"],
+                        *[[f"estimator.{name}", f"controller.{name}"] for name in ESTIMATES]],
+        "input_csv": {"file": "reference.csv", "columns": {"r": "controller.r"}},
+        "run": {"stop_time": 1.0, "step": 0.001, "record": ["plant.x", "controller.f", "estimator.k_hat"]},
+        "container": {"inputs": {"r": ["controller.r"]}, "outputs": {"x": "plant.x", "f": "controller.f"}},
+    }
+    config.update(overrides)
+    return config
+
+
+@pytest.fixture
+def folder(tmp_path):
+    (tmp_path / "reference.csv").write_text("t,r\n0,0.005\n0.5,0.005\n1,0.007\n")
+    return tmp_path
+
+
+def _write(folder, config, name="loop.json"):
+    path = folder / name
+    path.write_text(json.dumps(config))
+    return path
+
+
+def test_config_run_equals_the_python_system(loop_fmus, folder):
+    config = load_config(_write(folder, _config(loop_fmus)))
+    result = config.run()
+    system = (System().add("plant", loop_fmus["Oscillator1DOF"]).add("estimator", loop_fmus["DuffingEstimator1"])
+              .add("controller", loop_fmus["AdaptiveController1"], parameters={"force_limit": 25.0})
+              .connect("plant.x", "estimator.x").connect("plant.x", "controller.x")
+              .connect("controller.f", "plant.f").connect("controller.f_sample", "estimator.f"))
+    for name in ESTIMATES:
+        system.connect(f"estimator.{name}", f"controller.{name}")
+    system.set_input("controller.r", (np.array([0.0, 0.5, 1.0]), np.array([0.005, 0.005, 0.007])))
+    direct = system.run(1.0, 1e-3)
+    assert result.names == ["plant.x", "controller.f", "estimator.k_hat"]
+    for name in result.names:
+        assert np.array_equal(result[name], direct[name], equal_nan=True), name
+
+
+def test_toml_config_and_relative_paths(loop_fmus, folder):
+    (folder / "fmus").mkdir()
+    for name in ("Oscillator1DOF",):
+        (folder / "fmus" / f"{name}.fmu").write_bytes(loop_fmus[name].read_bytes())
+    (folder / "loop.toml").write_text(
+        '[components.plant]\nfmu = "fmus/Oscillator1DOF.fmu"\nparameters = { m = 3.0 }\n'
+        '[inputs]\n"plant.f" = 10.0\n[run]\nstop_time = 0.5\nstep = 0.001\nordering = "gauss-seidel"\n')
+    result = load_config(folder / "loop.toml").run()
+    assert result.ordering == "gauss-seidel"
+    assert 0.0 < result["plant.x"][-1] < 0.02
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda c: c.update(extra=1), "unknown key(s) ['extra']"),
+    (lambda c: c["run"].pop("step"), "run.step is missing"),
+    (lambda c: c["run"].update(step=-1), "run.step must be > 0"),
+    (lambda c: c["run"].update(ordering="newton"), "run.ordering must be one of"),
+    (lambda c: c["connections"].append(["plant.x"]), "connections[9] must be"),
+    (lambda c: c["components"]["plant"].update(fmu=3), "components.plant.fmu must be"),
+    (lambda c: c["components"]["plant"].update(parameters={"mass": 1.0}), "components.plant"),
+    (lambda c: c["connections"].__setitem__(0, ["plant.y", "estimator.x"]), "connections[0]: "),
+    (lambda c: c.update(inputs={"controller.r": "fast"}), "inputs.controller.r must be a finite number"),
+])
+def test_bad_configs_name_file_and_entry(loop_fmus, folder, change, message):
+    config = _config(loop_fmus)
+    change(config)
+    path = _write(folder, config)
+    with pytest.raises((ConfigError, WiringError)) as info:
+        load_config(path)
+    assert str(path) in str(info.value) and message in str(info.value)
+
+
+def test_unreadable_files(folder):
+    with pytest.raises(ConfigError, match="no such file"):
+        load_config(folder / "missing.json")
+    (folder / "broken.json").write_text('{"components": {\n  "plant": }\n}')
+    with pytest.raises(ConfigError, match=r"broken.json:2:\d+: not valid JSON"):
+        load_config(folder / "broken.json")
+
+
+def test_cli_runs_writes_csv_and_reports_failures(loop_fmus, folder, capsys):
+    path = _write(folder, _config(loop_fmus))
+    assert main(["cosim", str(path), "-o", str(folder / "out.csv")]) == 0
+    with open(folder / "out.csv", newline="") as handle:
+        rows = list(csv.reader(handle))
+    assert rows[0] == ["time", "plant.x", "controller.f", "estimator.k_hat"] and len(rows) == 1002
+    assert "1001 communication points" in capsys.readouterr().out
+    bad = _config(loop_fmus)
+    bad["components"]["controller"]["parameters"] = {"force_limit": 5.0}  # below the 10 N excitation
+    assert main(["cosim", str(_write(folder, bad, "bad.json")), "-o", str(folder / "bad.csv")]) == 1
+    err = capsys.readouterr().err
+    assert "controller" in err and "fmi2ExitInitializationMode" in err
+    assert main(["cosim", str(folder / "missing.json")]) == 2
+
+
+def test_cli_exports_the_container(loop_fmus, folder, capsys):
+    path = _write(folder, _config(loop_fmus))
+    fmu = folder / "loop.fmu"
+    assert main(["cosim", str(path), "--export-container", str(fmu)]) == 0
+    assert fmpy.validation.validate_fmu(str(fmu)) == []
+    names = {v.name: v.causality for v in fmpy.read_model_description(str(fmu)).modelVariables}
+    assert names["r"] == "input" and names["x"] == names["f"] == "output"
