@@ -482,3 +482,24 @@ def test_open_loop_estimator_equals_identify(fmus, plant_version, est_version):
         np.testing.assert_allclose(result[f"est.{name}_hat"][1:], expected.history[name], rtol=1e-9)
     np.testing.assert_array_equal(result["est.identified"][1:], expected.identified)
     assert result["est.identified"].dtype == bool
+
+
+def test_python_fmu_string_parameter_and_its_logged_error(loop_fmus, tmp_path_factory):
+    """A pythonfmu component: String parameters are set; its error reaches CosimError when
+    its logging is on (and the message says how to turn it on when it is off)."""
+    from duffid.fmu_python import build_python_fmu
+
+    fmu = build_python_fmu("duffing1", tmp_path_factory.mktemp("python_fmu"))
+
+    def system(method, logging):
+        return (System().add("plant", loop_fmus["Oscillator1DOF"])
+                .add("est", fmu, parameters={"method": method}, logging=logging)
+                .connect("plant.x", "est.x").set_input("plant.f", 10.0).set_input("est.f", 10.0))
+
+    result = system("robust", False).run(0.5, 1e-3)
+    assert result["est.k_hat"][-1] == pytest.approx(1272.1, rel=1e-4)
+    with pytest.raises(CosimError) as info:
+        system("fast", True).run(0.1, 1e-3)
+    assert "method must be 'robust' or 'paper'" in str(info.value)
+    with pytest.raises(CosimError, match=r"logging=True"):
+        system("fast", False).run(0.1, 1e-3)

@@ -147,7 +147,8 @@ class Failure:
         if self.messages:
             text += "\n  last logged messages:\n" + "\n".join(f"    {m}" for m in self.messages)
         else:
-            text += " (nothing was logged)"
+            text += (" (nothing was logged; some FMUs, e.g. pythonfmu ones, log only with logging on: "
+                     "System.add(..., logging=True))")
         return text
 
 
