@@ -359,9 +359,9 @@ def test_wiring_errors(fmus, tmp_path):
         s.connect("plant.vv", "est.x")
     with pytest.raises(WiringError, match="'component.variable'"):
         s.connect("plant", "est.x")
-    with pytest.raises(WiringError, match="est.m_hat.*not an input|m_hat is a output, not an input"):
+    with pytest.raises(WiringError, match="m_hat is an output, not an input"):
         s.connect("plant.v", "est.m_hat")
-    with pytest.raises(WiringError, match="f is a input, not an output"):
+    with pytest.raises(WiringError, match="f is an input, not an output"):
         s.connect("plant.f", "est.x")
     with pytest.raises(WiringError, match="already driven by the connection from 'plant.x'"):
         s.connect("plant.v", "est.x")
@@ -392,7 +392,7 @@ def test_parameter_errors(fmus):
         System().add("est", est, {"window": "0.1"})
     with pytest.raises(WiringError, match="parameter sign_in_numerator is Boolean; got 2"):
         System().add("est", est, {"sign_in_numerator": 2})
-    with pytest.raises(WiringError, match="k_hat is a output .*not a settable parameter"):
+    with pytest.raises(WiringError, match="k_hat is an output .*not a settable parameter"):
         System().add("est", est, {"k_hat": 1.0})
     with pytest.raises(WiringError, match="is an input; drive it with set_input"):
         System().add("est", est, {"x": 1.0})

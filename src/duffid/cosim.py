@@ -228,6 +228,11 @@ class Result:
 
 
 # --------------------------------------------------------------------------------- model info
+def _article(word: str) -> str:
+    """``"an output"``, ``"a parameter"``."""
+    return f"{'an' if word[:1] in 'aeiou' else 'a'} {word}"
+
+
 def _suggest(name: str, candidates: Iterable[str]) -> str:
     close = difflib.get_close_matches(name, list(candidates), n=3, cutoff=0.6)
     return f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
@@ -292,7 +297,7 @@ def _typed_parameter(comp: _Component, variable: Any, value: Any) -> Any:
         raise WiringError(f"{where} is an input; drive it with set_input or connect")
     if variable.causality != "parameter" or variable.variability not in ("fixed", "tunable") \
             or variable.initial == "calculated":
-        raise WiringError(f"{where} is a {variable.causality} ({variable.variability}) variable, "
+        raise WiringError(f"{where} is {_article(variable.causality)} ({variable.variability}) variable, "
                           "not a settable parameter")
     kind = variable.type
     if kind in ("Real", "Float64", "Float32"):
@@ -478,7 +483,7 @@ class System:
     def _claim_input(self, target: str, driver: str) -> tuple[_Component, Any]:
         comp, var = self._lookup(target, "target")
         if var.causality != "input":
-            raise WiringError(f"target {target!r}: {comp.where()}: {var.name} is a {var.causality}, not an input")
+            raise WiringError(f"target {target!r}: {comp.where()}: {var.name} is {_article(var.causality)}, not an input")
         if target in self._drivers:
             raise WiringError(f"input {target!r} is already driven by {self._drivers[target]}; "
                               f"it cannot also be driven by {driver}")
@@ -507,7 +512,7 @@ class System:
         """
         scomp, svar = self._lookup(source, "source")
         if svar.causality != "output":
-            raise WiringError(f"source {source!r}: {scomp.where()}: {svar.name} is a {svar.causality}, "
+            raise WiringError(f"source {source!r}: {scomp.where()}: {svar.name} is {_article(svar.causality)}, "
                               "not an output")
         tcomp, tvar = self._claim_input(target, f"the connection from {source!r}")
         skind, tkind = scomp.kind(svar, "connected"), tcomp.kind(tvar, "connected")
