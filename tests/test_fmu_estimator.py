@@ -250,7 +250,7 @@ def test_reset_starts_a_new_identification(instance, case_a):
 
 
 def test_fmi3_fmu_state_and_step_size(fmus, case_a, tmp_path):
-    from fmpy.fmi3 import FMU3Slave, fmi3LogMessageCallback
+    from fmpy.fmi3 import FMU3Slave
 
     path = fmus["DuffingEstimator1_fmi3.fmu"]
     md = fmpy.read_model_description(str(path))

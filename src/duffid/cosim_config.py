@@ -35,7 +35,7 @@ import sys
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from .cosim import ORDERINGS, CosimError, Result, System, WiringError
 
