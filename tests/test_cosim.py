@@ -27,6 +27,7 @@ from duffid.fmu_estimator import build_estimator_fmu  # noqa: E402
 from duffid.modelica import build_all, export_fmu  # noqa: E402
 from duffid.record import Record  # noqa: E402
 from duffid.signals import Step  # noqa: E402
+from rounding import identifier_spread  # noqa: E402
 
 if shutil.which("gcc") is None:
     pytest.skip("gcc is needed to build the test FMUs", allow_module_level=True)
@@ -478,8 +479,10 @@ def test_open_loop_estimator_equals_identify(fmus, plant_version, est_version):
     record = Record(t=result.time[:-1], f=result["plant.f"][:-1], x=result["plant.x"][:-1])
     expected = identify(record, Duffing1())
     assert expected.identified[-1]
-    for name in Duffing1().parameters:  # row k + 1 holds the estimate after sample k
-        np.testing.assert_allclose(result[f"est.{name}_hat"][1:], expected.history[name], rtol=1e-9)
+    # row k + 1 holds the estimate after sample k; C against Python at the record's one-ulp
+    # spread (tests/rounding.py)
+    identifier_spread(Duffing1(), record).assert_history(
+        {name: result[f"est.{name}_hat"][1:] for name in Duffing1().parameters}, expected.history)
     np.testing.assert_array_equal(result["est.identified"][1:], expected.identified)
     assert result["est.identified"].dtype == bool
 

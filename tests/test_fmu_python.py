@@ -1,4 +1,9 @@
-"""The pythonfmu fallback FMU (duffid.fmu_python) through fmpy."""
+"""The pythonfmu fallback FMU (duffid.fmu_python) through fmpy.
+
+The FMU runs OnlineIdentifier in this process on the very samples identify() sees, so its
+outputs are compared for identity (bit for bit, whatever the CPU or BLAS kernel): any
+difference is a bug in the FMU's plumbing, not rounding.
+"""
 from __future__ import annotations
 
 import zipfile
@@ -63,10 +68,9 @@ def test_case_a_gives_identify_answer(fmus, case_a):
     result = simulate_record(fmus["duffing1"], case_a, ["x", "f"])
     expected = identify(case_a, Duffing1())
     assert len(result) == case_a.n_samples + 1  # the initial values, then one row per sample
-    for name, value in expected.parameters.items():
-        assert result[f"{name}_hat"][-1] == pytest.approx(value, rel=1e-9)
+    for name in expected.parameters:
         # the whole history, NaN until published
-        np.testing.assert_allclose(result[f"{name}_hat"][1:], expected.history[name], rtol=1e-9)
+        np.testing.assert_array_equal(result[f"{name}_hat"][1:], expected.history[name])
     assert np.array_equal(result["identified"][1:], expected.identified)
     assert result["window_length"][-1] == pytest.approx(expected.window)
     assert not result["identified"][0] and np.isnan(result["m_hat"][0])
@@ -77,18 +81,18 @@ def test_options_and_nominal_parameters(fmus, case_a):
     result = simulate_record(fmus["duffing1"], case_a, ["x", "f"], start)
     expected = identify(case_a, Duffing1(), "paper", sign_in_numerator=True, gamma=10.0)
     for name, value in expected.parameters.items():
-        assert result[f"{name}_hat"][-1] == pytest.approx(value, rel=1e-9)
+        assert result[f"{name}_hat"][-1] == value
     result = simulate_record(fmus["duffing1"], case_a, ["x", "f"], {"window": 0.1, "m_nominal": 3.0})
     expected = identify(case_a, Duffing1(m=3.0), window=0.1)
     for name, value in expected.parameters.items():
-        assert result[f"{name}_hat"][-1] == pytest.approx(value, rel=1e-9)
+        assert result[f"{name}_hat"][-1] == value
 
 
 def test_two_dof_gives_identify_answer(fmus, two_dof_exact):
     result = simulate_record(fmus["duffing2"], two_dof_exact, ["x1", "x2", "f1"])
     expected = identify(two_dof_exact, Duffing2())
-    for name, value in expected.parameters.items():
-        assert result[f"{name}_hat"][-1] == pytest.approx(value, rel=1e-9)
+    for name in expected.parameters:
+        np.testing.assert_array_equal(result[f"{name}_hat"][1:], expected.history[name])
     assert bool(result["identified"][-1]) == bool(expected.identified[-1])
 
 
