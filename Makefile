@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test venv bench clean
+.PHONY: demo test test-kernels venv bench clean
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -19,6 +19,10 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest
+
+# the numerically sensitive tests under every OpenBLAS kernel and thread count (a table)
+test-kernels: $(STAMP)
+	$(BIN)/python benchmarks/kernels.py --calibrate
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/identification.py

@@ -2,6 +2,12 @@
 
 The small FMUs (ramp, integrator, gain: tests/cosim_models.mo) are exported once per
 module with duffid's Modelica export; the plant and the C estimator are the project's.
+
+Tolerances: the ramp/integrator/gain systems are a few additions and multiplications per
+step on values of order 1 (no BLAS involved); their exact sums are compared at 1e-12
+absolute, thousands of ulps above the rounding of a few hundred steps. The container FMU
+runs the same binaries as the orchestrator: 1e-12 relative. The C estimator against
+identify() is compared at the record's one-ulp spread (tests/rounding.py).
 """
 from __future__ import annotations
 

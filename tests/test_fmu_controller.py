@@ -1,5 +1,10 @@
 """The C controller FMUs (duffid.fmu_controller) against the Python reference
-duffid.control.AdaptiveController, through fmpy's low-level API with our own callbacks."""
+duffid.control.AdaptiveController, through fmpy's low-level API with our own callbacks.
+
+Tolerances: the controller is scalar arithmetic in both C (-ffp-contract=off) and
+Python (float operations, no BLAS), so C equals Python to a few ulps of the largest value of
+each output: ``assert_same`` compares at 1e-12 relative to that scale.
+"""
 from __future__ import annotations
 
 import math

@@ -1,4 +1,8 @@
-"""Models and simulation: conventions of eqs. (1)-(5), (10)-(11) and (20)-(21)."""
+"""Models and simulation: conventions of eqs. (1)-(5), (10)-(11) and (20)-(21).
+
+Tolerances: accelerations are a dozen scalar operations on terms of size up to ~50 (N)
+with a result of the same order: rounding is a few ulps, compared at 1e-14 relative (~45 ulps).
+"""
 from __future__ import annotations
 
 import numpy as np

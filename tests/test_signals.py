@@ -1,4 +1,9 @@
-"""Tests of duffid.signals: values, periodicity, peak scaling and spec texts."""
+"""Tests of duffid.signals: values, periodicity, peak scaling and spec texts.
+
+Tolerances: signal values are closed-form expressions of t (sin, polynomial phase) of
+amplitude up to ~10: compared at 1e-9 absolute (or 1e-9 of the amplitude), well above the
+rounding of phases up to ~1e3 rad (~1e-13 rad).
+"""
 
 from __future__ import annotations
 
