@@ -9,7 +9,7 @@ import pytest
 from duffid import Duffing1, Duffing2, Record, RecordError, identify, measure
 from duffid.buffered import (BufferedIdentification, BufferedIdentifier, identify_buffered,
                              regression_from_model, velocity_signs)
-from duffid.identification import _Channels
+from duffid.identification import _Channels, estimate
 from duffid.models import Channel
 from rounding import assert_close, final_spread
 
@@ -25,36 +25,36 @@ def _max_error(result, truth):
     ("haar", {"repeated": "exact"}, 0.3),          # exact repeated integration: 4-5x better
 ])
 def test_noise_free_case_a(case_a_exact, method, options, tol):
-    result = identify(case_a_exact, Duffing1(), method, **options)
+    result = estimate(case_a_exact, Duffing1(), method, **options)
     assert isinstance(result, BufferedIdentification)
     assert _max_error(result, Duffing1().parameters) < tol  # percent
 
 
 def test_quantised_case_a_legendre(case_a):
-    errors = identify(case_a, Duffing1(), "legendre").errors(Duffing1().parameters)
+    errors = estimate(case_a, Duffing1(), "legendre").errors(Duffing1().parameters)
     assert all(abs(e) < 0.2 for e in errors.values())
 
 
 def test_trapezoid_coefficients_ruin_the_estimate(case_a_exact):
-    good = identify(case_a_exact, Duffing1(), "legendre", n_terms=64)
-    bad = identify(case_a_exact, Duffing1(), "legendre", n_terms=64, quadrature="trapezoid")
+    good = estimate(case_a_exact, Duffing1(), "legendre", n_terms=64)
+    bad = estimate(case_a_exact, Duffing1(), "legendre", n_terms=64, quadrature="trapezoid")
     truth = Duffing1().parameters
     assert _max_error(good, truth) < 0.01 < 10.0 < _max_error(bad, truth)
 
 
 def test_block_pulse_and_haar_span_the_same_space(case_a):
-    bp = identify(case_a, Duffing1(), "block-pulse", n_terms=64)
-    haar = identify(case_a, Duffing1(), "haar", n_terms=64)
+    bp = estimate(case_a, Duffing1(), "block-pulse", n_terms=64)
+    haar = estimate(case_a, Duffing1(), "haar", n_terms=64)
     # equal up to rounding: at a multiple of the block-pulse estimate's one-ulp spread
     # (tests/rounding.py; measured ~1e-12 relative)
-    tol = final_spread(lambda rec: identify(rec, Duffing1(), "block-pulse", n_terms=64).parameters, case_a)
+    tol = final_spread(lambda rec: estimate(rec, Duffing1(), "block-pulse", n_terms=64).parameters, case_a)
     assert_close(haar.parameters, bp.parameters, tol)
 
 
 def test_online_update_equals_identify_and_history_is_buffered(case_b_exact):
     record = measure(case_b_exact, snr_db=40, seed=3).slice(0.0, 0.6)
     options = dict(window=0.2, every=50, accumulate=True)
-    result = identify(record, Duffing1(), "chebyshev", **options)
+    result = estimate(record, Duffing1(), "chebyshev", **options)
     ident = BufferedIdentifier(Duffing1(), record.dt, "chebyshev", **options)
     estimates = [ident.update(x, f) for x, f in zip(record.x, record.f)]
     assert estimates[-1].parameters == result.parameters  # the same computation: bit for bit
@@ -69,8 +69,8 @@ def test_online_update_equals_identify_and_history_is_buffered(case_b_exact):
 def test_accumulating_windows_beats_the_last_window_on_a_decaying_record(case_b_exact):
     truth = Duffing1().parameters
     record = measure(case_b_exact, snr_db=40, seed=0)
-    last = identify(record, Duffing1(), "legendre", window=0.5)
-    stacked = identify(record, Duffing1(), "legendre", window=0.5, accumulate=True)
+    last = estimate(record, Duffing1(), "legendre", window=0.5)
+    stacked = estimate(record, Duffing1(), "legendre", window=0.5, accumulate=True)
     assert _max_error(stacked, truth) < 3.0 < _max_error(last, truth)
     # the last window's estimate is published but not flagged: its uncertainty is large
     assert last.t_identified == pytest.approx(0.5) and not last.identified[-1]
@@ -79,8 +79,8 @@ def test_accumulating_windows_beats_the_last_window_on_a_decaying_record(case_b_
 
 def test_matrix_form_of_the_two_dof_chain(two_dof_exact):
     truth = Duffing2().parameters
-    per_dof = identify(two_dof_exact, Duffing2(), "legendre", window=0.5)
-    matrix = identify(two_dof_exact, Duffing2(), "legendre", window=0.5, form="matrix")
+    per_dof = estimate(two_dof_exact, Duffing2(), "legendre", window=0.5)
+    matrix = estimate(two_dof_exact, Duffing2(), "legendre", window=0.5, form="matrix")
     assert _max_error(per_dof, truth) < 0.05 and _max_error(matrix, truth) < 0.05
     M, B, K, Kp = (matrix.matrices[k] for k in ("M", "B", "K", "Kp"))
     t = truth
@@ -139,5 +139,5 @@ def test_options_and_inputs_are_checked(case_a):
 
 def test_identify_buffered_accepts_a_regression(case_a_exact):
     direct = identify_buffered(case_a_exact, regression_from_model(Duffing1()))
-    via_model = identify(case_a_exact, Duffing1(), "legendre")
+    via_model = estimate(case_a_exact, Duffing1(), "legendre")
     assert direct.parameters == via_model.parameters  # the same computation: bit for bit

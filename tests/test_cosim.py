@@ -26,7 +26,8 @@ fmpy = pytest.importorskip("fmpy")
 
 from fmpy.validation import validate_fmu  # noqa: E402
 
-from duffid import Duffing1, identify  # noqa: E402
+from duffid import Duffing1  # noqa: E402
+from duffid.identification import estimate  # noqa: E402
 from duffid.cosim import CosimError, Connection, Result, System, WiringError  # noqa: E402
 from duffid.cosim import _exact_order, _greedy_order, _order_cost  # noqa: E402
 from duffid.fmu_estimator import build_estimator_fmu  # noqa: E402
@@ -483,7 +484,7 @@ def test_open_loop_estimator_equals_identify(fmus, plant_version, est_version):
               .set_input("plant.f", Step(10.0)).set_input("est.f", Step(10.0)))
     result = system.run(0.25, 1e-3, progress=plant_version == 3)
     record = Record(t=result.time[:-1], f=result["plant.f"][:-1], x=result["plant.x"][:-1])
-    expected = identify(record, Duffing1())
+    expected = estimate(record, Duffing1())
     assert expected.identified[-1]
     # row k + 1 holds the estimate after sample k; C against Python at the record's one-ulp
     # spread (tests/rounding.py)

@@ -24,7 +24,8 @@ import numpy as np
 import pytest
 from rounding import identifier_spread, tolerance
 
-from duffid import Chain, Duffing1, Duffing2, DuffingCircuit, OnlineIdentifier, Record, Step, identify, measure
+from duffid import Chain, Duffing1, Duffing2, DuffingCircuit, OnlineIdentifier, Record, Step, measure
+from duffid.identification import estimate
 from duffid.estimator_c import (CFLAGS, CBuildError, CIdentifier, CompilerNotFoundError, build_library,
                                 find_compiler, source_dir)
 
@@ -163,12 +164,15 @@ def test_offset_models_equal_python(case_b_exact):
 
 
 def test_identify_record_matches_identify(case_a):
-    expected = identify(case_a, Duffing1())
+    expected = estimate(case_a, Duffing1())
     result = CIdentifier(Duffing1(), case_a.dt).identify_record(case_a)
     assert result.model == "duffing1" and result.method == "robust"
     assert result.t_identified == expected.t_identified
     assert np.array_equal(result.identified, expected.identified)
     identifier_spread(Duffing1(), case_a).assert_final(result.parameters, expected.parameters)
+    # the solution at the last sample (input of duffid.trust), from one batch call in C
+    identifier_spread(Duffing1(), case_a).assert_final(result.estimates, expected.estimates)
+    assert np.all(np.isfinite(list(result.estimates.values())))
     assert result.options == expected.options
 
 

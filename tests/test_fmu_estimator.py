@@ -21,9 +21,9 @@ from fmpy.validation import validate_fmu  # noqa: E402
 
 from fmu_helpers import simulate_record, start_fmi2  # noqa: E402
 from rounding import identifier_spread  # noqa: E402
-from duffid import Duffing1, Duffing2, identify, measure  # noqa: E402
+from duffid import Duffing1, Duffing2, measure  # noqa: E402
 from duffid.fmu_estimator import TYPES, build_estimator_fmu, build_estimator_fmus  # noqa: E402
-from duffid.identification import OnlineIdentifier  # noqa: E402
+from duffid.identification import OnlineIdentifier, estimate  # noqa: E402
 
 if shutil.which("gcc") is None:
     pytest.skip("gcc is needed to build the C FMUs", allow_module_level=True)
@@ -87,7 +87,7 @@ def test_interface(fmus, model_name, version):
 @pytest.mark.parametrize("name", ["DuffingEstimator1.fmu", "DuffingEstimator1_fmi3.fmu"])
 def test_case_a_gives_identify_answer(fmus, case_a, name):
     result = simulate_record(fmus[name], case_a, ["x", "f"])
-    expected = identify(case_a, Duffing1())
+    expected = estimate(case_a, Duffing1())
     assert len(result) == case_a.n_samples + 1
     assert np.isnan(result["m_hat"][0]) and result["identified"][0] == 0.0
     spread = identifier_spread(Duffing1(), case_a)
@@ -119,7 +119,7 @@ def test_c_fmu_equals_python_fmu_and_online_identifier(fmus, case_a, case_b_exac
 @pytest.mark.parametrize("name", ["DuffingEstimator2.fmu", "DuffingEstimator2_fmi3.fmu"])
 def test_two_dof_gives_identify_answer(fmus, two_dof_exact, name):
     result = simulate_record(fmus[name], two_dof_exact, ["x1", "x2", "f1"])
-    expected = identify(two_dof_exact, Duffing2())
+    expected = estimate(two_dof_exact, Duffing2())
     identifier_spread(Duffing2(), two_dof_exact).assert_final(
         {p: result[f"{p}_hat"][-1] for p in expected.parameters}, expected.parameters)
     assert bool(result["identified"][-1]) == bool(expected.identified[-1])
@@ -128,11 +128,11 @@ def test_two_dof_gives_identify_answer(fmus, two_dof_exact, name):
 def test_options_and_nominal_parameters(fmus, case_a):
     fmu = fmus["DuffingEstimator1.fmu"]
     result = simulate_record(fmu, case_a, ["x", "f"], {"method": 1, "sign_in_numerator": True, "gamma": 10.0})
-    expected = identify(case_a, Duffing1(), "paper", sign_in_numerator=True, gamma=10.0)
+    expected = estimate(case_a, Duffing1(), "paper", sign_in_numerator=True, gamma=10.0)
     identifier_spread(Duffing1(), case_a, "paper", sign_in_numerator=True, gamma=10.0).assert_final(
         {p: result[f"{p}_hat"][-1] for p in expected.parameters}, expected.parameters)
     result = simulate_record(fmu, case_a, ["x", "f"], {"window": 0.1, "m_nominal": 3.0})
-    expected = identify(case_a, Duffing1(m=3.0), window=0.1)
+    expected = estimate(case_a, Duffing1(m=3.0), window=0.1)
     identifier_spread(Duffing1(m=3.0), case_a, window=0.1).assert_final(
         {p: result[f"{p}_hat"][-1] for p in expected.parameters}, expected.parameters)
 

@@ -19,7 +19,8 @@ from fmpy.fmi2 import fmi2Terminated  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 
 from fmu_helpers import simulate_record, start_fmi2  # noqa: E402
-from duffid import Duffing1, Duffing2, identify  # noqa: E402
+from duffid import Duffing1, Duffing2  # noqa: E402
+from duffid.identification import estimate  # noqa: E402
 from duffid.fmu_python import FMU_NAMES, build_python_fmu  # noqa: E402
 
 
@@ -66,7 +67,7 @@ def test_interface(fmus, model_name, inputs, outputs):
 
 def test_case_a_gives_identify_answer(fmus, case_a):
     result = simulate_record(fmus["duffing1"], case_a, ["x", "f"])
-    expected = identify(case_a, Duffing1())
+    expected = estimate(case_a, Duffing1())
     assert len(result) == case_a.n_samples + 1  # the initial values, then one row per sample
     for name in expected.parameters:
         # the whole history, NaN until published
@@ -79,18 +80,18 @@ def test_case_a_gives_identify_answer(fmus, case_a):
 def test_options_and_nominal_parameters(fmus, case_a):
     start = {"method": "paper", "sign_in_numerator": True, "gamma": 10.0}
     result = simulate_record(fmus["duffing1"], case_a, ["x", "f"], start)
-    expected = identify(case_a, Duffing1(), "paper", sign_in_numerator=True, gamma=10.0)
+    expected = estimate(case_a, Duffing1(), "paper", sign_in_numerator=True, gamma=10.0)
     for name, value in expected.parameters.items():
         assert result[f"{name}_hat"][-1] == value
     result = simulate_record(fmus["duffing1"], case_a, ["x", "f"], {"window": 0.1, "m_nominal": 3.0})
-    expected = identify(case_a, Duffing1(m=3.0), window=0.1)
+    expected = estimate(case_a, Duffing1(m=3.0), window=0.1)
     for name, value in expected.parameters.items():
         assert result[f"{name}_hat"][-1] == value
 
 
 def test_two_dof_gives_identify_answer(fmus, two_dof_exact):
     result = simulate_record(fmus["duffing2"], two_dof_exact, ["x1", "x2", "f1"])
-    expected = identify(two_dof_exact, Duffing2())
+    expected = estimate(two_dof_exact, Duffing2())
     for name in expected.parameters:
         np.testing.assert_array_equal(result[f"{name}_hat"][1:], expected.history[name])
     assert bool(result["identified"][-1]) == bool(expected.identified[-1])

@@ -6,7 +6,7 @@ import pytest
 
 from duffid import (Chirp, Duffing1, Duffing2, DuffingCircuit, Multisine, OnlineIdentifier, Record,
                     RecordError, Step, identify, measure, simulate)
-from duffid.identification import combine_equations
+from duffid.identification import combine_equations, estimate
 from duffid.models import Chain
 from duffid.regressors import batch_moments
 from rounding import identifier_spread
@@ -18,20 +18,20 @@ def _max_error(result, truth):
 
 @pytest.mark.parametrize("method, tol", [("robust", 0.02), ("paper", 0.01)])
 def test_noise_free_case_a_is_recovered(case_a_exact, method, tol):
-    result = identify(case_a_exact, Duffing1(), method)
+    result = estimate(case_a_exact, Duffing1(), method)
     assert _max_error(result, Duffing1().parameters) < tol  # percent
 
 
 def test_case_a_quantised_meets_the_paper_targets(case_a):
     truth = Duffing1().parameters
-    robust = identify(case_a, Duffing1()).errors(truth)
-    paper = identify(case_a, Duffing1(), "paper").errors(truth)
+    robust = estimate(case_a, Duffing1()).errors(truth)
+    paper = estimate(case_a, Duffing1(), "paper").errors(truth)
     assert all(abs(robust[p]) < 0.1 for p in ("m", "k", "kp")) and abs(robust["b"]) < 0.3
     assert all(abs(paper[p]) < 0.3 for p in ("m", "k", "kp")) and abs(paper["b"]) < 1.0
 
 
 def test_robust_is_nan_until_trustworthy_then_converges(case_a):
-    result = identify(case_a, Duffing1())
+    result = estimate(case_a, Duffing1())
     first = np.argmax(np.isfinite(result.history["m"]))
     assert first > 10 and np.all(np.isnan(result.history["kp"][:first]))
     assert result.t_identified is not None and result.identified[-1]
@@ -65,7 +65,7 @@ def test_online_estimate_equals_batch_least_squares(case_b_exact, two_dof_exact,
         model, record = Duffing1(), measure(case_b_exact, snr_db=40, seed=4)
     else:
         model, record = Duffing2(), two_dof_exact
-    online = identify(record, model, window=0.3, max_uncertainty=1.0)
+    online = estimate(record, model, window=0.3, max_uncertainty=1.0)
     batch = _batch_least_squares(record, model, 0.3)
     # two algorithms for one least-squares problem: equal at a multiple of the problem's own
     # one-ulp spread (tests/rounding.py): ~1e-12 relative for 1-DOF; ~1e-9 for kp2 of the
@@ -74,23 +74,24 @@ def test_online_estimate_equals_batch_least_squares(case_b_exact, two_dof_exact,
 
 
 def test_identify_equals_feeding_samples_one_by_one(case_a):
-    result = identify(case_a, Duffing1())
+    result = estimate(case_a, Duffing1())
     ident = OnlineIdentifier(Duffing1(), case_a.dt)
     for x, f in zip(case_a.x, case_a.f):
-        estimate = ident.update(x, f)
-    assert estimate.parameters == result.parameters  # the same computation: bit for bit
-    assert estimate.identified == bool(result.identified[-1])
+        last = ident.update(x, f)
+    assert last.parameters == result.parameters  # the same computation: bit for bit
+    assert last.current == result.estimates
+    assert last.identified == bool(result.identified[-1])
 
 
 def test_two_dof_noise_free_within_0p1_percent(two_dof_exact):
     truth = Duffing2().parameters
-    result = identify(two_dof_exact, Duffing2())
+    result = estimate(two_dof_exact, Duffing2())
     assert _max_error(result, truth) < 0.1
     assert result.parameters["m2"] == pytest.approx(truth["m2"], rel=1e-3)
 
 
 def test_paper_method_two_dof(two_dof_exact):
-    result = identify(two_dof_exact, Duffing2(), "paper")
+    result = estimate(two_dof_exact, Duffing2(), "paper")
     errors = result.errors(Duffing2().parameters)
     assert all(abs(errors[p]) < 0.5 for p in ("m1", "k1", "kp1", "k2", "m2"))
 
@@ -98,7 +99,7 @@ def test_paper_method_two_dof(two_dof_exact):
 def test_linear_plant_gives_kp_near_zero():
     plant = Duffing1(kp=0.0)
     record = measure(simulate(plant, Step(10.0), 1.0, 1e-3))
-    result = identify(record, Duffing1())
+    result = estimate(record, Duffing1())
     x_max = np.max(np.abs(record.x))
     # the cubic force at the largest displacement is below 0.1 % of the linear one
     assert abs(result.parameters["kp"]) * x_max**2 < 1e-3 * plant.parameters["k"]
@@ -108,7 +109,7 @@ def test_linear_plant_gives_kp_near_zero():
 def test_circuit_vocabulary_round_trip():
     circuit = DuffingCircuit(L=0.1, R=2.0, C=1e-3, a=5e6)
     record = simulate(circuit, Chirp(1.0, 0.0, 30.0, 2.0), 2.0, 1e-4)
-    result = identify(record, DuffingCircuit())
+    result = estimate(record, DuffingCircuit())
     for name, value in circuit.parameters.items():
         assert result.parameters[name] == pytest.approx(value, rel=1e-4)
 
@@ -118,7 +119,7 @@ def test_offset_term_absorbs_a_force_bias():
     force = Step(8.0) + Multisine(2.0, 1.0, 20.0, 1.0)
     record = simulate(plant, force, 2.0, 1e-3)
     biased = Record(t=record.t, f=record.f + 0.5, x=record.x)  # the force sensor reads 0.5 N high
-    result = identify(biased, Duffing1(offset=True))
+    result = estimate(biased, Duffing1(offset=True))
     assert result.parameters["c1"] == pytest.approx(0.5, rel=1e-3)
     assert result.parameters["k"] == pytest.approx(1272.1, rel=1e-4)
 
@@ -129,7 +130,7 @@ def test_three_dof_chain_with_coulomb_friction():
                   stiffness=({1: 2000.0, 3: -5e5}, {1: 1500.0, 3: 2e5}, {1: 1000.0, 3: 1e5}),
                   coulomb=(0.8, 0.5, 0.3))
     record = simulate(chain, Multisine(20.0, 1.0, 30.0, 2.0), 4.0, 5e-4)
-    result = identify(record, chain, max_window=0.5, max_uncertainty=0.05)
+    result = estimate(record, chain, max_window=0.5, max_uncertainty=0.05)
     errors = result.errors(chain.parameters)
     # the simulation smooths sgn(v) with tanh(v / 1e-4): a few-percent model mismatch
     assert all(abs(errors[p]) < 0.5 for p in ("m1", "k1_1", "m2", "k2_1", "m3", "k3_1"))
@@ -139,7 +140,7 @@ def test_three_dof_chain_with_coulomb_friction():
 @pytest.mark.slow
 def test_case_b_median_errors_over_seeds(case_b_exact):
     truth = Duffing1().parameters
-    errors = np.array([[abs(v) for v in identify(measure(case_b_exact, snr_db=40, seed=s), Duffing1())
+    errors = np.array([[abs(v) for v in estimate(measure(case_b_exact, snr_db=40, seed=s), Duffing1())
                         .errors(truth).values()] for s in range(10)])
     median = np.median(errors, axis=0)
     assert np.all(median < [0.4, 0.8, 0.12, 1.2])  # loose twice the benchmark targets
@@ -185,7 +186,7 @@ def test_sign_in_numerator_removes_most_sign_flips_of_the_paper_estimator(case_b
     truth = np.array(list(plant.parameters.values()))
 
     def wrong_sign_samples(**options):
-        result = identify(record, plant, "paper", **options)
+        result = estimate(record, plant, "paper", **options)
         history = np.array([result.history[p] for p in plant.parameters]).T[100:]
         return int(np.sum(np.any(np.sign(history) != np.sign(truth), axis=1)))
 

@@ -8,9 +8,9 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from duffid import Duffing1, Duffing2, Record, identify, measure
+from duffid import Duffing1, Duffing2, Record, measure
 from duffid.buffered import velocity_signs
-from duffid.identification import OnlineIdentifier, _Integrators
+from duffid.identification import OnlineIdentifier, _Integrators, estimate
 from duffid.models import Chain
 from duffid.symbolic import EquationError, derive, identify_equation, parse_equations
 from rounding import assert_close, final_spread, identifier_spread
@@ -85,7 +85,7 @@ def test_derived_regressors_equal_the_hand_derived_ones(model, text):
 def test_identify_equation_paper_matches_identify(case_b_exact):
     record = measure(case_b_exact, snr_db=40, seed=2).slice(0.0, 1.0)
     by_text = identify_equation(record, DUFFING1)
-    by_model = identify(record, Duffing1(), "paper")
+    by_model = estimate(record, Duffing1(), "paper")
     assert by_text.model == "equation" and by_text.method == "paper"
     # two derivations of the same numbers: equal at a multiple of the one-ulp spread
     # (tests/rounding.py; ~1e-12 relative here) where the system is not singular to rounding
@@ -99,7 +99,7 @@ def test_identify_equation_paper_matches_identify(case_b_exact):
 def test_identify_equation_paper_matches_identify_on_the_coulomb_chain():
     record = _test_signals(3, n=400)  # any signals: both sides must compute the same numbers
     by_text = identify_equation(record, CHAIN3_TEXT).parameters
-    p = identify(record, CHAIN3, "paper").parameters
+    p = estimate(record, CHAIN3, "paper").parameters
     tol = dict(zip(CHAIN3.parameters, identifier_spread(CHAIN3, record, "paper").final_tolerance()))
     names = ("m1", "b1", "k1_1", "k1_3", "fc1", "b2", "k2_1", "k2_3")
     assert_close(by_text, {k: p[k] for k in names}, tol)
@@ -108,7 +108,7 @@ def test_identify_equation_paper_matches_identify_on_the_coulomb_chain():
 
 def test_identify_equation_two_dof_paper_gives_the_ratios(two_dof_exact):
     by_text = identify_equation(two_dof_exact, DUFFING2).parameters
-    p = identify(two_dof_exact, Duffing2(), "paper").parameters
+    p = estimate(two_dof_exact, Duffing2(), "paper").parameters
     # at a multiple of the one-ulp spread (tests/rounding.py): kp2 carries ~1e-6 of the force
     # balance (sub-millimetre deflection cubed), its spread is ~1e-10, the others' ~1e-12
     tol = dict(zip(Duffing2().parameters, identifier_spread(Duffing2(), two_dof_exact, "paper").final_tolerance()))
@@ -120,8 +120,8 @@ def test_identify_equation_two_dof_paper_gives_the_ratios(two_dof_exact):
 @pytest.mark.parametrize("method", ["legendre", "block-pulse"])
 def test_identify_equation_buffered_matches_identify(case_a, method):
     by_text = identify_equation(case_a, DUFFING1, method)
-    by_model = identify(case_a, Duffing1(), method)
-    tol = final_spread(lambda rec: identify(rec, Duffing1(), method).parameters, case_a)
+    by_model = estimate(case_a, Duffing1(), method)
+    tol = final_spread(lambda rec: estimate(rec, Duffing1(), method).parameters, case_a)
     assert_close(by_text.parameters, by_model.parameters, tol)
     assert by_text.method == method and by_text.options["equation"] == DUFFING1
 

@@ -1420,6 +1420,14 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
         out->condition = cond;
         out->uncertainty = worst;
         out->window = (double)window * est->cfg.dt;
+        for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
+            double v = DNAN;
+            if (i < np) {
+                v = est->cfg.method == DUFFID_PAPER ? est->held[i]
+                    : (window_ok(est, cond, window) ? est->canon[est->canon_of_public[i]] : DNAN);
+            }
+            out->current[i] = v;
+        }
     }
     if (est->cfg.method == DUFFID_ROBUST && est->auto_window && !est->window_fixed && ok) {
         est->window_fixed = 1;
@@ -1449,6 +1457,25 @@ int duffid_update(duffid_estimator *est, const double *x, const double *f, duffi
     evaluate_channels(est, x, f);
     window = est->cfg.method == DUFFID_ROBUST ? robust_step(est) : paper_step(est);
     publish(est, window, out);
+    return DUFFID_OK;
+}
+
+int duffid_run(duffid_estimator *est, long n, const double *x, const double *f, duffid_output *out,
+               long *failed)
+{
+    long k;
+    if (est == NULL || n < 0 || (n > 0 && (x == NULL || f == NULL))) {
+        return DUFFID_ERR_ARGUMENT;
+    }
+    for (k = 0; k < n; k++) {
+        int rc = duffid_update(est, x + k * est->n_dof, f + k * est->n_forces, out != NULL ? out + k : NULL);
+        if (rc != DUFFID_OK) {
+            if (failed != NULL) {
+                *failed = k;
+            }
+            return rc;
+        }
+    }
     return DUFFID_OK;
 }
 

@@ -108,6 +108,10 @@ typedef struct duffid_output {
     double condition;                      /* largest condition number over the equations */
     double uncertainty;                    /* largest relative standard error (robust), NaN (paper) */
     double window;                         /* window length [s] */
+    double current[DUFFID_MAX_PARAMS];     /* public order: the solution at this sample, trusted
+                                            * or not (robust: NaN while the window is not
+                                            * usable; paper: as parameters). An input to the
+                                            * checks of duffid.trust, never a published value. */
 } duffid_output;
 
 typedef struct duffid_estimator duffid_estimator;
@@ -143,6 +147,12 @@ void duffid_reset(duffid_estimator *est);
 /* Consume one sample: displacements x[n_dof] and forces f[n_forces]. out may be NULL.
  * A non-finite sample returns DUFFID_ERR_SAMPLE and leaves the state unchanged. */
 int duffid_update(duffid_estimator *est, const double *x, const double *f, duffid_output *out);
+
+/* Consume n samples: x[n * n_dof] and f[n * n_forces], row by row; out[n] receives every
+ * output (out may be NULL). Stops at the first non-finite sample with DUFFID_ERR_SAMPLE,
+ * its index in *failed (if failed != NULL), the state as after the sample before it. */
+int duffid_run(duffid_estimator *est, long n, const double *x, const double *f, duffid_output *out,
+               long *failed);
 
 /* Introspection. */
 int duffid_n_parameters(const duffid_estimator *est);

@@ -13,11 +13,12 @@ of the main job (:mod:`duffid.closed_loop`, :mod:`duffid.demo`).
 """
 from .control import AdaptiveController, design
 from .cosim import CosimError, System
-from .identification import METHODS, Estimate, Identification, OnlineIdentifier, identify
+from .identification import METHODS, Estimate, Identification, OnlineIdentifier
 from .models import Chain, Duffing1, Duffing2, DuffingCircuit, model_from_name
 from .record import Record, RecordError
 from .signals import Chirp, Multisine, Step, from_spec
 from .simulation import SimulationError, measure, simulate
+from .trust import identify
 
 __version__ = "0.1.0"
 

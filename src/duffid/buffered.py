@@ -51,7 +51,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from .identification import (Estimate, Identification, _check_record, _solve_factor, _triangular_factor,
+from .identification import (Estimate, Identification, check_record, _solve_factor, _triangular_factor,
                              combine_equations)
 from .models import Chain, Channel
 from .orthogonal import BASES, QUADRATURES, make_basis, projection_matrix
@@ -532,7 +532,7 @@ class BufferedIdentifier:
     def identify_record(self, record: Record) -> "BufferedIdentification":
         """Identify over a whole record (vectorised; the same estimates as :meth:`update`)."""
         reg = self.regression
-        _check_record(record, reg)
+        check_record(record, reg)
         if abs(record.dt - self.dt) > 1e-9 * self.dt:
             raise RecordError(f"{record.source}: sampled every {record.dt} s, the identifier expects {self.dt} s")
         N = self.n_intervals
@@ -676,5 +676,5 @@ def identify_buffered(record: Record, model: Chain | Regression, method: str = "
     BufferedIdentification
     """
     if isinstance(model, Chain):
-        _check_record(record, model)
+        check_record(record, model)
     return BufferedIdentifier(model, record.dt, method, **options).identify_record(record)

@@ -11,7 +11,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from . import cosim_config, modelica, silverbox
-from .identification import METHODS, identify
+from .identification import METHODS
+from .trust import identify
 from .models import model_from_name
 from .record import Record, RecordError
 from .signals import from_spec
@@ -200,11 +201,37 @@ def _identify(args: argparse.Namespace) -> int:
         print(result.to_json())
         return 0
     print(f"{record.source}: {record.n_samples} samples, dt {record.dt:g} s, model {result.model}, method {method}")
-    for name, value in result.parameters.items():
-        print(f"  {name:>8} = {value:.6g}")
-    when = "never (estimates not trustworthy)" if result.t_identified is None else f"at {result.t_identified:.4g} s"
-    print(f"  identified {when}; final window {result.window:.4g} s; condition {result.condition[-1]:.3g}")
+    print(_result_text(result))
     return 0
+
+
+def _result_text(result: Any) -> str:
+    """The identification as the CLI prints it: values only where published, with status and
+    uncertainty, the fit figures and the notes (the same facts as the JSON)."""
+    a = result.assessment
+    lines = [f"  {'parameter':>10} {'value':>13}  {'status':<12} {'uncertainty':>11}"]
+    for name, value in result.parameters.items():
+        shown = f"{value:.6g}" if np.isfinite(value) else "-"
+        if a is None:
+            lines.append(f"  {name:>10} {shown:>13}  {'unchecked':<12}")
+            continue
+        u = a.uncertainty.get(name, float("nan"))
+        lines.append(f"  {name:>10} {shown:>13}  {a.status[name]:<12} "
+                     f"{(f'{100 * u:.2g} %' if np.isfinite(u) else '-'):>11}")
+    if a is None:
+        lines.append("  not checked against the record (equation models are not checked yet): "
+                     "treat these values as unverified")
+        return "\n".join(lines)
+    fit = a.fit
+    lines.append(f"  identified: {'yes' if result.is_identified else 'no (not every parameter is published)'}")
+    sim, noise = fit.get("simulation_nrmse"), fit.get("noise_nrmse")
+    if sim is not None and np.isfinite(sim):
+        lines.append(f"  fit: the identified model misses the measured displacement by {100 * sim:.3g} % RMS "
+                     f"(measurement noise {100 * noise:.2g} %); {fit['samples_per_period']:.3g} samples per period"
+                     + (f" after upsampling x{fit['upsampled']}" if fit["upsampled"] > 1 else ""))
+    for note in a.notes:
+        lines.append(f"  - {note}")
+    return "\n".join(lines)
 
 
 def _nonlinearity(args: argparse.Namespace) -> int:

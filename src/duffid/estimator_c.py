@@ -27,7 +27,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .identification import Estimate, Identification, _check_record, check_options
+from .identification import Estimate, Identification, check_record, check_options
 from .models import Chain, Duffing1, Duffing2, model_from_name
 from .record import Record
 
@@ -97,7 +97,14 @@ class _Output(ctypes.Structure):
         ("condition", ctypes.c_double),
         ("uncertainty", ctypes.c_double),
         ("window", ctypes.c_double),
+        ("current", ctypes.c_double * _MAX_PARAMS),
     ]
+
+
+_OUTPUT_DTYPE = np.dtype([("t", "f8"), ("parameters", "f8", (_MAX_PARAMS,)), ("n_parameters", "i4"),
+                          ("identified", "i4"), ("condition", "f8"), ("uncertainty", "f8"), ("window", "f8"),
+                          ("current", "f8", (_MAX_PARAMS,))],
+                         align=True)
 
 
 # ---------------------------------------------------------------------- building
@@ -220,6 +227,7 @@ def load_library(path: str | os.PathLike[str] | None = None) -> ctypes.CDLL:
         "duffid_destroy": (None, [est_p]),
         "duffid_reset": (None, [est_p]),
         "duffid_update": (ctypes.c_int, [est_p, dbl_p, dbl_p, out_p]),
+        "duffid_run": (ctypes.c_int, [est_p, ctypes.c_long, dbl_p, dbl_p, out_p, ctypes.POINTER(ctypes.c_long)]),
         "duffid_n_parameters": (ctypes.c_int, [est_p]),
         "duffid_parameter_name": (ctypes.c_char_p, [est_p, ctypes.c_int]),
         "duffid_capacity": (ctypes.c_long, [est_p]),
@@ -373,11 +381,48 @@ class CIdentifier:
         self.n += 1
         out = self._out
         params = {name: out.parameters[i] for i, name in enumerate(self._names)}
-        return Estimate(out.t, params, bool(out.identified), out.condition, out.uncertainty, out.window)
+        current = {name: out.current[i] for i, name in enumerate(self._names)}
+        return Estimate(out.t, params, bool(out.identified), out.condition, out.uncertainty, out.window, current)
+
+    def run(self, x: np.ndarray, f: np.ndarray) -> np.ndarray:
+        """Consume many samples in one call: ``x`` (n, n_dof), ``f`` (n, n_forces).
+
+        Returns the outputs as a structured array with fields ``t``, ``parameters``
+        (n, parameters), ``identified``, ``condition``, ``uncertainty``, ``window`` and
+        ``current`` (see :class:`~duffid.identification.Estimate`).
+        """
+        xa = np.ascontiguousarray(np.asarray(x, dtype=float).reshape(len(x), -1))
+        fa = np.ascontiguousarray(np.asarray(f, dtype=float).reshape(len(f), -1))
+        if xa.shape[1] != self.model.n_dof or fa.shape[1] != self.model.n_forces or len(xa) != len(fa):
+            raise ValueError(f"{self.model.name}: run needs x of shape (n, {self.model.n_dof}) and f of shape "
+                             f"(n, {self.model.n_forces}), got {xa.shape} and {fa.shape}")
+        n = len(xa)
+        out = (_Output * n)()
+        failed = ctypes.c_long(-1)
+        dbl_p = ctypes.POINTER(ctypes.c_double)
+        rc = self._lib.duffid_run(self._live(), n, xa.ctypes.data_as(dbl_p), fa.ctypes.data_as(dbl_p),
+                                  out, ctypes.byref(failed))
+        if rc == -3:
+            k = failed.value
+            self.n += k
+            raise ValueError(f"{self.model.name}: sample {self.n + 1} is not finite (x={xa[k]}, f={fa[k]})")
+        if rc != 0:
+            raise RuntimeError(f"C estimator core: {_STATUS.get(rc, rc)}")
+        self.n += n
+        return np.ctypeslib.as_array(out).view(_OUTPUT_DTYPE) if n else np.zeros(0, _OUTPUT_DTYPE)
 
     def identify_record(self, record: Record) -> Identification:
-        """Run the identifier over a record sample by sample (like ``OnlineIdentifier``)."""
-        _check_record(record, self.model, self.dt)
+        """Run the identifier over a record in one call (like ``OnlineIdentifier.identify_record``)."""
+        check_record(record, self.model, self.dt)
         self.reset()
-        history = [self.update(xi, fi) for xi, fi in zip(record.x, record.f)]
-        return Identification.from_estimates(self, record, history)  # type: ignore[arg-type]
+        rows = self.run(record.x, record.f)
+        history = {name: rows["parameters"][:, i].copy() for i, name in enumerate(self._names)}
+        flags = rows["identified"].astype(bool)
+        return Identification(
+            model=self.model.name, method=self.method,
+            parameters={name: float(history[name][-1]) for name in self._names},
+            t=record.t - record.t[0], history=history, condition=rows["condition"].copy(), identified=flags,
+            t_identified=float(record.t[np.argmax(flags)] - record.t[0]) if flags.any() else None,
+            window=float(rows["window"][-1]), options=dict(self.options), source=record.source,
+            estimates={name: float(rows["current"][-1, i]) for i, name in enumerate(self._names)},
+        )

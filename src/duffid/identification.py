@@ -33,7 +33,7 @@ from .models import Chain, Channel, Equation
 from .record import Record, RecordError
 from .regressors import KernelBank, SlidingMoments, row_exponents
 
-__all__ = ["OnlineIdentifier", "identify", "Identification", "Estimate", "METHODS", "ONLINE_METHODS",
+__all__ = ["OnlineIdentifier", "estimate", "check_record", "Identification", "Estimate", "METHODS", "ONLINE_METHODS",
            "default_options", "check_options", "filtered_cramer", "combine_equations", "auto_window"]
 
 #: Online methods (OnlineIdentifier) and the buffered orthogonal-function methods of
@@ -268,6 +268,10 @@ class Estimate:
         residual.
     window : float
         Current window length [s].
+    current : dict or None
+        The estimator's solution at this sample (public names), trusted or not (NaN where
+        the system is singular); None when the estimator does not report it. Input to
+        :func:`duffid.trust.assess`, never a published value.
     """
 
     t: float
@@ -276,6 +280,7 @@ class Estimate:
     condition: float
     uncertainty: float
     window: float
+    current: dict[str, float] | None = None
 
 
 class _EquationState:
@@ -400,7 +405,8 @@ class OnlineIdentifier:
             # the paper's estimator outputs its estimate from the start (faithful)
             self._held = self.model.from_canonical(canonical)
             ok = self._window_ok(cond, window_samples) and all(np.isfinite(v) for v in canonical.values())
-            return Estimate(self.n * self.dt, dict(self._held), ok, cond, np.nan, window_samples * self.dt)
+            return Estimate(self.n * self.dt, dict(self._held), ok, cond, np.nan, window_samples * self.dt,
+                            dict(self._held))
         # each parameter is published once its relative error stayed small for `settle` s;
         # the error is taken relative to the larger of the estimate and the model's nominal
         # value, so that a parameter that is truly zero is identified once it is small
@@ -419,7 +425,8 @@ class OnlineIdentifier:
         public = self.model.from_canonical(trusted)
         self._held = {k: (v if np.isfinite(v) else self._held[k]) for k, v in public.items()}
         ok = all(c >= settle for c in self._settled.values())
-        return Estimate(self.n * self.dt, dict(self._held), ok, cond, worst, window_samples * self.dt)
+        current = self.model.from_canonical(canonical) if good else {k: np.nan for k in self._held}
+        return Estimate(self.n * self.dt, dict(self._held), ok, cond, worst, window_samples * self.dt, current)
 
     def _window_ok(self, cond: float, L: int) -> bool:
         o = self.options
@@ -510,7 +517,7 @@ class OnlineIdentifier:
     # -------------------------------------------------------------- state
     def identify_record(self, record: Record) -> "Identification":
         """Run the identifier over a record sample by sample (see also :func:`identify`)."""
-        _check_record(record, self.model, self.dt)
+        check_record(record, self.model, self.dt)
         self.reset()
         history = []
         for xi, fi in zip(record.x, record.f):
@@ -655,6 +662,14 @@ class Identification:
         Method options used.
     source : str
         Where the record came from.
+    estimates : dict
+        The estimator's final solution (public names), whether the record supports it or
+        not; ``parameters`` holds the values that passed the checks.
+    assessment : duffid.trust.Assessment or None
+        What the record supports (status, uncertainty and fit per parameter, notes), set by
+        :func:`duffid.trust.identify`; None for a bare estimator run (:func:`estimate`, or
+        ``identify(check=False)``), whose ``parameters`` are the estimator's final values,
+        unchecked.
     """
 
     model: str
@@ -668,12 +683,15 @@ class Identification:
     window: float
     options: dict[str, Any] = field(default_factory=dict)
     source: str = ""
+    estimates: dict[str, float] = field(default_factory=dict)
+    assessment: Any = None
 
     @classmethod
     def from_estimates(cls, ident: OnlineIdentifier, record: Record, estimates: list[Estimate]) -> "Identification":
         names = ident.parameter_names
         history = {name: np.array([e.parameters[name] for e in estimates]) for name in names}
         flags = np.array([e.identified for e in estimates])
+        final = estimates[-1].current if estimates[-1].current is not None else estimates[-1].parameters
         return cls(
             model=ident.model.name, method=ident.method,
             parameters={name: float(history[name][-1]) for name in names},
@@ -681,6 +699,7 @@ class Identification:
             condition=np.array([e.condition for e in estimates]), identified=flags,
             t_identified=float(record.t[np.argmax(flags)] - record.t[0]) if flags.any() else None,
             window=estimates[-1].window, options=dict(ident.options), source=record.source,
+            estimates={name: float(final[name]) for name in names},
         )
 
     def errors(self, truth: Mapping[str, float]) -> dict[str, float]:
@@ -701,29 +720,43 @@ class Identification:
                     float(self.t[last_bad[-1] + 1]) if last_bad[-1] + 1 < len(self.t) else None)
         return out
 
+    @property
+    def is_identified(self) -> bool:
+        """True when every parameter is published at the end of the record (checked), or
+        the estimator's own flag at the last sample (``check=False``)."""
+        if self.assessment is not None:
+            return self.assessment.identified
+        return bool(self.identified[-1]) if len(self.identified) else False
+
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready summary: model, method, parameters, t_identified, window, ..."""
+        """JSON-ready summary: model, method, parameters (published values only, null
+        otherwise), status, uncertainty, fit, notes, identified, window, ..."""
         def clean(v: float) -> float | None:
             return float(v) if np.isfinite(v) else None
-        return {
+        out = {
             "model": self.model,
             "method": self.method,
             "parameters": {k: clean(v) for k, v in self.parameters.items()},
-            "t_identified": self.t_identified,
-            "identified": bool(self.identified[-1]) if len(self.identified) else False,
+            "identified": self.is_identified,
+        }
+        if self.assessment is not None:
+            out.update(self.assessment.to_dict())
+        out.update({
+            "t_identified": self.t_identified if self.is_identified else None,
             "condition": clean(self.condition[-1]) if len(self.condition) else None,
             "window": self.window,
             "samples": int(len(self.t)),
             "source": self.source,
             "options": {k: v for k, v in self.options.items()},
-        }
+        })
+        return out
 
     def to_json(self) -> str:
         """:meth:`to_dict` as a JSON string."""
         return json.dumps(self.to_dict())
 
 
-def _check_record(record: Record, model: Any, dt: float | None = None) -> None:
+def check_record(record: Record, model: Any, dt: float | None = None) -> None:
     """Check that ``record`` fits ``model`` (anything with ``name``, ``n_dof``, ``n_forces``)."""
     if record.n_dof != model.n_dof:
         raise RecordError(f"{record.source}: model {model.name} needs {model.n_dof} displacement column(s), "
@@ -736,14 +769,16 @@ def _check_record(record: Record, model: Any, dt: float | None = None) -> None:
         raise RecordError(f"{record.source}: sampled every {record.dt} s, the identifier expects {dt} s")
 
 
-def identify(record: Record, model: Chain, method: str = "robust", **options: Any) -> Identification:
-    """Identify ``model``'s parameters from a record.
+def estimate(record: Record, model: Chain, method: str = "robust", **options: Any) -> Identification:
+    """Run an estimator over a record and return what it reported (nothing is checked).
 
     The online methods feed the record sample by sample through
     :class:`OnlineIdentifier` (the same O(1) update as online use), so the estimate
     history is exactly what an online identifier would have reported at each sample.
     The buffered methods (paper section 4, :mod:`duffid.buffered`) re-identify every
-    ``every`` samples over the last window with an orthogonal basis.
+    ``every`` samples over the last window with an orthogonal basis. Publishing values
+    is :func:`duffid.trust.identify`'s job (``duffid.identify``): it checks the record
+    against the model and publishes only what the record supports.
 
     Parameters
     ----------
@@ -762,12 +797,15 @@ def identify(record: Record, model: Chain, method: str = "robust", **options: An
     Returns
     -------
     Identification
-        For the buffered methods a :class:`~duffid.buffered.BufferedIdentification`.
+        ``parameters`` are the estimator's final (held) values, ``estimates`` its final
+        solution; for the buffered methods a :class:`~duffid.buffered.BufferedIdentification`.
     """
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
-    _check_record(record, model)
+    check_record(record, model)
     if method in ONLINE_METHODS:
         return OnlineIdentifier(model, record.dt, method, **options).identify_record(record)
     from .buffered import identify_buffered  # buffered builds on this module
-    return identify_buffered(record, model, method, **options)
+    result = identify_buffered(record, model, method, **options)
+    result.estimates = dict(result.parameters)
+    return result

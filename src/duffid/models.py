@@ -267,6 +267,12 @@ class Chain:
         """Rename canonical parameter estimates to the model's public names."""
         return dict(values)
 
+    def canonical_name(self, public: str) -> str:
+        """Canonical name (``m1``, ``k1_3``, ...) of the public parameter ``public``."""
+        if public not in self.parameters:
+            raise KeyError(f"{self.name}: no parameter {public!r}; known: {', '.join(self.parameters)}")
+        return public
+
     def equations(self) -> tuple[Equation, ...]:
         """Identification structure: one equation per DOF, linear in its unknowns."""
         eqs = []
@@ -398,6 +404,11 @@ class _Named(Chain):
 
     def _to_public(self, public: str, canonical: Mapping[str, float]) -> float:
         return canonical[self._names[public]]
+
+    def canonical_name(self, public: str) -> str:
+        if public in self._names:
+            return self._names[public]
+        return super().canonical_name(public)
 
     def from_canonical(self, values: Mapping[str, float]) -> dict[str, float]:
         out = {public: self._to_public(public, values) for public in self._names}

@@ -13,7 +13,8 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from .identification import Identification, identify
+from .identification import Identification
+from .trust import identify
 from .models import Duffing1, Duffing2
 from .plots import plot_estimates, plot_record
 from .signals import Step

@@ -67,6 +67,7 @@ from .identification import Identification, OnlineIdentifier
 from .models import Chain
 from .record import Record, RecordError
 from .refine import Refinement, refine, rms_error, simulate_record, upsample
+from .trust import SAMPLES_PER_PERIOD, upsampling_factor
 
 __all__ = [
     "FS",
@@ -122,7 +123,6 @@ PUBLISHED_MV = {
 #: Public parameter name -> canonical name of the 1-DOF chain.
 PARAMETER_NAMES = {"m": "m1", "d": "b1", "k": "k1_1", "k2": "k1_2", "k3": "k1_3", "offset": "c1"}
 #: Rule constants (see the module documentation).
-SAMPLES_PER_PERIOD = 50.0
 WINDOW_PERIODS = 3.0
 
 
@@ -279,14 +279,6 @@ def linear_fit(record: Record) -> LinearFit:
         raise RecordError(f"{record.source}: the linear ARX fit has a static gain {gain:.3g} <= 0")
     return LinearFit(natural_frequency=float(omega / (2.0 * math.pi)), damping_ratio=float(-s.real / omega),
                      static_gain=gain, amplitude=float(np.max(np.abs(y))), arx=theta)
-
-
-def upsampling_factor(natural_frequency: float, fs: float,
-                      samples_per_period: float = SAMPLES_PER_PERIOD) -> int:
-    """Smallest integer ``q >= 1`` giving ``samples_per_period`` samples per resonance period."""
-    if not (natural_frequency > 0 and fs > 0 and samples_per_period > 0):
-        raise ValueError("natural_frequency, fs and samples_per_period must be positive")
-    return max(1, math.ceil(samples_per_period * natural_frequency / fs - 1e-9))
 
 
 @dataclass(frozen=True)

@@ -238,7 +238,7 @@ static int same_output(const duffid_output *a, const duffid_output *b)
     int i, ok = a->identified == b->identified && same(a->condition, b->condition) &&
                 same(a->uncertainty, b->uncertainty) && same(a->window, b->window) && same(a->t, b->t);
     for (i = 0; i < a->n_parameters; i++) {
-        ok = ok && same(a->parameters[i], b->parameters[i]);
+        ok = ok && same(a->parameters[i], b->parameters[i]) && same(a->current[i], b->current[i]);
     }
     return ok;
 }
