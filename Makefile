@@ -29,6 +29,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/nonlinearity.py --out out
 	$(BIN)/python benchmarks/silverbox.py
 	$(BIN)/python benchmarks/cosim.py
+	$(BIN)/python benchmarks/trust.py
 
 clean:
 	rm -rf $(VENV) out build *.egg-info src/*.egg-info

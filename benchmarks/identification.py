@@ -9,7 +9,8 @@ baseline measured in the same run):
   2. Case B: 1-DOF, 10 N step, 2 s, quantised + 40 dB noise: median errors over seeds,
      next to the peer baselines of ../shared/paper/NOTES.md.
   3. 2-DOF (Table 3 with m1 2.53, b1 5, b2 4), 6 N step, 1 s, noise-free.
-  4. Cost per sample of OnlineIdentifier.update and samples/s of identify().
+  4. Cost per sample of OnlineIdentifier.update, of the estimator's run over a record in
+     Python and in C (one batch call), and of the checked identify().
   5. Buffered identification with orthogonal functions (section 4), each basis on cases A
      and B next to the online methods: errors and cost per window.
 """
@@ -22,6 +23,8 @@ import numpy as np
 from tqdm import tqdm
 
 from duffid import Duffing1, Duffing2, OnlineIdentifier, Step, identify, measure, simulate
+from duffid.identification import estimate
+from duffid.trust import run_estimator
 from duffid.buffered import BufferedIdentifier, velocity_signs
 from duffid.orthogonal import projection_matrix
 
@@ -51,13 +54,13 @@ def case_a() -> None:
     print("\n1. Case A: 1-DOF, 14 N step, 0.25 s, 1 ms, encoder 2266 pulses/cm")
     print(_row("relative error [%]", NAMES1))
     for method in ("paper", "robust"):
-        result = identify(record, plant, method)
+        result = estimate(record, plant, method)
         err = result.errors(truth)
         print(_row(f"  {method}", [abs(err[p]) for p in NAMES1]))
         print(_row(f"  {method} target (|err| <)", [TARGETS_A[method][p] for p in NAMES1]))
     print(_row("time to stay within 5 % [s]", NAMES1))
     for method in ("paper", "robust"):
-        times = identify(record, plant, method).time_within(truth, 0.05)
+        times = estimate(record, plant, method).time_within(truth, 0.05)
         print(_row(f"  {method}", [times[p] for p in NAMES1]))
     print(_row("  target (robust)", [TARGET_TIMES[p] for p in NAMES1]))
 
@@ -70,7 +73,7 @@ def case_b(seeds: int) -> None:
     for seed in tqdm(range(seeds), desc="case B seeds", leave=False):
         record = measure(exact, snr_db=40, seed=seed)
         for method in errors:
-            err = identify(record, plant, method).errors(truth)
+            err = estimate(record, plant, method).errors(truth)
             errors[method].append([abs(err[p]) for p in NAMES1])
     print(f"\n2. Case B: 1-DOF, 10 N step, 2 s, quantised + 40 dB noise, median |error| [%] over {seeds} seeds")
     print(_row("", NAMES1))
@@ -90,7 +93,7 @@ def two_dof() -> None:
     print("\n3. 2-DOF chain, 6 N step on DOF 1, 1 s, 1 ms, noise-free: |error| [%] (target < 0.1)")
     print(_row("", names, width=9))
     for method in ("paper", "robust"):
-        result = identify(record, plant, method)
+        result = estimate(record, plant, method)
         p = result.parameters
         est = {**p, **{f"{q}/m2": p[q] / p["m2"] for q in ("b2", "k2", "kp2")}}
         ref = {**truth, **ratios}
@@ -124,10 +127,12 @@ def cost(repeats: int) -> None:
         base = per_sample["paper"]
         for key, value in per_sample.items():
             print(_row(f"  {label} update, {key}", [1e6 * value, value / base, 1.0 / value], width=12, fmt=".2f"))
-        t_identify = _median_time(lambda: identify(record, model), repeats)
-        print(_row(f"  {label} identify() robust", [1e6 * t_identify / record.n_samples,
-                                                   t_identify / record.n_samples / base,
-                                                   record.n_samples / t_identify], width=12, fmt=".2f"))
+        for name, call in [("estimate() robust, Python", lambda: estimate(record, model)),
+                           ("run_estimator() robust, C", lambda: run_estimator(record, model, engine="c")),
+                           ("identify() checked, C", lambda: identify(record, model))]:
+            t_call = _median_time(call, repeats)
+            print(_row(f"  {label} {name}", [1e6 * t_call / record.n_samples, t_call / record.n_samples / base,
+                                            record.n_samples / t_call], width=12, fmt=".2f"))
 
 
 #: Buffered configurations: (label, method, options). Case A is one window of 0.25 s.
@@ -181,10 +186,10 @@ def buffered(seeds: int, repeats: int) -> None:
     cost_names = ["us/window", "us/sample", "setup ms"]
     print(_row("", list(NAMES1) + cost_names, width=10))
     for method in ("paper", "robust"):
-        err = identify(record_a, plant, method).errors(truth)
+        err = estimate(record_a, plant, method).errors(truth)
         print(_row(f"  online {method}", [abs(err[p]) for p in NAMES1]))
     for label, method, options in BUFFERED_A:
-        err = identify(record_a, plant, method, **options).errors(truth)
+        err = estimate(record_a, plant, method, **options).errors(truth)
         costs = _window_cost(plant, record_a, method, options, repeats)
         print(_row(f"  {label}", [abs(err[p]) for p in NAMES1] + costs))
     exact = simulate(plant, Step(10.0), 2.0, 1e-3)
@@ -192,11 +197,11 @@ def buffered(seeds: int, repeats: int) -> None:
     print(f"5b. Case B (0.5 s windows, quantised + 40 dB noise): median |error| [%] over {seeds} seeds")
     print(_row("", list(NAMES1) + cost_names, width=10))
     for method in ("paper", "robust"):
-        errors = [[abs(v) for v in identify(r, plant, method).errors(truth).values()]
+        errors = [[abs(v) for v in estimate(r, plant, method).errors(truth).values()]
                   for r in tqdm(records, desc=method, leave=False)]
         print(_row(f"  online {method}", np.median(errors, axis=0)))
     for label, method, options in BUFFERED_B:
-        errors = [[abs(v) for v in identify(r, plant, method, **options).errors(truth).values()]
+        errors = [[abs(v) for v in estimate(r, plant, method, **options).errors(truth).values()]
                   for r in tqdm(records, desc=label, leave=False)]
         costs = _window_cost(plant, records[0], method, options, repeats)
         print(_row(f"  {label}", list(np.median(errors, axis=0)) + costs))

@@ -1,0 +1,197 @@
+"""duffid.trust: what a record supports is published, nothing else (plants of other scales,
+imperfect files), and the CLI's text says what its JSON says."""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from duffid import Chain, Duffing1, Duffing2, DuffingCircuit, Multisine, Record, Step, identify, measure, simulate
+from duffid.trust import STATUSES, content_frequency, noise_level, term_shares
+
+
+def _random(model, amplitude, f_max, duration, fs, *, snr_db=None, seed=0):
+    """A record of ``model`` under a random-phase multisine force (1 Hz .. f_max)."""
+    force = Multisine(amplitude, 1.0, f_max, duration / 2, phases="random", seed=seed)
+    record = simulate(model, force, duration, 1.0 / fs)
+    return measure(record, pulses_per_cm=None, snr_db=snr_db, seed=seed + 1)
+
+
+@pytest.fixture(scope="module")
+def lab():
+    """The paper's softening plant under a random force, 40 dB noise, 1 kHz (well excited)."""
+    return _random(Duffing1(), 8.0, 10.0, 8.0, 1000.0, snr_db=40, seed=3)
+
+
+def _errors(result, truth):
+    return {k: (result.parameters[k] - v) / v for k, v in truth.items()}
+
+
+def _published_within(result, truth, tolerance):
+    a = result.assessment
+    for k, v in truth.items():
+        if a.status[k] == "published":
+            assert abs(result.parameters[k] - v) <= tolerance * abs(v), (k, result.parameters[k], v)
+            # the stated uncertainty covers the error (3 standard errors)
+            assert abs(result.parameters[k] - v) <= 3 * a.uncertainty[k] * abs(v) + 1e-12, (k, a.uncertainty[k])
+        else:
+            assert math.isnan(result.parameters[k])
+
+
+def test_a_well_excited_record_publishes_values_within_their_uncertainty(lab):
+    result = identify(lab, Duffing1())
+    a = result.assessment
+    assert set(a.status.values()) <= set(STATUSES)
+    assert a.fit["explained"] and a.fit["simulation_nrmse"] < 0.05
+    assert [k for k, s in a.status.items() if s == "published"] == ["m", "b", "k"]
+    _published_within(result, Duffing1().parameters, 0.01)
+    data = result.to_dict()
+    assert data["identified"] is result.is_identified is False  # kp is not published here
+    assert data["status"] == a.status and set(data["uncertainty"]) == set(a.uncertainty)
+    assert data["parameters"]["kp"] is None and data["parameters"]["m"] == result.parameters["m"]
+
+
+def test_nothing_depends_on_the_models_default_values():
+    """A civil-structure-scale plant (450 kg, 2.2e6 N/m, 11 Hz) sampled at 200 Hz: upsampled,
+    and published values are right, whatever the Duffing1 defaults (2.53 kg, ...)."""
+    m, k = 450.0, 2.2e6
+    plant = Duffing1(m=m, b=2 * 0.02 * math.sqrt(k * m), k=k, kp=0.2 * k / 0.005**2)
+    force = Step(2e3, 0.5) + Multisine(4e3, 2.0, 30.0, 4.0, phases="random", seed=3)
+    record = measure(simulate(plant, force, 8.0, 1 / 200), pulses_per_cm=None, snr_db=40, seed=1)
+    result = identify(record, Duffing1())  # the model class with the paper's values
+    a = result.assessment
+    assert a.fit["upsampled"] > 1 and "upsampled" in a.notes[0]
+    assert sum(s == "published" for s in a.status.values()) >= 3
+    _published_within(result, plant.parameters, 0.01)
+
+
+def test_a_coarsely_sampled_record_is_upsampled_not_biased():
+    """200 Hz sampling of a 10 Hz plant: 20 samples per period; the damping was 22 % off."""
+    m, k = 1.0, (2 * math.pi * 10) ** 2
+    plant = Duffing1(m=m, b=2 * 0.03 * math.sqrt(k * m), k=k, kp=0.3 * k / 0.01**2)
+    record = _random(plant, k * 0.01, 25.0, 4.0, 200.0, snr_db=40, seed=1)
+    result = identify(record, plant)
+    assert result.assessment.fit["upsampled"] == 5
+    assert result.is_identified
+    _published_within(result, plant.parameters, 0.01)
+
+
+def test_swapped_columns_publish_nothing_and_say_why(lab):
+    swapped = Record(lab.t, lab.x, lab.f, source="swapped.csv")
+    result = identify(swapped, Duffing1())
+    assert not result.is_identified and all(math.isnan(v) for v in result.parameters.values())
+    assert "does not reproduce the record" in " ".join(result.assessment.notes)
+    assert "swapped" in " ".join(result.assessment.notes)
+    step = measure(simulate(Duffing1(), Step(10.0), 2.0, 1e-3), snr_db=40, seed=3)
+    result = identify(Record(step.t, step.x, step.f), Duffing1())  # x column = the constant force
+    assert all(math.isnan(v) for v in result.parameters.values())
+    assert "does not vary" in result.assessment.notes[0] and "swapped" in result.assessment.notes[0]
+
+
+@pytest.mark.parametrize("offset", ["x", "f"])
+def test_sensor_offsets_are_not_published_as_parameters(lab, offset):
+    biased = Record(lab.t, lab.f + (0.5 if offset == "f" else 0.0), lab.x + (2.5e-4 if offset == "x" else 0.0))
+    result = identify(biased, Duffing1())
+    assert not any(s == "published" and abs(e) > 0.05 for s, e in
+                   zip(result.assessment.status.values(), _errors(result, Duffing1().parameters).values()))
+    assert not result.is_identified
+    assert any("offset" in note for note in result.assessment.notes)
+
+
+def test_a_constant_force_says_it_cannot_rule_out_offsets():
+    record = measure(simulate(Duffing1(), Step(10.0), 2.0, 1e-3), snr_db=40, seed=3)
+    result = identify(record, Duffing1())
+    assert result.is_identified
+    assert any("cannot separate a constant force or displacement offset" in n for n in result.assessment.notes)
+
+
+def test_unmodelled_friction_publishes_nothing():
+    plant = Chain(masses=(2.0,), damping=(5.0,), stiffness=({1: 2000.0, 3: 1e6},), coulomb=(2.0,))
+    record = _random(plant, 20.0, 15.0, 8.0, 1000.0, snr_db=50, seed=2)
+    result = identify(record, Duffing1(m=2.0, b=5.0, k=2000.0, kp=1e6))
+    assert all(math.isnan(v) for v in result.parameters.values())
+    assert not result.assessment.fit["explained"]
+    assert "friction" in result.assessment.notes[0]
+
+
+def test_a_term_the_record_does_not_excite_is_reported_as_such():
+    """A hardening spring at an amplitude where its cubic term carries ~0.1 % of the force."""
+    plant = Duffing1(m=1.0, b=4.0, k=4000.0, kp=1e5)
+    record = _random(plant, 10.0, 20.0, 4.0, 2000.0, snr_db=40, seed=4)  # |x| ~ 3 mm
+    result = identify(record, plant)
+    a = result.assessment
+    assert a.status["kp"] == "not excited" and a.share["kp"] < 0.01
+    assert "force balance" in " ".join(a.notes)
+    assert a.status["m"] == a.status["k"] == "published"
+
+
+def test_a_free_decay_says_only_ratios_are_determined():
+    record = simulate(Duffing1(), lambda t: 0.0 * t, 2.0, 1e-3, x0=[5e-3])
+    result = identify(record, Duffing1())
+    assert all(math.isnan(v) for v in result.parameters.values())
+    assert "only ratios" in result.assessment.notes[0]
+
+
+def test_the_circuit_and_the_two_dof_chain_are_checked_too():
+    circuit = DuffingCircuit()
+    result = identify(_random(circuit, 5.0, 40.0, 4.0, 2000.0, snr_db=50, seed=5), circuit)
+    assert result.assessment.fit["explained"]
+    _published_within(result, circuit.parameters, 0.01)
+    chain = Duffing2()
+    record = simulate(chain, Step(6.0), 1.0, 1e-3)
+    result = identify(record, chain)
+    assert result.is_identified
+    _published_within(result, chain.parameters, 0.01)
+
+
+# ---------------------------------------------------------------------- figures of a record
+def test_noise_level_and_content_frequency():
+    t = np.arange(4000) * 1e-3
+    clean = 1e-3 * np.sin(2 * np.pi * 5 * t)
+    noisy = clean + np.random.default_rng(0).normal(0, 1e-5, t.size)
+    assert noise_level(noisy[:, None])[0] == pytest.approx(1e-5, rel=0.1)
+    assert noise_level(clean[:, None])[0] < 1e-8
+    quantised = np.round(clean / 1e-5) * 1e-5
+    assert noise_level(quantised[:, None])[0] == pytest.approx(1e-5 / math.sqrt(12), rel=0.2)
+    assert content_frequency(noisy[:, None], 1e-3) == pytest.approx(5.0, abs=0.5)
+
+
+def test_term_shares_of_a_linear_oscillator():
+    t = np.arange(2000) * 1e-3
+    x = 1e-2 * np.sin(2 * np.pi * 2 * t)
+    shares = term_shares(Duffing1(), {"m1": 1.0, "b1": 0.0, "k1_1": 100.0, "k1_3": 0.0}, x[:, None],
+                         np.zeros((2000, 1)), 1e-3)
+    assert shares["b1"] == 0.0 and shares["k1_3"] == 0.0
+    assert shares["k1_1"] == pytest.approx(shares["m1"] * 100 / (2 * np.pi * 2) ** 2, rel=1e-3)
+
+
+# ---------------------------------------------------------------------- CLI: text = JSON
+def _cli(*args):
+    proc = subprocess.run([sys.executable, "-m", "duffid", *map(str, args)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout
+
+
+def test_cli_text_and_json_agree(lab, tmp_path):
+    path = tmp_path / "lab.csv"
+    lab.to_csv(path)
+    data = json.loads(_cli("identify", path, "--json"))
+    text = _cli("identify", path)
+    assert data["identified"] is False and "identified: no" in text and "identified at" not in text
+    for name, value in data["parameters"].items():
+        row = next(line for line in text.splitlines() if line.split()[:1] == [name])
+        assert data["status"][name] in row
+        if value is None:
+            assert row.split()[1] == "-"
+        else:
+            assert float(row.split()[1]) == pytest.approx(value, rel=1e-5)
+    for note in data["notes"]:
+        assert note in text
+    swapped = tmp_path / "swapped.csv"
+    Record(lab.t, lab.x, lab.f).to_csv(swapped)
+    data = json.loads(_cli("identify", swapped, "--json"))
+    assert all(v is None for v in data["parameters"].values()) and data["fit"]["explained"] is False
