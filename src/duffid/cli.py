@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from pathlib import Path
 from typing import Any, Sequence
@@ -35,6 +36,63 @@ def _positive_float(text: str) -> float:
 
 def _window(text: str) -> float | str:
     return "auto" if text == "auto" else _positive_float(text)
+
+
+def _role_pairs(text: str, flag: str, value: Any) -> dict[str, Any]:
+    """``ROLE=VALUE,...`` of ``flag`` as a dict (roles t, f, x, f1.., x1..)."""
+    out: dict[str, Any] = {}
+    for item in (part.strip() for part in text.split(",")):
+        role, sep, raw = item.partition("=")
+        role, raw = role.strip(), raw.strip()
+        if not sep or not role or not raw:
+            raise argparse.ArgumentTypeError(f"{item!r} is not ROLE=" + ("COLUMN" if flag == "--columns" else "FACTOR"))
+        if not re.fullmatch(r"[tfx]|[fx][1-9][0-9]*", role):
+            raise argparse.ArgumentTypeError(f"unknown role {role!r} (roles: t, f, x, or f1.., x1..)")
+        if role in out:
+            raise argparse.ArgumentTypeError(f"{role} is given twice")
+        out[role] = value(raw)
+    return out
+
+
+def _columns(text: str) -> dict[str, str | int]:
+    return _role_pairs(text, "--columns", lambda raw: int(raw) if raw.isdigit() else raw)
+
+
+def _scales(text: str) -> dict[str, float]:
+    def factor(raw: str) -> float:
+        try:
+            value = float(raw)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{raw!r} is not a number") from None
+        if not (np.isfinite(value) and value != 0):
+            raise argparse.ArgumentTypeError(f"{raw!r} must be a finite non-zero number")
+        return value
+    return _role_pairs(text, "--scale", factor)
+
+
+def _delimiter(text: str) -> str:
+    text = {"tab": "\t", "\\t": "\t", "space": " "}.get(text, text)
+    if len(text) != 1:
+        raise argparse.ArgumentTypeError(f"one character (or tab, space), got {text!r}")
+    return text
+
+
+def _add_file_arguments(p: argparse.ArgumentParser) -> None:
+    """The options that say how to read a record file (CSV from a logger, or .mat)."""
+    g = p.add_argument_group("reading the file (CSV from a logger, .mat)")
+    g.add_argument("--columns", type=_columns, default=None, metavar="ROLE=COLUMN,...",
+                   help="CSV: the column of each signal, by header name or 1-based number, e.g. "
+                        "t=time_s,f=force_N,x=3 (roles t, f, x, or f1.., x1..); default: header t,f,x")
+    g.add_argument("--delimiter", type=_delimiter, default=",", help="CSV field separator (default ','; tab, ';', ...)")
+    g.add_argument("--scale", type=_scales, default=None, metavar="ROLE=FACTOR,...",
+                   help="multiply columns into SI units (s, N, m), e.g. x=1e-3 for millimetres")
+    g.add_argument("--fs", type=_positive_float, default=None,
+                   help="sampling frequency [Hz] of a file without a time column or variable")
+    g.add_argument("--sampling-tolerance", type=_positive_float, default=1e-6,
+                   help="largest relative deviation of a time step from the median step (default 1e-6)")
+    g.add_argument("--x-var", default="x", help=".mat: displacement variable name(s), comma separated")
+    g.add_argument("--f-var", default="f", help=".mat: force variable name(s), comma separated")
+    g.add_argument("--t-var", default=None, help=".mat: time variable name (or give --fs)")
 
 
 def _add_model_arguments(p: argparse.ArgumentParser) -> None:
@@ -88,11 +146,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--repeated", choices=("power", "exact"), default=None,
                    help="repeated integration: powers of P (paper) or the exact matrix")
     g.add_argument("--accumulate", action="store_true", help="least squares over all windows so far")
-    g = p.add_argument_group(".mat files")
-    g.add_argument("--x-var", default="x", help="displacement variable name(s), comma separated")
-    g.add_argument("--f-var", default="f", help="force variable name(s), comma separated")
-    g.add_argument("--t-var", default=None, help="time variable name (or give --fs)")
-    g.add_argument("--fs", type=_positive_float, default=None, help="sampling frequency [Hz] without a time variable")
+    _add_file_arguments(p)
     p.add_argument("--deadband", type=float, default=None, help="Coulomb: |dx| below which the velocity sign is held")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", type=Path, default=None, help="write estimates vs time to this PNG")
@@ -122,10 +176,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", type=Path, default=None,
                    help="PNG: Argand and Bode plots (one file), or eta vs amplitude (several files)")
     p.add_argument("--json", action="store_true", help="print JSON: one object, or a list for several files")
-    p.add_argument("--x-var", default="x", help=".mat: displacement variable name(s)")
-    p.add_argument("--f-var", default="f", help=".mat: force variable name(s)")
-    p.add_argument("--t-var", default=None, help=".mat: time variable name")
-    p.add_argument("--fs", type=_positive_float, default=None, help=".mat: sampling frequency [Hz]")
+    _add_file_arguments(p)
 
     silverbox.add_cli(sub)
     p = modelica.add_cli(sub)
@@ -157,8 +208,22 @@ def _read_record(args: argparse.Namespace, path: Path | None = None) -> Record:
         raise RecordError(f"{path}: no such file")
     if path.suffix.lower() == ".mat":
         split = lambda s: [v.strip() for v in s.split(",")] if "," in s else s  # noqa: E731
-        return Record.read_mat(path, x=split(args.x_var), f=split(args.f_var), t=args.t_var, fs=args.fs)
-    return Record.read_csv(path)
+        record = Record.read_mat(path, x=split(args.x_var), f=split(args.f_var), t=args.t_var, fs=args.fs,
+                                 sampling_rtol=args.sampling_tolerance)
+        return record.scaled(args.scale) if args.scale else record
+    try:
+        return Record.read_csv(path, sampling_rtol=args.sampling_tolerance, columns=args.columns,
+                               delimiter=args.delimiter, scale=args.scale, fs=args.fs)
+    except RecordError as exc:  # say which flags fix it
+        text = str(exc)
+        for needle, flag in (("scale it into", " with --scale ROLE=FACTOR"),
+                             ("give the sampling rate", " (--fs HZ, or --columns t=...)"),
+                             ("sampling rate were both given", " (drop --fs or the t in --columns)"),
+                             ("is that the delimiter", " (--delimiter)"),
+                             ("uneven sampling", " (or widen --sampling-tolerance)")):
+            if needle in text:
+                raise RecordError(text + flag) from None
+        raise
 
 
 _OPTION_NAMES = {

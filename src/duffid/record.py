@@ -21,7 +21,7 @@ import os
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 import scipy.io
@@ -394,6 +394,11 @@ class Record:
         )
 
     # --------------------------------------------------------------------- CSV
+    def scaled(self, factors: Mapping[str, float]) -> Record:
+        """The record with its time (``t``), forces (``f``) and displacements (``x``) multiplied
+        by ``factors`` (e.g. ``{"x": 1e-3}`` for millimetres)."""
+        return _scaled(self, factors)
+
     def to_csv(self, path: str | os.PathLike[str]) -> None:
         """Write the record as a CSV file.
 
@@ -417,16 +422,32 @@ class Record:
 
     @classmethod
     def read_csv(
-        cls, path: str | os.PathLike[str], *, sampling_rtol: float = 1e-6
+        cls, path: str | os.PathLike[str], *, sampling_rtol: float = 1e-6,
+        columns: Mapping[str, str | int] | None = None, delimiter: str = ",",
+        scale: Mapping[str, float] | None = None, fs: float | None = None,
     ) -> Record:
-        """Read a record from a CSV file.
+        """Read a record from a CSV file: duffid's own layout, or what a logger wrote.
 
         Parameters
         ----------
         path : str or os.PathLike
-            CSV file (UTF-8, comma separated).
+            CSV file (UTF-8).
         sampling_rtol : float, optional
             Allowed relative deviation of every time step from the median step.
+        columns : mapping, optional
+            Which file column holds each signal: role (``t``, ``f``, ``x``, or ``f1``..,
+            ``x1``.. for several) -> header name or 1-based column number, e.g.
+            ``{"t": "time_s", "f": "force_N", "x": 4}``. Other columns are not read. A row
+            right after the header whose fields are all non-numeric is a units row: a mapped
+            column in a unit that is not SI (``mm``, ``kN``, ...) must be scaled (``scale``).
+            Default: duffid's own layout (below).
+        delimiter : str, optional
+            Field separator, one character (``","``, ``";"``, ``"\t"``, ...).
+        scale : mapping, optional
+            Role -> factor multiplying that column into SI units, e.g. ``{"x": 1e-3}`` for
+            millimetres (``x``/``f`` apply to every displacement/force column).
+        fs : float, optional
+            Sampling rate [Hz] of a file without a time column (``t = k / fs``).
 
         Returns
         -------
@@ -458,8 +479,15 @@ class Record:
         """
         rtol = _check_rtol(sampling_rtol)
         source = os.fspath(path)
+        if len(delimiter) != 1:
+            raise ValueError(f"the delimiter must be one character, got {delimiter!r}")
+        if fs is not None and not (np.isfinite(fs) and fs > 0):
+            raise ValueError(f"the sampling rate must be a positive number of Hz, got {fs!r}")
         lines = _read_text_lines(source)
-        return _parse_csv_lines(lines, source, rtol)
+        if columns is None and delimiter == "," and fs is None:
+            record = _parse_csv_lines(lines, source, rtol)
+            return record if not scale else record.scaled(scale)
+        return _parse_logger_lines(lines, source, rtol, columns, delimiter, scale or {}, fs)
 
     # --------------------------------------------------------------------- MAT
     def to_mat(
@@ -877,3 +905,165 @@ def _load_mat(source: str) -> dict[str, Any]:
     except (MatReadError, ValueError, TypeError, IndexError, KeyError) as exc:
         # scipy < 1.12 raises IndexError/KeyError on some files that are not .mat at all
         raise RecordError(f"{source}: not a readable MATLAB .mat file ({exc or type(exc).__name__})") from None
+
+
+# ------------------------------------------------------------------------- logger files
+#: SI units of each role; a units row naming another unit needs a scale factor.
+SI_UNITS = {"t": ("s",), "f": ("N", "V"), "x": ("m", "C")}
+_ROLE_RE = re.compile(r"([tfx])([1-9][0-9]*)?", re.ASCII)
+
+
+def _role_family(role: str) -> str:
+    return role[0]
+
+
+def _check_roles(columns: Mapping[str, str | int], source: str) -> tuple[str | None, list[str], list[str]]:
+    """Validate the role names; return the time role and the force and displacement roles in order."""
+    for role in columns:
+        match = _ROLE_RE.fullmatch(str(role))
+        if match is None or (match.group(1) == "t" and match.group(2)):
+            raise RecordError(f"{source}: unknown role {role!r} (roles: t, f, x, or f1.., x1..)")
+    families = {}
+    for fam in ("f", "x"):
+        plain = fam in columns
+        numbered = sorted(int(r[1:]) for r in columns if r[0] == fam and len(r) > 1)
+        if plain and numbered:
+            raise RecordError(f"{source}: give either {fam} or {fam}1, {fam}2, ... for the columns, not both")
+        if numbered and numbered != list(range(1, len(numbered) + 1)):
+            raise RecordError(f"{source}: the {fam} columns must be numbered {fam}1..{fam}{len(numbered)} "
+                              f"without gaps, got {', '.join(f'{fam}{j}' for j in numbered)}")
+        families[fam] = [fam] if plain else [f"{fam}{j}" for j in numbered]
+        if not families[fam]:
+            raise RecordError(f"{source}: no column given for {fam} (the {'forces' if fam == 'f' else 'displacements'})")
+    if len(families["f"]) > len(families["x"]):
+        raise RecordError(f"{source}: {len(families['f'])} force columns but {len(families['x'])} displacement "
+                          f"columns; force j acts on DOF j, so there may not be more forces than displacements")
+    return ("t" if "t" in columns else None), families["f"], families["x"]
+
+
+def _column_index(spec: str | int, role: str, names: list[str], where: str) -> int:
+    """0-based index of the column ``spec`` (header name or 1-based number) for ``role``."""
+    if isinstance(spec, (int, np.integer)) and not isinstance(spec, bool):
+        if not 1 <= int(spec) <= len(names):
+            raise RecordError(f"{where}: no column {int(spec)} for {role}: the header has {len(names)} columns")
+        return int(spec) - 1
+    if str(spec) not in names:
+        raise RecordError(f"{where}: no column {str(spec)!r} for {role} (found: {', '.join(names)})")
+    if names.count(str(spec)) > 1:
+        raise RecordError(f"{where}: the header has {names.count(str(spec))} columns named {str(spec)!r}; "
+                          f"give the column's number instead")
+    return names.index(str(spec))
+
+
+def _is_number(text: str) -> bool:
+    return bool(_NUMBER_RE.fullmatch(text) or _NONFINITE_RE.fullmatch(text))
+
+
+def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Mapping[str, str | int] | None,
+                        delimiter: str, scale: Mapping[str, float], fs: float | None) -> Record:
+    """Parse a CSV file with a column mapping, delimiter, units row, scale or sampling rate."""
+    def split(line: str) -> list[str]:
+        return [field.strip() for field in next(csv.reader([line], delimiter=delimiter))]
+
+    pos = 0
+    while pos < len(lines) and (not lines[pos].strip() or lines[pos].lstrip().startswith("#")):
+        pos += 1
+    if pos == len(lines):
+        raise RecordError(f"{source}: empty file, expected a header line followed by data rows")
+    header_line = pos + 1
+    names = split(lines[pos])
+    where = f"{source}, line {header_line} (header)"
+    if len(names) == 1 and delimiter not in lines[pos]:
+        seen = [d for d in (",", ";", "\t", " ") if d in lines[pos]]
+        hint = f"; the line contains {seen[0]!r}: is that the delimiter?" if seen else ""
+        raise RecordError(f"{where}: one column only with the delimiter {delimiter!r}{hint}")
+    if columns is None:
+        columns = {"t": "t", "f": "f", "x": "x"} if fs is None else {"f": "f", "x": "x"}
+    t_role, f_roles, x_roles = _check_roles(columns, source)
+    unknown = sorted(set(scale) - {"t", "f", "x"} - set(columns))
+    if unknown:
+        raise RecordError(f"{source}: a scale for {', '.join(unknown)}, which names no column")
+    if t_role is not None and fs is not None:
+        raise RecordError(f"{source}: a time column and a sampling rate were both given; give one of them")
+    if t_role is None and fs is None:
+        raise RecordError(f"{source}: no time column: give the sampling rate, or which column holds the time")
+    roles = ([t_role] if t_role else []) + f_roles + x_roles
+    index = {role: _column_index(columns[role], role, names, where) for role in roles}
+    used = sorted(set(index.values()))
+    if len(used) != len(roles):
+        raise RecordError(f"{where}: one column is given for two signals ({', '.join(roles)})")
+    pos += 1
+    units: dict[str, str] = {}
+    while pos < len(lines) and not lines[pos].strip():
+        pos += 1
+    if pos < len(lines):
+        fields = split(lines[pos])
+        if len(fields) == len(names) and all(f and not _is_number(f) for f in (fields[i] for i in used)):
+            units = {role: fields[index[role]] for role in roles}
+            units_line = pos + 1
+            for role, unit in units.items():
+                fam = _role_family(role)
+                factor = scale.get(role, scale.get(fam))
+                if factor is None and unit not in SI_UNITS[fam]:
+                    raise RecordError(
+                        f"{source}: column {names[index[role]]!r} ({role}) is in {unit!r} (units row, line "
+                        f"{units_line}): duffid needs SI units ({' or '.join(SI_UNITS[fam])}); scale it "
+                        f"into {SI_UNITS[fam][0]}")
+            pos += 1
+    rows: list[list[float]] = []
+    linenos: list[int] = []
+    blank_at: int | None = None
+    for k in range(pos, len(lines)):
+        lineno = k + 1
+        line = lines[k]
+        if not line.strip():
+            blank_at = blank_at or lineno
+            continue
+        if blank_at is not None:
+            raise RecordError(f"{source}, line {blank_at}: blank line inside the data (data continues on line {lineno})")
+        fields = split(line)
+        if len(fields) != len(names):
+            raise RecordError(f"{source}, line {lineno}: {len(fields)} field{'s' if len(fields) != 1 else ''}, "
+                              f"the header has {len(names)} columns")
+        row = []
+        for role in roles:
+            text = fields[index[role]]
+            if _NUMBER_RE.fullmatch(text):
+                row.append(float(text))
+                continue
+            place = f"{source}, line {lineno}, column {names[index[role]]!r}"
+            if not text:
+                raise RecordError(f"{place}: empty value")
+            if _NONFINITE_RE.fullmatch(text):
+                raise RecordError(f"{place}: value '{text}' is not finite")
+            raise RecordError(f"{place}: value '{text}' is not a number")
+        rows.append(row)
+        linenos.append(lineno)
+    if len(rows) < 2:
+        raise RecordError(f"{source}: {'no data rows' if not rows else 'only 1 data row'}; a record needs at least 2 samples")
+    data = np.array(rows, dtype=np.float64)
+    for j, role in enumerate(roles):
+        factor = scale.get(role, scale.get(_role_family(role), 1.0))
+        if not (np.isfinite(factor) and factor != 0):
+            raise RecordError(f"{source}: the scale of {role} must be a finite non-zero number, got {factor!r}")
+        data[:, j] *= factor
+    if t_role is None:
+        t = np.arange(len(rows)) / float(fs)  # type: ignore[arg-type]
+        first = 0
+    else:
+        t = data[:, 0]
+        first = 1
+    f = data[:, first:first + len(f_roles)]
+    x = data[:, first + len(f_roles):]
+    _check_samples(t, [(f"column {names[index[role]]!r}", data[:, j]) for j, role in enumerate(roles)],
+                   source=source, sampling_rtol=rtol, where=lambda i: f"line {linenos[i]}", t_desc=None)
+    return Record(t, f, x, source=source, sampling_rtol=rtol)
+
+
+def _scaled(record: Record, scale: Mapping[str, float]) -> Record:
+    """``record`` with its time, force and displacement columns multiplied by ``scale``."""
+    unknown = sorted(set(scale) - {"t", "f", "x"})
+    if unknown:
+        raise RecordError(f"{record.source}: a scale for {', '.join(unknown)}: the roles are t, f and x")
+    return Record(record.t * scale.get("t", 1.0), record.f * scale.get("f", 1.0), record.x * scale.get("x", 1.0),
+                  source=record.source, sampling_rtol=record.sampling_rtol)

@@ -22,7 +22,8 @@ Checks, in order (:func:`assess`):
 3. **Each parameter is determined.** Its standard error comes from the record: the
    identification is repeated on :data:`REPLICATES` copies of the record with measurement
    noise of the measured level added (a parametric bootstrap: coloured residuals, the
-   estimator's own windows and its nonlinearity are all accounted for). Its term's share of
+   estimator's own windows and its nonlinearity are all accounted for), and from every
+   second sample (the quadrature's bias, of first order where the force jumps). Its term's share of
    the force balance (:func:`term_shares`) tells a parameter the record does not excite
    from one it excites but cannot pin down.
 
@@ -653,8 +654,13 @@ def identify(record: Record, model: Chain, method: str = "robust", *, check: boo
         def with_offsets() -> Mapping[str, float]:
             return run_estimator(upsampled(record, factor), offset_model, method, engine=engine, **opts).estimates
 
+    def at_half_rate() -> Mapping[str, float]:
+        fine = upsampled(record, factor)
+        return run(Record(fine.t[::2], fine.f[::2], fine.x[::2], source=fine.source,
+                          sampling_rtol=fine.sampling_rtol), opts).estimates
+
     result.assessment = assess(record, model, result.estimates, rerun, max_uncertainty=max_uncertainty,
-                               upsampled=factor, with_offsets=with_offsets)
+                               upsampled=factor, with_offsets=with_offsets, at_half_rate=at_half_rate)
     result.parameters = result.assessment.published(result.estimates)
     return result
 
@@ -662,7 +668,8 @@ def identify(record: Record, model: Chain, method: str = "robust", *, check: boo
 def assess(record: Record, model: Chain, estimates: Mapping[str, float],
            rerun: Callable[[Record], Mapping[str, float]], *, max_uncertainty: float = 0.01,
            replicates: int = REPLICATES, upsampled: int = 1, seed: int = 0,
-           with_offsets: Callable[[], Mapping[str, float]] | None = None) -> Assessment:
+           with_offsets: Callable[[], Mapping[str, float]] | None = None,
+           at_half_rate: Callable[[], Mapping[str, float]] | None = None) -> Assessment:
     """Decide which of ``estimates`` (public names) the record supports.
 
     Parameters
@@ -690,6 +697,11 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
         with the model's offset terms added and returns those estimates. A value that
         moves by more than its uncertainty when an offset is allowed is not published:
         the record cannot rule out a sensor offset.
+    at_half_rate : callable, optional
+        Identifies the record (as ``estimates`` were found) from every second sample. The
+        difference to ``estimates`` bounds the quadrature's bias, which is of first order in
+        the sampling period where the force jumps (a step between two samples): it enters
+        each stated uncertainty (added in quadrature to the noise's share).
     """
     names = list(model.parameters)
     values = {k: float(estimates.get(k, math.nan)) for k in names}
@@ -732,6 +744,14 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
     for k in names:  # the quadrature's share of the error, larger for a term that carries little
         if np.isfinite(share[k]) and share[k] > 0:
             uncertainty[k] = max(uncertainty[k], bias / share[k])
+    if at_half_rate is not None:
+        coarse = at_half_rate()
+        for k in names:  # beyond what the noise explains (half the samples: about one more standard error)
+            change = abs(float(coarse.get(k, math.nan)) - values[k]) / abs(values[k]) if values[k] else math.inf
+            bias = math.sqrt(max(change**2 - (2.0 * uncertainty[k]) ** 2, 0.0)) if np.isfinite(change) else math.inf
+            uncertainty[k] = math.hypot(uncertainty[k], bias)
+        fit["half_rate_change"] = {k: (float(coarse.get(k, math.nan)) - values[k]) / values[k]
+                                   for k in names if values[k]}
     offset_moved = _offset_check(values, uncertainty, with_offsets if _force_varies(record) else None, notes, fit,
                                  max_uncertainty)
     if with_offsets is not None and not _force_varies(record):
