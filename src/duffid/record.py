@@ -821,6 +821,17 @@ def _parse_header(
     return f_idx, x_idx
 
 
+def _number(text: str, place: str) -> float:
+    """The decimal number ``text`` of a CSV field; RecordError naming ``place`` otherwise."""
+    if _NUMBER_RE.fullmatch(text):
+        return float(text)
+    if not text:
+        raise RecordError(f"{place}: empty value")
+    if _NONFINITE_RE.fullmatch(text):
+        raise RecordError(f"{place}: value '{text}' is not finite")
+    raise RecordError(f"{place}: value '{text}' is not a number")
+
+
 def _parse_csv_lines(lines: list[str], source: str, rtol: float) -> Record:
     """Parse the lines of a CSV record file (see :meth:`Record.read_csv`)."""
     pos = 0
@@ -860,18 +871,7 @@ def _parse_csv_lines(lines: list[str], source: str, rtol: float) -> Record:
                 f"{source}, line {lineno}: {len(fields)} field"
                 f"{'s' if len(fields) != 1 else ''}, the header has {ncol} columns"
             )
-        row: list[float] = []
-        for name, text in zip(names, fields):
-            if _NUMBER_RE.fullmatch(text):
-                row.append(float(text))
-                continue
-            place = f"{source}, line {lineno}, column '{name}'"
-            if not text:
-                raise RecordError(f"{place}: empty value")
-            if _NONFINITE_RE.fullmatch(text):
-                raise RecordError(f"{place}: value '{text}' is not finite")
-            raise RecordError(f"{place}: value '{text}' is not a number")
-        rows.append(row)
+        rows.append([_number(text, f"{source}, line {lineno}, column '{name}'") for name, text in zip(names, fields)])
         linenos.append(lineno)
     if len(rows) < 2:
         what = "no data rows (header only)" if not rows else "only 1 data row"
@@ -1025,19 +1025,8 @@ def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Map
         if len(fields) != len(names):
             raise RecordError(f"{source}, line {lineno}: {len(fields)} field{'s' if len(fields) != 1 else ''}, "
                               f"the header has {len(names)} columns")
-        row = []
-        for role in roles:
-            text = fields[index[role]]
-            if _NUMBER_RE.fullmatch(text):
-                row.append(float(text))
-                continue
-            place = f"{source}, line {lineno}, column {names[index[role]]!r}"
-            if not text:
-                raise RecordError(f"{place}: empty value")
-            if _NONFINITE_RE.fullmatch(text):
-                raise RecordError(f"{place}: value '{text}' is not finite")
-            raise RecordError(f"{place}: value '{text}' is not a number")
-        rows.append(row)
+        rows.append([_number(fields[index[role]], f"{source}, line {lineno}, column {names[index[role]]!r}")
+                     for role in roles])
         linenos.append(lineno)
     if len(rows) < 2:
         raise RecordError(f"{source}: {'no data rows' if not rows else 'only 1 data row'}; a record needs at least 2 samples")

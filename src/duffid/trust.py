@@ -44,6 +44,7 @@ Status of each parameter (:data:`STATUSES`):
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping
 
@@ -74,6 +75,9 @@ SIMULATION_TOLERANCE = 0.05
 MIN_SHARE = 0.01
 #: Noisy replicates of the record behind each standard error.
 REPLICATES = 8
+#: Records of at least this many samples show a progress bar while their replicates run
+#: (about two seconds on the C core).
+PROGRESS_SAMPLES = 50_000
 #: The relative standard error is never stated below this (rounding).
 UNCERTAINTY_FLOOR = 1e-5
 #: Quadrature and interpolation errors of the integrated force balance, as a fraction of it:
@@ -408,11 +412,20 @@ def _segment_response(simulator: Any, canonical: Mapping[str, float], segment: R
 
 def _bootstrap_uncertainty(record: Record, estimates: Mapping[str, float], noise: np.ndarray,
                            rerun: Callable[[Record], Mapping[str, float]], replicates: int,
-                           seed: int) -> dict[str, float]:
-    """Relative standard error of each estimate from ``replicates`` noisy copies of the record."""
+                           seed: int, progress: bool | None = None) -> dict[str, float]:
+    """Relative standard error of each estimate from ``replicates`` noisy copies of the record.
+
+    ``progress``: a progress bar on stderr (None: when stderr is a terminal and the record is
+    long enough, :data:`PROGRESS_SAMPLES`, for the replicates to take more than a couple of
+    seconds)."""
+    from tqdm import tqdm
+
+    if progress is None:
+        progress = sys.stderr.isatty() and record.n_samples >= PROGRESS_SAMPLES
     rng = np.random.default_rng(seed)
     deviations: dict[str, list[float]] = {k: [] for k in estimates}
-    for _ in range(replicates):
+    for _ in tqdm(range(replicates), desc="uncertainty (noisy replicates)", disable=not progress,
+                  file=sys.stderr, leave=False):
         noisy = Record(record.t, record.f, record.x + rng.standard_normal(record.x.shape) * noise,
                        source=record.source, sampling_rtol=record.sampling_rtol)
         values = rerun(noisy)
@@ -576,7 +589,7 @@ def _renamed(result: Identification, model: Chain) -> Identification:
 
 
 def identify(record: Record, model: Chain, method: str = "robust", *, check: bool = True,
-             engine: str = "auto", **options: Any) -> Identification:
+             engine: str = "auto", progress: bool | None = None, **options: Any) -> Identification:
     """Identify ``model``'s parameters from a record, publishing only what the record supports.
 
     The estimator (:func:`duffid.identification.estimate`: the online methods sample by
@@ -609,6 +622,8 @@ def identify(record: Record, model: Chain, method: str = "robust", *, check: boo
         its values are not checked and must not be published.
     engine : {"auto", "c", "python"}
         Where the online methods run (:func:`run_estimator`).
+    progress : bool or None
+        Progress bar on stderr while the checks run (None: for long records on a terminal).
     **options
         Method options (see :class:`~duffid.identification.OnlineIdentifier`).
     """
@@ -660,7 +675,8 @@ def identify(record: Record, model: Chain, method: str = "robust", *, check: boo
                           sampling_rtol=fine.sampling_rtol), opts).estimates
 
     result.assessment = assess(record, model, result.estimates, rerun, max_uncertainty=max_uncertainty,
-                               upsampled=factor, with_offsets=with_offsets, at_half_rate=at_half_rate)
+                               upsampled=factor, with_offsets=with_offsets, at_half_rate=at_half_rate,
+                               progress=progress)
     result.parameters = result.assessment.published(result.estimates)
     return result
 
@@ -669,7 +685,8 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
            rerun: Callable[[Record], Mapping[str, float]], *, max_uncertainty: float = 0.01,
            replicates: int = REPLICATES, upsampled: int = 1, seed: int = 0,
            with_offsets: Callable[[], Mapping[str, float]] | None = None,
-           at_half_rate: Callable[[], Mapping[str, float]] | None = None) -> Assessment:
+           at_half_rate: Callable[[], Mapping[str, float]] | None = None,
+           progress: bool | None = None) -> Assessment:
     """Decide which of ``estimates`` (public names) the record supports.
 
     Parameters
@@ -697,6 +714,8 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
         with the model's offset terms added and returns those estimates. A value that
         moves by more than its uncertainty when an offset is allowed is not published:
         the record cannot rule out a sensor offset.
+    progress : bool or None
+        Progress bar on stderr while the replicates run (None: for long records on a terminal).
     at_half_rate : callable, optional
         Identifies the record (as ``estimates`` were found) from every second sample. The
         difference to ``estimates`` bounds the quadrature's bias, which is of first order in
@@ -739,7 +758,7 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
     if problem is not None:
         notes.append(problem)
         return Assessment(status, uncertainty, share, fit, notes)
-    uncertainty = _bootstrap_uncertainty(record, values, noise, rerun, replicates, seed)
+    uncertainty = _bootstrap_uncertainty(record, values, noise, rerun, replicates, seed, progress)
     bias = BALANCE_FLOOR + QUADRATURE_BIAS / spp**4
     for k in names:  # the quadrature's share of the error, larger for a term that carries little
         if np.isfinite(share[k]) and share[k] > 0:
