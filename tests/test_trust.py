@@ -195,3 +195,31 @@ def test_cli_text_and_json_agree(lab, tmp_path):
     Record(lab.t, lab.x, lab.f).to_csv(swapped)
     data = json.loads(_cli("identify", swapped, "--json"))
     assert all(v is None for v in data["parameters"].values()) and data["fit"]["explained"] is False
+
+
+# ---------------------------------------------------------------------- isolated outliers
+@pytest.mark.parametrize("glitch", ["spike", "dropout", "wrapped count"])
+def test_an_isolated_glitch_is_excluded_and_reported(lab, glitch):
+    x = lab.x.copy()
+    i = 4321
+    x[i, 0] = {"spike": 1.0, "dropout": 0.0, "wrapped count": x[i, 0] - 2**16 * 1e-6}[glitch]
+    if glitch == "dropout":
+        x[i, 0] = 0.0 if abs(lab.x[i, 0]) > 2e-3 else 0.02  # a dropout is visible only away from 0
+    result = identify(Record(lab.t, lab.f, x, source="glitch.csv"), Duffing1())
+    a = result.assessment
+    assert a.notes[0].startswith("1 isolated outlier in the displacement excluded")
+    assert f"at t = {lab.t[i]:.6g} s" in a.notes[0]
+    assert a.fit["outliers"] == [{"column": "x1", "t": float(lab.t[i]), "value": float(x[i, 0]),
+                                  "replaced_by": pytest.approx(lab.x[i, 0], abs=2e-4)}]
+    clean = identify(lab, Duffing1())
+    assert a.status == clean.assessment.status
+    _published_within(result, Duffing1().parameters, 0.01)
+
+
+def test_clean_records_have_no_outliers(lab, case_a, case_b_exact):
+    from duffid.trust import isolated_outliers
+
+    assert isolated_outliers(lab.x) == []
+    assert isolated_outliers(case_a.x) == []  # quantised by the encoder
+    assert isolated_outliers(measure(case_b_exact, snr_db=30, seed=1).x) == []
+    assert isolated_outliers(simulate(Duffing2(), Step(6.0), 1.0, 1e-3).x) == []

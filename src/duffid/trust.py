@@ -57,7 +57,7 @@ from .record import Record, RecordError
 __all__ = [
     "identify", "run_estimator", "ENGINES", "STATUSES", "SAMPLES_PER_PERIOD", "SIMULATION_TOLERANCE", "MIN_SHARE", "REPLICATES",
     "Assessment", "assess", "noise_level", "content_frequency", "samples_per_period", "upsampling_factor",
-    "upsampling_needed", "upsampled", "natural_frequency", "term_shares",
+    "upsampling_needed", "upsampled", "natural_frequency", "term_shares", "isolated_outliers",
 ]
 
 #: Status of a parameter, see the module documentation.
@@ -278,6 +278,45 @@ def natural_frequency(model: Chain, canonical: Mapping[str, float], *, lowest: b
     if not omegas.size:
         return math.nan
     return float(omegas.min() if lowest else omegas.max()) / (2.0 * math.pi)
+
+
+#: A displacement sample further than this many robust standard deviations from the cubic
+#: through its four neighbours is an isolated outlier (a spike, a dropout to 0, a wrapped
+#: encoder count).
+OUTLIER_SIGMAS = 12.0
+#: More outliers than this share of the samples are not isolated glitches: none is removed.
+MAX_OUTLIER_SHARE = 0.001
+
+
+def isolated_outliers(x: np.ndarray) -> list[tuple[int, int, float]]:
+    """Isolated outliers of the displacement columns: (sample, column, value the neighbours give).
+
+    Each interior sample is compared with the cubic through its two neighbours on each side,
+    ``(-x[i-2] + 4 x[i-1] + 4 x[i+1] - x[i+2]) / 6``; a sample further from it than
+    :data:`OUTLIER_SIGMAS` robust standard deviations of those differences (never less than
+    the quantisation step) is an outlier; of a run of neighbouring candidates (a spike also
+    moves its neighbours' predictions) the largest is taken. Empty when more than
+    :data:`MAX_OUTLIER_SHARE` of the samples qualify (then they are not isolated glitches).
+    """
+    x = np.asarray(x, dtype=float).reshape(len(x), -1)
+    found: list[tuple[int, int, float]] = []
+    if len(x) < 8:
+        return found
+    for j in range(x.shape[1]):
+        c = x[:, j]
+        prediction = (-c[:-4] + 4.0 * c[1:-3] + 4.0 * c[3:-1] - c[4:]) / 6.0
+        r = c[2:-2] - prediction
+        scale = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), _quantisation_step(c), 1e-300)
+        candidates = np.flatnonzero(np.abs(r) > OUTLIER_SIGMAS * scale)
+        if not len(candidates):
+            continue
+        runs = np.split(candidates, np.flatnonzero(np.diff(candidates) > 1) + 1)
+        for run in runs:
+            k = int(run[np.argmax(np.abs(r[run]))])
+            found.append((k + 2, j, float(prediction[k])))
+    if len(found) > MAX_OUTLIER_SHARE * x.size:
+        return []
+    return found
 
 
 # ---------------------------------------------------------------------- force balance
@@ -633,6 +672,13 @@ def identify(record: Record, model: Chain, method: str = "robust", *, check: boo
     if not check:
         return run(record, options)
     check_record(record, model)
+    outliers = isolated_outliers(record.x)
+    if outliers:  # excluded: replaced by what their neighbours give, and reported
+        x = record.x.copy()
+        for i, j, value in outliers:
+            x[i, j] = value
+        measured, record = record, Record(record.t, record.f, x, source=record.source,
+                                          sampling_rtol=record.sampling_rtol)
     opts = dict(options)
     # the robust method's window from the data, in natural periods (never the default
     # seconds, which belong to the paper's 3.6 Hz plant): first from the displacement's
@@ -677,6 +723,14 @@ def identify(record: Record, model: Chain, method: str = "robust", *, check: boo
     result.assessment = assess(record, model, result.estimates, rerun, max_uncertainty=max_uncertainty,
                                upsampled=factor, with_offsets=with_offsets, at_half_rate=at_half_rate,
                                progress=progress)
+    if outliers:
+        listed = ", ".join(f"x{j + 1} = {measured.x[i, j]:.4g} at t = {measured.t[i]:.6g} s" for i, j, _ in outliers[:5])
+        result.assessment.notes.insert(0, f"{len(outliers)} isolated outlier{'s' if len(outliers) > 1 else ''} in "
+                                          f"the displacement excluded (replaced by the cubic through the "
+                                          f"neighbouring samples): {listed}" + (" ..." if len(outliers) > 5 else ""))
+        result.assessment.fit["outliers"] = [{"column": f"x{j + 1}", "t": float(measured.t[i]),
+                                              "value": float(measured.x[i, j]), "replaced_by": value}
+                                             for i, j, value in outliers]
     result.parameters = result.assessment.published(result.estimates)
     return result
 
