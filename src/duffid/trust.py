@@ -284,6 +284,8 @@ def natural_frequency(model: Chain, canonical: Mapping[str, float], *, lowest: b
 #: through its four neighbours is an isolated outlier (a spike, a dropout to 0, a wrapped
 #: encoder count).
 OUTLIER_SIGMAS = 12.0
+#: The outlier test's scale is never below this share of the column's range.
+OUTLIER_RANGE = 1e-4
 #: More outliers than this share of the samples are not isolated glitches: none is removed.
 MAX_OUTLIER_SHARE = 0.001
 
@@ -294,7 +296,7 @@ def isolated_outliers(x: np.ndarray) -> list[tuple[int, int, float]]:
     Each interior sample is compared with the cubic through its two neighbours on each side,
     ``(-x[i-2] + 4 x[i-1] + 4 x[i+1] - x[i+2]) / 6``; a sample further from it than
     :data:`OUTLIER_SIGMAS` robust standard deviations of those differences (never less than
-    the quantisation step) is an outlier; of a run of neighbouring candidates (a spike also
+    the quantisation step nor :data:`OUTLIER_RANGE` of the column's range) is an outlier; of a run of neighbouring candidates (a spike also
     moves its neighbours' predictions) the largest is taken. Empty when more than
     :data:`MAX_OUTLIER_SHARE` of the samples qualify (then they are not isolated glitches).
     """
@@ -306,7 +308,10 @@ def isolated_outliers(x: np.ndarray) -> list[tuple[int, int, float]]:
         c = x[:, j]
         prediction = (-c[:-4] + 4.0 * c[1:-3] + 4.0 * c[3:-1] - c[4:]) / 6.0
         r = c[2:-2] - prediction
-        scale = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), _quantisation_step(c), 1e-300)
+        # never below the quantisation step, nor 1e-4 of the column's range: a noise-free record's
+        # own smooth differences would otherwise pass for glitches where it moves fastest
+        scale = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), _quantisation_step(c),
+                    OUTLIER_RANGE * float(np.ptp(c)), 1e-300)
         candidates = np.flatnonzero(np.abs(r) > OUTLIER_SIGMAS * scale)
         if not len(candidates):
             continue
