@@ -108,3 +108,11 @@ def test_cli_flag_errors_use_flag_names(tmp_path, record, args, message):
     assert proc.returncode != 0
     assert message in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_cli_says_which_scale_a_unit_needs(tmp_path, record):
+    path = _logger_file(tmp_path / "log.csv", record)
+    proc = _cli("identify", path, "--columns", "t=time_s,f=force_N,x=disp_mm", "--delimiter", ";")
+    assert proc.returncode == 2
+    assert "column 'disp_mm' (x) is in 'mm' (units row, line 4)" in proc.stderr
+    assert proc.stderr.rstrip().endswith("scale it into m: --scale x=0.001")

@@ -216,6 +216,9 @@ def _read_record(args: argparse.Namespace, path: Path | None = None) -> Record:
                                delimiter=args.delimiter, scale=args.scale, fs=args.fs)
     except RecordError as exc:  # say which flags fix it
         text = str(exc)
+        known = re.search(r"\(multiply (\w+) by ([^)]+)\)$", text)
+        if known:
+            raise RecordError(f"{text[:known.start()].rstrip()}: --scale {known.group(1)}={known.group(2)}") from None
         for needle, flag in (("scale it into", " with --scale ROLE=FACTOR"),
                              ("give the sampling rate", " (--fs HZ, or --columns t=...)"),
                              ("sampling rate were both given", " (drop --fs or the t in --columns)"),

@@ -911,6 +911,10 @@ def _load_mat(source: str) -> dict[str, Any]:
 #: SI units of each role; a units row naming another unit needs a scale factor.
 SI_UNITS = {"t": ("s",), "f": ("N", "V"), "x": ("m", "C")}
 _ROLE_RE = re.compile(r"([tfx])([1-9][0-9]*)?", re.ASCII)
+#: Factors into SI of the non-SI units a units row commonly names (suggested, never applied).
+_UNIT_FACTORS = {"ms": 1e-3, "us": 1e-6, "µs": 1e-6, "mm": 1e-3, "cm": 1e-2, "um": 1e-6, "µm": 1e-6,
+                 "nm": 1e-9, "kN": 1e3, "mN": 1e-3, "mV": 1e-3, "kV": 1e3, "mC": 1e-3, "uC": 1e-6,
+                 "µC": 1e-6, "nC": 1e-9}
 
 
 def _role_family(role: str) -> str:
@@ -1005,10 +1009,11 @@ def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Map
                 fam = _role_family(role)
                 factor = scale.get(role, scale.get(fam))
                 if factor is None and unit not in SI_UNITS[fam]:
+                    known = _UNIT_FACTORS.get(unit)
                     raise RecordError(
                         f"{source}: column {names[index[role]]!r} ({role}) is in {unit!r} (units row, line "
                         f"{units_line}): duffid needs SI units ({' or '.join(SI_UNITS[fam])}); scale it "
-                        f"into {SI_UNITS[fam][0]}")
+                        f"into {SI_UNITS[fam][0]}" + (f" (multiply {role} by {known:g})" if known else ""))
             pos += 1
     rows: list[list[float]] = []
     linenos: list[int] = []
