@@ -223,3 +223,14 @@ def test_clean_records_have_no_outliers(lab, case_a, case_b_exact):
     assert isolated_outliers(case_a.x) == []  # quantised by the encoder
     assert isolated_outliers(measure(case_b_exact, snr_db=30, seed=1).x) == []
     assert isolated_outliers(simulate(Duffing2(), Step(6.0), 1.0, 1e-3).x) == []
+
+
+def test_without_the_c_sources_identify_falls_back_to_python(monkeypatch, tmp_path, lab):
+    monkeypatch.setenv("DUFFID_C_SOURCES", str(tmp_path / "missing"))
+    monkeypatch.setenv("DUFFID_BUILD_DIR", str(tmp_path / "build"))
+    from duffid.trust import run_estimator
+
+    python = run_estimator(lab, Duffing1(), engine="python")
+    assert run_estimator(lab, Duffing1()).estimates == python.estimates
+    with pytest.raises(FileNotFoundError, match="C sources"):
+        run_estimator(lab, Duffing1(), engine="c")

@@ -573,7 +573,9 @@ def run_estimator(record: Record, model: Chain, method: str = "robust", *, engin
             if core is None:
                 raise ValueError(f"the C core does not run the model {model.name}")
             identifier = CIdentifier(core, record.dt, method, **options)
-        except (CompilerNotFoundError, CBuildError, ValueError):
+        except (CompilerNotFoundError, CBuildError, ValueError, OSError):
+            # no compiler, no C sources (an installed wheel without them), or a model or
+            # option the C core does not take: the Python identifier gives the same answers
             if engine == "c":
                 raise
         else:
