@@ -917,10 +917,6 @@ _UNIT_FACTORS = {"ms": 1e-3, "us": 1e-6, "µs": 1e-6, "mm": 1e-3, "cm": 1e-2, "u
                  "µC": 1e-6, "nC": 1e-9}
 
 
-def _role_family(role: str) -> str:
-    return role[0]
-
-
 def _check_roles(columns: Mapping[str, str | int], source: str) -> tuple[str | None, list[str], list[str]]:
     """Validate the role names; return the time role and the force and displacement roles in order."""
     for role in columns:
@@ -1006,7 +1002,7 @@ def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Map
             units = {role: fields[index[role]] for role in roles}
             units_line = pos + 1
             for role, unit in units.items():
-                fam = _role_family(role)
+                fam = role[0]
                 factor = scale.get(role, scale.get(fam))
                 if factor is None and unit not in SI_UNITS[fam]:
                     known = _UNIT_FACTORS.get(unit)
@@ -1037,7 +1033,7 @@ def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Map
         raise RecordError(f"{source}: {'no data rows' if not rows else 'only 1 data row'}; a record needs at least 2 samples")
     data = np.array(rows, dtype=np.float64)
     for j, role in enumerate(roles):
-        factor = scale.get(role, scale.get(_role_family(role), 1.0))
+        factor = scale.get(role, scale.get(role[0], 1.0))
         if not (np.isfinite(factor) and factor != 0):
             raise RecordError(f"{source}: the scale of {role} must be a finite non-zero number, got {factor!r}")
         data[:, j] *= factor

@@ -231,7 +231,7 @@ def upsampling_factor(natural_frequency: float, fs: float,
 
 
 def upsampling_needed(record: Record, estimates: Mapping[str, float] | None = None,
-                      model: Chain | None = None) -> int:
+                      model: Chain | None = None, *, content: float | None = None) -> int:
     """Upsampling factor the record needs before identification (1: none).
 
     When the record has fewer than :data:`SAMPLES_PER_PERIOD` samples per period of the
@@ -239,7 +239,8 @@ def upsampling_needed(record: Record, estimates: Mapping[str, float] | None = No
     it, when ``estimates`` and ``model`` are given), the factor that brings it to
     :data:`SAMPLES_PER_PERIOD` (the Silverbox rule).
     """
-    content = content_frequency(record.x, record.dt)
+    if content is None:
+        content = content_frequency(record.x, record.dt)
     natural = math.nan
     if estimates is not None and model is not None:
         canonical = _canonical(model, estimates)
@@ -698,10 +699,10 @@ def identify(record: Record, model: Chain, method: str = "robust", *, check: boo
     if auto and "min_time" not in options:  # 10 ms is 20 periods of a 2 kHz resonator
         opts["min_time"] = min(check_options(method, {})["min_time"], 0.5 * record.duration,
                                0.5 * periods / content if np.isfinite(content) and content > 0 else math.inf)
-    factor = upsampling_needed(record)
+    factor = upsampling_needed(record, content=content)
     result = run(upsampled(record, factor), opts)
     slowest = natural_frequency(model, _canonical(model, result.estimates) or {}, lowest=True)
-    again = upsampling_needed(record, result.estimates, model)
+    again = upsampling_needed(record, result.estimates, model, content=content)
     window = opts.get("window")
     if auto and np.isfinite(slowest) and slowest > 0:  # periods of the slowest mode
         window = _data_window(record, slowest, periods)
@@ -832,9 +833,9 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
             uncertainty[k] = math.hypot(uncertainty[k], bias)
         fit["half_rate_change"] = {k: (float(coarse.get(k, math.nan)) - values[k]) / values[k]
                                    for k in names if values[k]}
-    offset_moved = _offset_check(values, uncertainty, with_offsets if _force_varies(record) else None, notes, fit,
-                                 max_uncertainty)
-    if with_offsets is not None and not _force_varies(record):
+    varies = _force_varies(record)
+    offset_moved = _offset_check(values, uncertainty, with_offsets if varies else None, notes, fit, max_uncertainty)
+    if with_offsets is not None and not varies:
         notes.append("the force hardly varies over the record (e.g. a step from the first sample): the record "
                      "cannot separate a constant force or displacement offset from the stiffness, so the "
                      "values assume that the sensors read zero at rest with no force (a record with rest "
