@@ -13,7 +13,7 @@ import numpy as np
 
 from . import cosim_config, modelica, silverbox
 from .identification import METHODS
-from .trust import identify
+from .trust import OFFSETS, identify
 from .models import model_from_name
 from .record import Record, RecordError
 from .signals import from_spec
@@ -100,13 +100,15 @@ def _add_model_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--n-dof", type=int, default=None, help="chain: number of masses (default: from the file)")
     p.add_argument("--orders", default="1,3", help="chain: stiffness orders, e.g. 1,2,3 (default 1,3)")
     p.add_argument("--coulomb", action="store_true", help="chain: Coulomb friction terms")
-    p.add_argument("--offset", action="store_true", help="add an unknown constant force per DOF (real data)")
+    p.add_argument("--offset", nargs="?", const="force", default=None, choices=tuple(OFFSETS), metavar="KIND",
+                   help="identify sensor offsets (real data): " + "; ".join(f"{k}: {v}" for k, v in OFFSETS.items())
+                        + ". The offsets found are reported")
 
 
-def _model(args: argparse.Namespace, n_dof: int | None = None):
+def _model(args: argparse.Namespace, n_dof: int | None = None, *, offset: bool = False):
     orders = [int(o) for o in args.orders.split(",") if o.strip()]
     return model_from_name(args.model, args.n_dof or n_dof or 1, orders=orders,
-                           coulomb=args.coulomb, offset=args.offset)
+                           coulomb=args.coulomb, offset=offset)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -258,10 +260,13 @@ def _identify(args: argparse.Namespace) -> int:
     method = args.method or ("paper" if args.equation else "robust")
     options = _method_options(args, method)
     if args.equation is not None:
+        if args.offset is not None:
+            raise ValueError("--offset applies to the named models; with --equation write the offset into the "
+                             "equation (e.g. '... + c = f', or x - x0 in place of x)")
         from .symbolic import identify_equation
         result = identify_equation(record, args.equation, method, **options)
     else:
-        result = identify(record, _model(args, record.n_dof), method, **options)
+        result = identify(record, _model(args, record.n_dof), method, offsets=args.offset, **options)
     if args.plot is not None:
         from .plots import plot_estimates
         plot_estimates(result, args.plot)
@@ -297,6 +302,16 @@ def _result_text(result: Any) -> str:
         lines.append(f"  fit: the identified model misses the measured displacement by {100 * sim:.3g} % RMS "
                      f"(measurement noise {100 * noise:.2g} %); {fit['samples_per_period']:.3g} samples per period"
                      + (f" after upsampling x{fit['upsampled']}" if fit["upsampled"] > 1 else ""))
+    offsets = fit.get("offsets") or {}
+    if offsets:
+        shown = []
+        for name, entry in offsets.items():
+            value, error = entry.get("value"), entry.get("standard_error")
+            text = f"{value:.6g}" if value is not None and np.isfinite(value) else "-"
+            if error is not None and np.isfinite(error):
+                text += f" (standard error {error:.2g})"
+            shown.append(f"{name} = {text} {entry.get('status', '')}")
+        lines.append("  offsets (what the sensors read at zero force and displacement): " + ", ".join(shown))
     for note in a.notes:
         lines.append(f"  - {note}")
     return "\n".join(lines)
@@ -349,7 +364,10 @@ def _build_fmus(args: argparse.Namespace) -> int:
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    model = _model(args)
+    if args.offset not in (None, "force"):
+        raise ValueError(f"--offset {args.offset} is for identify: a simulated record has no sensor offsets "
+                         f"(add one to the written x column)")
+    model = _model(args, offset=args.offset is not None)
     values = {}
     for item in args.param:
         name, sep, text = item.partition("=")
@@ -396,9 +414,21 @@ def _paper_cases(args: argparse.Namespace) -> int:
     return 0
 
 
+def _bare_offset(argv: Sequence[str]) -> list[str]:
+    """``argv`` with a bare ``--offset`` written before an existing file (``--offset rec.csv``, as
+    scripts wrote it before the flag took a KIND) spelled ``--offset=force``."""
+    out = list(argv)
+    for i, item in enumerate(out[:-1]):
+        following = out[i + 1]
+        if item == "--offset" and following not in OFFSETS and not following.startswith("-") \
+                and Path(following).exists():
+            out[i] = "--offset=force"
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``duffid`` command; returns the exit status."""
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_args(_bare_offset(sys.argv[1:] if argv is None else argv))
     handlers = {"identify": _identify, "simulate": _simulate, "nonlinearity": _nonlinearity,
                 "silverbox": silverbox.run_cli, "build-fmus": _build_fmus, "demo": _demo,
                 "cosim": cosim_config.run_cli,

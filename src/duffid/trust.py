@@ -40,6 +40,34 @@ Status of each parameter (:data:`STATUSES`):
     explain the record;
 ``lost``
     (online estimators) it was published earlier in the run and is no longer trustworthy.
+
+Sensor offsets (``identify(..., offsets=...)``, CLI ``--offset``, :data:`OFFSETS`):
+
+``force``
+    an unknown constant force per DOF, ``c1``, ``c2``, ... on the left of the equation
+    (``m x'' + ... + c1 = f``: the force sensor reads ``c1`` at zero force);
+``displacement``
+    the displacement sensor reads ``x_meas = x + x0`` (one-DOF models with a cubic spring:
+    :class:`~duffid.models.Duffing1`, :class:`~duffid.models.DuffingCircuit`, a one-DOF
+    chain of orders 1, 3). In the measured coordinate the spring becomes
+    ``a1 x + a2 x^2 + a3 x^3`` plus a constant, so the chain of orders 1, 2, 3 with a
+    constant is identified and mapped back (:func:`displacement_offset_values`):
+    ``x0 = -a2 / (3 a3)``, ``kp = a3``, ``k = a1 - 3 a3 x0^2`` and the force bias
+    ``c1 = constant + k x0 + kp x0^3``. The bootstrap repeats the identification and the
+    mapping, so the stated uncertainties are those of the mapped values, and the simulation
+    check compares the physical model with the measured displacement minus ``x0``. Only the
+    cubic term separates ``x0`` from a force bias (without it both are a constant force):
+    when the cubic spring carries less than :data:`MIN_SHARE` of the force balance, ``x0``
+    is not published and only the combined constant force ``c1`` is;
+``both``
+    both, the force bias reported as a parameter too (with ``displacement`` it is
+    estimated as well, since a force bias cannot be excluded, and reported in
+    ``fit["offsets"]``).
+
+An offset is published when its relative standard error is at most ``max_uncertainty``
+or its standard error is at most ``max_uncertainty`` of the signal's spread (the
+displacement's standard deviation for ``x0``, the force's RMS for ``c``): an offset
+that is zero is then published as zero within its standard error.
 """
 from __future__ import annotations
 
@@ -58,6 +86,7 @@ __all__ = [
     "identify", "run_estimator", "ENGINES", "STATUSES", "SAMPLES_PER_PERIOD", "SIMULATION_TOLERANCE", "MIN_SHARE", "REPLICATES",
     "Assessment", "assess", "noise_level", "content_frequency", "samples_per_period", "upsampling_factor",
     "upsampling_needed", "upsampled", "natural_frequency", "term_shares", "isolated_outliers",
+    "OFFSETS", "DISPLACEMENT_OFFSET", "displacement_offset_values",
 ]
 
 #: Status of a parameter, see the module documentation.
@@ -87,6 +116,16 @@ UNCERTAINTY_FLOOR = 1e-5
 #: 40, 2e-4 at 20).
 BALANCE_FLOOR = 1e-5
 QUADRATURE_BIAS = 50.0
+#: Sensor offsets :func:`identify` can model (``offsets=``, CLI ``--offset KIND``), with the
+#: words the CLI's help shows; see the module documentation.
+OFFSETS: dict[str, str] = {
+    "force": "a constant force bias per DOF (c1, c2, ...; the default of a bare --offset)",
+    "displacement": "a displacement-sensor offset x0, x_meas = x + x0 (one DOF with a cubic spring: "
+                    "duffing1, circuit, chain --n-dof 1 --orders 1,3)",
+    "both": "a force bias and a displacement-sensor offset",
+}
+#: Name of the displacement sensor's offset among the parameters (``x_meas = x + x0``).
+DISPLACEMENT_OFFSET = "x0"
 
 
 @dataclass
@@ -106,7 +145,10 @@ class Assessment:
         over the DOFs), ``noise_nrmse`` (the part the measurement noise explains),
         ``explained`` (bool), ``samples_per_period``, ``content_hz`` (highest frequency in
         the displacement), ``natural_hz`` (identified), ``upsampled`` (factor applied
-        before identification, 1 if none), ``noise`` (displacement noise level per DOF).
+        before identification, 1 if none), ``noise`` (displacement noise level per DOF),
+        and when offsets are modelled ``offsets``: per offset (``c1``, ..., ``x0``) its
+        ``value`` (None unless published), ``standard_error`` (absolute, in the parameter's
+        unit) and ``status``.
     notes : list of str
         What was found, in plain words (what is missing when a value is not published).
     """
@@ -137,6 +179,8 @@ class Assessment:
                 return float(v) if np.isfinite(v) else None
             if isinstance(v, (list, tuple, np.ndarray)):
                 return [clean(u) for u in v]
+            if isinstance(v, Mapping):
+                return {k: clean(u) for k, u in v.items()}
             return v
         return {
             "status": dict(self.status),
@@ -540,9 +584,11 @@ def _offset_check(values: Mapping[str, float], uncertainty: Mapping[str, float],
     if moved:
         shown = ", ".join(f"{k} {100 * changes[k]:+.3g} %" for k in sorted(moved, key=list(values).index))
         found = ", ".join(f"{k} = {v:.4g}" for k, v in offsets.items())
+        hint = ("--offset displacement (or --offset both)" if DISPLACEMENT_OFFSET in offsets
+                else "--offset KIND (" + ", ".join(OFFSETS) + ")")
         notes.append(f"with a constant offset allowed in the model the values change beyond their uncertainty "
                      f"({shown}; offsets {found}): the record shows a sensor offset or a bias; identify "
-                     f"with --offset")
+                     f"with {hint}")
     return moved
 
 
@@ -635,8 +681,9 @@ def _renamed(result: Identification, model: Chain) -> Identification:
     return result
 
 
-def identify(record: Record, model: Chain, method: str = "robust", *, check: bool = True,
-             engine: str = "auto", progress: bool | None = None, **options: Any) -> Identification:
+def identify(record: Record, model: Chain, method: str = "robust", *, offsets: str | None = None,
+             check: bool = True, engine: str = "auto", progress: bool | None = None,
+             **options: Any) -> Identification:
     """Identify ``model``'s parameters from a record, publishing only what the record supports.
 
     The estimator (:func:`duffid.identification.estimate`: the online methods sample by
@@ -664,18 +711,53 @@ def identify(record: Record, model: Chain, method: str = "robust", *, check: boo
     method : str
         ``robust`` (default), ``paper`` or a buffered basis (see
         :data:`duffid.identification.METHODS`).
+    offsets : {None, "force", "displacement", "both"}
+        Sensor offsets to identify (:data:`OFFSETS`, see the module documentation).
+        None: those of ``model`` (a model built with ``offset=True`` has a force bias,
+        ``"force"``). ``"force"`` adds an unknown constant force per DOF (``c1``, ...);
+        ``"displacement"`` a displacement-sensor offset ``x0`` (``x_meas = x + x0``, one-DOF
+        models with a cubic spring), reported as the parameter ``x0``; ``"both"`` both, the
+        force bias reported as ``c1``. The offsets found, with their standard errors, are in
+        ``assessment.fit["offsets"]``. Without a visibly excited cubic term a displacement
+        offset cannot be told from a force bias: ``x0`` is then not published and the notes
+        say so.
     check : bool
-        False: the estimator's run alone (:func:`run_estimator`), for comparing estimators;
-        its values are not checked and must not be published.
+        False: the estimator's run alone (:func:`run_estimator`, with the offsets mapped as
+        above), for comparing estimators; its values are not checked and must not be
+        published.
     engine : {"auto", "c", "python"}
-        Where the online methods run (:func:`run_estimator`).
+        Where the online methods run (:func:`run_estimator`; a displacement offset needs the
+        x^2 term, which only the Python identifier runs).
     progress : bool or None
         Progress bar on stderr while the checks run (None: for long records on a terminal).
     **options
         Method options (see :class:`~duffid.identification.OnlineIdentifier`).
+
+    Raises
+    ------
+    ValueError
+        An unknown ``offsets`` kind, or a displacement offset for a model that cannot carry
+        it (the message names the models that can).
     """
+    kind = _offset_kind(model, offsets)
+    physical = _with_offsets(model) if kind is not None else model
+    # a displacement offset: the chain of orders (1, 2, 3) with a constant is identified and
+    # mapped back; `shifted` is cleared when the record cannot separate x0 from a force bias
+    mode = {"shifted": kind in ("displacement", "both")}
+    extended = _displacement_chain(physical) if mode["shifted"] else None
+    if extended is not None and engine == "c" and method in ONLINE_METHODS:
+        raise ValueError("the C core runs stiffness orders 1 and 3 only; a displacement offset needs the x^2 "
+                         "term: use engine 'auto' or 'python'")
+
+    measured_coordinate: dict[str, float] = {}  # the last run's values of `extended`
+
     def run(rec: Record, opts: Mapping[str, Any]) -> Identification:
-        return run_estimator(rec, model, method, engine=engine, **opts)
+        if mode["shifted"] and extended is not None:
+            raw = run_estimator(rec, extended, method, engine="python", **opts)
+            measured_coordinate.clear()
+            measured_coordinate.update(raw.estimates)
+            return _mapped(raw, physical)
+        return run_estimator(rec, physical, method, engine=engine, **opts)
 
     if not check:
         return run(record, options)
@@ -701,8 +783,8 @@ def identify(record: Record, model: Chain, method: str = "robust", *, check: boo
                                0.5 * periods / content if np.isfinite(content) and content > 0 else math.inf)
     factor = upsampling_needed(record, content=content)
     result = run(upsampled(record, factor), opts)
-    slowest = natural_frequency(model, _canonical(model, result.estimates) or {}, lowest=True)
-    again = upsampling_needed(record, result.estimates, model, content=content)
+    slowest = natural_frequency(physical, _canonical(physical, result.estimates) or {}, lowest=True)
+    again = upsampling_needed(record, result.estimates, physical, content=content)
     window = opts.get("window")
     if auto and np.isfinite(slowest) and slowest > 0:  # periods of the slowest mode
         window = _data_window(record, slowest, periods)
@@ -711,26 +793,42 @@ def identify(record: Record, model: Chain, method: str = "robust", *, check: boo
         if window is not None:
             opts["window"] = window
         result = run(upsampled(record, factor), opts)
+    cubic_share = math.nan
+    if mode["shifted"] and extended is not None:
+        cubic_share = _cubic_share(record, measured_coordinate)
+        if not cubic_share >= MIN_SHARE:  # x0 is a constant force like a force bias: not separable
+            mode["shifted"] = False
+            result = run(upsampled(record, factor), opts)
     max_uncertainty = float(opts.get("max_uncertainty", 0.01))
 
     def rerun(noisy: Record) -> Mapping[str, float]:
         return run(upsampled(noisy, factor), opts).estimates
 
     with_offsets = None
-    if not model.offset:
+    if not physical.offset:
         offset_model = _with_offsets(model)
 
         def with_offsets() -> Mapping[str, float]:
             return run_estimator(upsampled(record, factor), offset_model, method, engine=engine, **opts).estimates
+    elif kind == "force" and _carries_displacement_offset(physical):
+        # a force bias is modelled: check that a displacement offset would not move the values
+        def with_offsets() -> Mapping[str, float]:
+            raw = run_estimator(upsampled(record, factor), _displacement_chain(physical), method,
+                                engine="python", **opts).estimates
+            if not _cubic_share(record, raw) >= MIN_SHARE:
+                return dict(result.estimates)  # without the cubic, x0 is the force bias already modelled
+            return displacement_offset_values(physical, raw)
 
     def at_half_rate() -> Mapping[str, float]:
         fine = upsampled(record, factor)
         return run(Record(fine.t[::2], fine.f[::2], fine.x[::2], source=fine.source,
                           sampling_rtol=fine.sampling_rtol), opts).estimates
 
-    result.assessment = assess(record, model, result.estimates, rerun, max_uncertainty=max_uncertainty,
+    result.assessment = assess(record, physical, result.estimates, rerun, max_uncertainty=max_uncertainty,
                                upsampled=factor, with_offsets=with_offsets, at_half_rate=at_half_rate,
-                               progress=progress)
+                               progress=progress, displacement_offset=mode["shifted"])
+    if kind in ("displacement", "both"):
+        _report_displacement_offset(result, kind, separable=mode["shifted"], cubic_share=cubic_share)
     if outliers:
         listed = ", ".join(f"x{j + 1} = {measured.x[i, j]:.4g} at t = {measured.t[i]:.6g} s" for i, j, _ in outliers[:5])
         result.assessment.notes.insert(0, f"{len(outliers)} isolated outlier{'s' if len(outliers) > 1 else ''} in "
@@ -748,7 +846,7 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
            replicates: int = REPLICATES, upsampled: int = 1, seed: int = 0,
            with_offsets: Callable[[], Mapping[str, float]] | None = None,
            at_half_rate: Callable[[], Mapping[str, float]] | None = None,
-           progress: bool | None = None) -> Assessment:
+           progress: bool | None = None, displacement_offset: bool = False) -> Assessment:
     """Decide which of ``estimates`` (public names) the record supports.
 
     Parameters
@@ -783,8 +881,19 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
         difference to ``estimates`` bounds the quadrature's bias, which is of first order in
         the sampling period where the force jumps (a step between two samples): it enters
         each stated uncertainty (added in quadrature to the noise's share).
+    displacement_offset : bool
+        ``estimates`` (and ``rerun``'s values) also hold :data:`DISPLACEMENT_OFFSET`, the
+        displacement sensor's offset (``x_meas = x + x0``): the model is simulated against
+        the measured displacement minus ``x0``, and ``x0`` is assessed like the parameters
+        (its share is that of the cubic term, the only one that separates it from a force
+        bias).
+
+    Offsets (``c1``, ... of a model with ``offset``, and ``x0``) are published when their
+    relative standard error is at most ``max_uncertainty`` or their standard error at most
+    ``max_uncertainty`` of the signal's spread (displacement standard deviation, force RMS);
+    ``fit["offsets"]`` lists them with their absolute standard errors.
     """
-    names = list(model.parameters)
+    names = list(model.parameters) + ([DISPLACEMENT_OFFSET] if displacement_offset else [])
     values = {k: float(estimates.get(k, math.nan)) for k in names}
     noise = noise_level(record.x)
     content = content_frequency(record.x, record.dt, noise=noise)
@@ -813,10 +922,16 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
                      "support this model (check the columns, units and the model)")
         fit.update({"simulation_nrmse": math.nan, "noise_nrmse": math.nan, "explained": False})
         return Assessment(status, uncertainty, share, fit, notes)
-    sim_fit, simulated, problem = _simulation_fit(record, model, canonical, natural, noise)
+    shift = values.get(DISPLACEMENT_OFFSET, 0.0) if displacement_offset else 0.0
+    physical = record if shift == 0.0 else Record(record.t, record.f, record.x - shift, source=record.source,
+                                                  sampling_rtol=record.sampling_rtol)
+    sim_fit, simulated, problem = _simulation_fit(physical, model, canonical, natural, noise)
     fit.update(sim_fit)
     if simulated is not None:
-        share = _public_shares(model, term_shares(model, canonical, simulated, record.f, record.dt))
+        shares = term_shares(model, canonical, simulated, record.f, record.dt)
+        share = {**share, **_public_shares(model, shares)}
+        if displacement_offset:  # only the cubic term tells x0 from a force bias
+            share[DISPLACEMENT_OFFSET] = shares.get(f"k1_{max(model.orders)}", math.nan)
     if problem is not None:
         notes.append(problem)
         return Assessment(status, uncertainty, share, fit, notes)
@@ -835,22 +950,35 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
                                    for k in names if values[k]}
     varies = _force_varies(record)
     offset_moved = _offset_check(values, uncertainty, with_offsets if varies else None, notes, fit, max_uncertainty)
-    if with_offsets is not None and not varies:
+    if with_offsets is not None and not varies and model.offset:
+        notes.append("the force hardly varies over the record (e.g. a step from the first sample): the record "
+                     "cannot check for a displacement-sensor offset, so the values assume that the displacement "
+                     "sensor reads zero at rest with no force")
+    elif with_offsets is not None and not varies:
         notes.append("the force hardly varies over the record (e.g. a step from the first sample): the record "
                      "cannot separate a constant force or displacement offset from the stiffness, so the "
                      "values assume that the sensors read zero at rest with no force (a record with rest "
                      "before the step, or a varying force, lets duffid check it)")
+    scales = _offset_scales(record, model, names)
     for k in names:
-        if uncertainty[k] <= max_uncertainty and k not in offset_moved:
+        determined = uncertainty[k] <= max_uncertainty or (
+            k in scales and uncertainty[k] * abs(values[k]) <= max_uncertainty * scales[k])
+        if determined and k not in offset_moved:
             status[k] = "published"
-        elif np.isfinite(share[k]) and share[k] < MIN_SHARE:
+        elif np.isfinite(share[k]) and share[k] < MIN_SHARE and (k not in scales or k == DISPLACEMENT_OFFSET):
             status[k] = "not excited"
-    weak = [k for k in names if status[k] == "not excited"]
+    weak = [k for k in names if status[k] == "not excited" and k != DISPLACEMENT_OFFSET]
     if weak:
         notes.append(f"{', '.join(weak)}: the term carries less than {100 * MIN_SHARE:.0f} % of the force "
                      f"balance in this record (" + ", ".join(f"{k} {100 * share[k]:.2g} %" for k in weak)
                      + "); a larger amplitude or a richer excitation would show it")
-    unsure = [k for k in names if status[k] == "uncertain"]
+    if status.get(DISPLACEMENT_OFFSET) == "not excited":
+        notes.append(_inseparable_note(share[DISPLACEMENT_OFFSET]))
+    if scales:
+        fit["offsets"] = {k: {"value": values[k] if status[k] == "published" else math.nan,
+                              "standard_error": uncertainty[k] * abs(values[k]), "status": status[k]}
+                          for k in scales}
+    unsure = [k for k in names if status[k] == "uncertain" and k not in offset_moved]
     if unsure:
         notes.append(f"{', '.join(unsure)}: relative standard error "
                      + ", ".join(f"{k} {100 * uncertainty[k]:.2g} %" for k in unsure)
@@ -863,6 +991,8 @@ def _with_offsets(model: Chain) -> Chain:
     """``model`` with an unknown constant force on each DOF (``c1``, ``c2``, ...)."""
     import dataclasses
 
+    if model.offset:
+        return model
     if type(model) is Chain:
         return dataclasses.replace(model, offset=True)
     return type(model)(**model.parameters, offset=True)  # the named models (Duffing1, ...)
@@ -873,6 +1003,165 @@ def _canonical(model: Chain, public: Mapping[str, float]) -> dict[str, float] | 
     from .refine import canonical_from_public
 
     try:
-        return canonical_from_public(model, public)
+        return canonical_from_public(model, {k: v for k, v in public.items() if k != DISPLACEMENT_OFFSET})
     except (ValueError, KeyError, ZeroDivisionError):
         return None
+
+
+# ---------------------------------------------------------------------- sensor offsets
+def _offset_kind(model: Chain, offsets: str | None) -> str | None:
+    """The offsets to identify: ``offsets`` checked, or those of ``model`` (None: none)."""
+    if offsets is None:
+        return "force" if model.offset else None
+    if offsets not in OFFSETS:
+        raise ValueError(f"offsets must be one of {', '.join(OFFSETS)} (or None), got {offsets!r}")
+    if offsets == "displacement" and model.offset:
+        return "both"  # the model itself carries a force bias
+    return offsets
+
+
+def _carries_displacement_offset(model: Chain) -> bool:
+    """Whether a displacement offset of ``model`` can be identified (one DOF, orders 1 and 3)."""
+    return model.n_dof == 1 and tuple(model.orders or ()) == (1, 3)
+
+
+def _displacement_chain(model: Chain) -> Chain:
+    """The chain identified for a displacement offset: ``model``'s (one DOF, orders 1 and 3)
+    with stiffness orders 1, 2, 3 and a constant force."""
+    if not _carries_displacement_offset(model):
+        raise ValueError(f"a displacement-sensor offset is identified for one-DOF models with a linear and a "
+                         f"cubic spring (duffing1, circuit, chain --n-dof 1 --orders 1,3), not {model.name} with "
+                         f"{model.n_dof} DOF and stiffness orders {', '.join(map(str, model.orders or ()))}; "
+                         f"use --offset force (a constant force per DOF)")
+    canonical = model.canonical_parameters()
+    return Chain(masses=(canonical["m1"],), damping=(canonical["b1"],),
+                 stiffness=({1: canonical["k1_1"], 2: 0.0, 3: canonical["k1_3"]},),
+                 coulomb=model.coulomb, forced=model.forced, offset=True, orders=(1, 2, 3))
+
+
+def displacement_offset_values(model: Chain, extended: Mapping[str, float]) -> dict[str, float]:
+    """``model``'s parameters and the displacement offset from the measured-coordinate chain.
+
+    With ``x_meas = x + x0``, ``m x'' + b x' + k x + kp x^3 + c1 = f`` reads
+    ``m x_meas'' + b x_meas' + a1 x_meas + a2 x_meas^2 + a3 x_meas^3 + a0 = f`` with
+    ``a3 = kp``, ``a2 = -3 kp x0``, ``a1 = k + 3 kp x0^2`` and ``a0 = c1 - k x0 - kp x0^3``;
+    inverted here: ``x0 = -a2 / (3 a3)``, ``kp = a3``, ``k = a1 - 3 a3 x0^2``,
+    ``c1 = a0 + k x0 + kp x0^3``.
+
+    Parameters
+    ----------
+    model : Chain
+        The physical model (one DOF, stiffness orders 1 and 3, with ``offset``).
+    extended : mapping
+        Canonical values ``m1, b1, k1_1, k1_2, k1_3, c1`` (and ``fc1``) of the chain of
+        orders 1, 2, 3 with a constant.
+
+    Returns
+    -------
+    dict
+        ``model``'s public parameters (``c1`` the force bias) and :data:`DISPLACEMENT_OFFSET`;
+        all NaN when ``a3`` is zero or a value is not finite (then ``x0`` is undefined).
+    """
+    a1, a2, a3, a0 = (float(extended[k]) for k in ("k1_1", "k1_2", "k1_3", "c1"))
+    names = list(model.parameters) + [DISPLACEMENT_OFFSET]
+    if not (a3 != 0.0 and all(np.isfinite(v) for v in extended.values())):
+        return {k: math.nan for k in names}
+    x0 = -a2 / (3.0 * a3)
+    k = a1 - 3.0 * a3 * x0**2
+    canonical = {k_: float(v) for k_, v in extended.items() if k_ != "k1_2"}
+    canonical.update({"k1_1": k, "k1_3": a3, "c1": a0 + k * x0 + a3 * x0**3})
+    out = model.from_canonical(canonical)
+    out[DISPLACEMENT_OFFSET] = x0
+    return out
+
+
+def _mapped(result: Identification, model: Chain) -> Identification:
+    """A run of :func:`_displacement_chain`'s chain under ``model``'s public names and ``x0``."""
+    names = list(result.history)
+    with np.errstate(all="ignore"):
+        rows = [displacement_offset_values(model, {k: result.history[k][i] for k in names})
+                for i in range(len(result.t))]
+        keys = list(model.parameters) + [DISPLACEMENT_OFFSET]
+        result.history = {k: np.array([row[k] for row in rows]) for k in keys}
+        raw = dict(result.estimates)
+        result.parameters = displacement_offset_values(model, result.parameters)
+        result.estimates = displacement_offset_values(model, raw)
+    result.model = model.name
+    return result
+
+
+def _cubic_share(record: Record, extended: Mapping[str, float]) -> float:
+    """Share of the cubic spring in the force balance, from the measured-coordinate chain's
+    values (:func:`displacement_offset_values`), without derivatives of the measured
+    displacement: the smaller of ``a3 x_meas^3`` and of ``kp (x_meas - x0)^3`` over the RMS of
+    the balance, whose inertia and damping part is what the force leaves to them (``f``
+    minus the spring and the constant). The first is small for a linear plant (whose ``x0``
+    is noise), the second when ``x0`` dwarfs the motion; NaN if undefined."""
+    try:
+        a1, a2, a3, a0 = (float(extended[k]) for k in ("k1_1", "k1_2", "k1_3", "c1"))
+    except KeyError:
+        return math.nan
+    if not (a3 != 0.0 and all(np.isfinite(v) for v in (a1, a2, a3, a0))):
+        return math.nan
+    xm, f = record.x[:, 0], record.f[:, 0]
+    rest = f - (a1 * xm + a2 * xm**2 + a3 * xm**3 + a0)
+    with np.errstate(all="ignore"):
+        measured = [a1 * xm, a2 * xm**2, a3 * xm**3, np.full_like(xm, a0)]
+        x0 = -a2 / (3.0 * a3)
+        k = a1 - 3.0 * a3 * x0**2
+        x = xm - x0
+        physical = [k * x, a3 * x**3, np.full_like(xm, a0 + k * x0 + a3 * x0**3)]
+        shares = []
+        for terms, cubic in ((measured, 2), (physical, 1)):
+            balance = float(np.mean(f**2) + np.mean(rest**2) + sum(np.mean(t**2) for t in terms))
+            shares.append(math.sqrt(float(np.mean(terms[cubic] ** 2)) / balance) if balance > 0 else math.nan)
+    return min(shares) if all(np.isfinite(shares)) else math.nan
+
+
+def _inseparable_note(share: float) -> str:
+    """Why ``x0`` is not published when the cubic spring is not excited."""
+    carries = (f"the cubic spring carries {100 * share:.2g} % of the force balance (less than "
+               f"{100 * MIN_SHARE:.0f} %)" if np.isfinite(share) else "the cubic spring's part of the force balance "
+               "could not be determined")
+    return (f"{DISPLACEMENT_OFFSET} is not published: {carries}; without a visibly nonlinear spring a "
+            f"displacement-sensor offset acts as a constant force k*{DISPLACEMENT_OFFSET}, like a force bias, and "
+            f"the record cannot separate the two: only their combined constant force c1 (= force bias - "
+            f"k*{DISPLACEMENT_OFFSET}) is determined (an amplitude large enough to show the cubic spring would "
+            f"separate them)")
+
+
+def _offset_scales(record: Record, model: Chain, names: list[str]) -> dict[str, float]:
+    """Spread of the signal each offset among ``names`` is judged against: the force's RMS
+    for ``c1``, ..., the displacement's standard deviation for ``x0``."""
+    out = {}
+    if model.offset:
+        rms = float(np.sqrt(np.mean(record.f**2)))
+        out.update({f"c{i + 1}": rms for i in range(model.n_dof) if f"c{i + 1}" in names})
+    if DISPLACEMENT_OFFSET in names:
+        out[DISPLACEMENT_OFFSET] = float(np.std(record.x[:, 0]))
+    return out
+
+
+def _report_displacement_offset(result: Identification, kind: str, *, separable: bool, cubic_share: float) -> None:
+    """Complete ``result`` of an identification with a displacement offset: ``x0`` not
+    published (and why) when the record could not separate it from a force bias; with
+    ``kind="displacement"`` the force bias leaves the parameters for ``fit["offsets"]``."""
+    a = result.assessment
+    offsets = a.fit.setdefault("offsets", {})
+    if not separable:
+        result.estimates[DISPLACEMENT_OFFSET] = math.nan
+        a.status[DISPLACEMENT_OFFSET] = "not excited"
+        a.uncertainty[DISPLACEMENT_OFFSET] = math.nan
+        a.share[DISPLACEMENT_OFFSET] = cubic_share
+        offsets[DISPLACEMENT_OFFSET] = {"value": math.nan, "standard_error": math.nan, "status": "not excited"}
+        a.notes.append(_inseparable_note(cubic_share))
+    if kind != "displacement":
+        return
+    for table in (result.estimates, a.status, a.uncertainty, a.share):
+        table.pop("c1", None)
+    bias = offsets.get("c1")
+    if separable and bias is not None and bias["status"] == "published" \
+            and abs(bias["value"]) > 3.0 * bias["standard_error"]:
+        a.notes.append(f"the record also shows a constant force c1 = {bias['value']:.4g} "
+                       f"(standard error {bias['standard_error']:.2g}; the force sensor reads it at zero force): the "
+                       f"values above account for it; --offset both lists it among the parameters")
