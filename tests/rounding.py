@@ -195,7 +195,7 @@ def identifier_spread(model, record, method: str = "robust", **options) -> Ident
 
     key = (hashlib.sha256(np.ascontiguousarray(record.x).tobytes() + np.ascontiguousarray(record.f).tobytes()
                           + repr(record.dt).encode()).hexdigest(),
-           model.name, tuple(sorted(model.parameters.items())), method, tuple(sorted(options.items())))
+           model.name, tuple(sorted(model.parameters.items())), method, repr(sorted(options.items())))
     if key not in _SPREADS:
         names = tuple(model.parameters)
 

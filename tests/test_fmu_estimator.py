@@ -22,6 +22,7 @@ from fmpy.validation import validate_fmu  # noqa: E402
 from fmu_helpers import simulate_record, start_fmi2  # noqa: E402
 from rounding import identifier_spread  # noqa: E402
 from duffid import Duffing1, Duffing2, measure  # noqa: E402
+from duffid.identification import STATUSES  # noqa: E402
 from duffid.fmu_estimator import TYPES, build_estimator_fmu, build_estimator_fmus  # noqa: E402
 from duffid.identification import OnlineIdentifier, estimate  # noqa: E402
 
@@ -70,10 +71,13 @@ def test_interface(fmus, model_name, version):
     assert [v.name for v in md.modelVariables if v.causality == "input"] == INPUTS[model_name]
     outputs = [v.name for v in md.modelVariables if v.causality == "output"]
     assert outputs == [f"{n}_hat" for n in model.parameters] + ["identified", "condition", "uncertainty",
-                                                                   "window_length"]
+                                                                   "window_length"] + [
+        f"{n}_status" for n in model.parameters]
     assert len(md.outputs) == len(outputs)
-    for name, value in model.parameters.items():
-        assert float(variables[f"{name}_nominal"].start) == value
+    for name in model.parameters:
+        assert float(variables[f"{name}_nominal"].start) == 0.0  # no prior: the data give the scale
+        assert variables[f"{name}_status"].type == ("Integer" if version == 2 else "Int32")
+        assert "1 published" in variables[f"{name}_status"].description
     assert float(variables["method"].start) == 0.0 and float(variables["window"].start) == 0.0
     assert float(variables["gamma"].start) == 20.0 and float(variables["forgetting"].start) == 0.0
     assert variables["k_hat" if model_name == "duffing1" else "k1_hat"].unit == "N/m"
@@ -114,6 +118,12 @@ def test_c_fmu_equals_python_fmu_and_online_identifier(fmus, case_a, case_b_exac
                           {p: np.array([e.parameters[p] for e in estimates]) for p in names})
     assert all(np.isnan(c[f"{p}_hat"][0]) and np.isnan(py[f"{p}_hat"][0]) for p in names)
     assert np.array_equal(c["identified"] == 1.0, py["identified"].astype(bool))
+    for p in names:  # the status of each parameter, sample by sample, as the identifier's
+        codes = [STATUSES.index(e.status[p]) for e in estimates]
+        assert c[f"{p}_status"][0] == py[f"{p}_status"][0] == 0
+        np.testing.assert_array_equal(c[f"{p}_status"][1:], codes)
+        np.testing.assert_array_equal(py[f"{p}_status"][1:], codes)
+    assert {STATUSES.index("published")} <= set(c["kp_status"])
 
 
 @pytest.mark.parametrize("name", ["DuffingEstimator2.fmu", "DuffingEstimator2_fmi3.fmu"])
@@ -132,8 +142,8 @@ def test_options_and_nominal_parameters(fmus, case_a):
     identifier_spread(Duffing1(), case_a, "paper", sign_in_numerator=True, gamma=10.0).assert_final(
         {p: result[f"{p}_hat"][-1] for p in expected.parameters}, expected.parameters)
     result = simulate_record(fmu, case_a, ["x", "f"], {"window": 0.1, "m_nominal": 3.0})
-    expected = estimate(case_a, Duffing1(m=3.0), window=0.1)
-    identifier_spread(Duffing1(m=3.0), case_a, window=0.1).assert_final(
+    expected = estimate(case_a, Duffing1(), window=0.1, nominal={"m": 3.0})
+    identifier_spread(Duffing1(), case_a, window=0.1, nominal={"m": 3.0}).assert_final(
         {p: result[f"{p}_hat"][-1] for p in expected.parameters}, expected.parameters)
 
 

@@ -50,7 +50,8 @@ def test_interface(fmus, model_name, inputs, outputs):
     variables = {v.name: v for v in md.modelVariables}
     assert [v.name for v in md.modelVariables if v.causality == "input"] == inputs
     out = [v.name for v in md.modelVariables if v.causality == "output"]
-    assert out == outputs + ["identified", "condition", "uncertainty", "window_length"]
+    assert out == outputs + ["identified", "condition", "uncertainty", "window_length"] + [
+        f"{n[:-4]}_status" for n in outputs]
     assert all(variables[name].initial == "exact" for name in out)
     assert variables["identified"].type == "Boolean"
     assert np.isnan(float(variables[outputs[0]].start))
@@ -59,8 +60,9 @@ def test_interface(fmus, model_name, inputs, outputs):
     names = {v.name for v in params}
     assert {"method", "gamma", "window", "forgetting"} <= names
     model = Duffing1() if model_name == "duffing1" else Duffing2()
-    for name, value in model.parameters.items():
-        assert float(variables[f"{name}_nominal"].start) == value
+    for name in model.parameters:
+        assert float(variables[f"{name}_nominal"].start) == 0.0  # no prior: the data give the scale
+        assert variables[f"{name}_status"].type == "Integer"
     assert variables["method"].start == "robust" and float(variables["window"].start) == 0.0
     assert float(variables["gamma"].start) == 20.0 and float(variables["forgetting"].start) == 0.0
 
@@ -84,7 +86,7 @@ def test_options_and_nominal_parameters(fmus, case_a):
     for name, value in expected.parameters.items():
         assert result[f"{name}_hat"][-1] == value
     result = simulate_record(fmus["duffing1"], case_a, ["x", "f"], {"window": 0.1, "m_nominal": 3.0})
-    expected = estimate(case_a, Duffing1(m=3.0), window=0.1)
+    expected = estimate(case_a, Duffing1(), window=0.1, nominal={"m": 3.0})
     for name, value in expected.parameters.items():
         assert result[f"{name}_hat"][-1] == value
 

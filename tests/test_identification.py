@@ -96,14 +96,31 @@ def test_paper_method_two_dof(two_dof_exact):
     assert all(abs(errors[p]) < 0.5 for p in ("m1", "k1", "kp1", "k2", "m2"))
 
 
-def test_linear_plant_gives_kp_near_zero():
+def test_linear_plant_gives_kp_near_zero_and_calls_it_not_excited():
     plant = Duffing1(kp=0.0)
     record = measure(simulate(plant, Step(10.0), 1.0, 1e-3))
     result = estimate(record, Duffing1())
     x_max = np.max(np.abs(record.x))
     # the cubic force at the largest displacement is below 0.1 % of the linear one
-    assert abs(result.parameters["kp"]) * x_max**2 < 1e-3 * plant.parameters["k"]
+    assert abs(result.estimates["kp"]) * x_max**2 < 1e-3 * plant.parameters["k"]
+    # ... so its term carries nothing: no value is published for it, and it is said why
+    assert np.isnan(result.parameters["kp"]) and result.status["kp"] == "not excited"
+    assert result.status["k"] == "published" and not result.identified[-1]
     assert result.parameters["k"] == pytest.approx(1272.1, rel=1e-3)
+
+
+def test_the_trust_test_does_not_depend_on_the_models_values_but_takes_a_prior():
+    plant = Duffing1(kp=0.0)
+    record = measure(simulate(plant, Step(10.0), 1.0, 1e-3))
+    histories = [estimate(record, model).history for model in (Duffing1(), Duffing1(m=1e3, b=1e-3, k=1.0, kp=1e9))]
+    for name in histories[0]:
+        np.testing.assert_array_equal(histories[0][name], histories[1][name])
+    # a prior size says how small is small: kp is known to be tiny next to 1e6 N/m^3
+    prior = estimate(record, Duffing1(), nominal={"kp": 1e6})
+    assert prior.status["kp"] == "published" and prior.identified[-1]
+    assert abs(prior.parameters["kp"]) < 1e3
+    with pytest.raises(ValueError, match="no parameter"):
+        estimate(record, Duffing1(), nominal={"q": 1.0})
 
 
 def test_circuit_vocabulary_round_trip():

@@ -67,6 +67,7 @@ typedef struct {
     double rhs_sign;
     /* state */
     double theta[MAX_UNK], rse[MAX_UNK], cond;
+    double share[MAX_UNK], rhs_share; /* shares of the terms and of the right-hand side */
     double R[MAX_AUG * MAX_AUG]; /* robust: accumulated factor of [A D] */
     double rows;
     integrators_t reg, det;      /* paper */
@@ -78,12 +79,14 @@ struct duffid_estimator {
     channel_t ch[MAX_CH];
     equation_t eq[MAX_EQ];
     int canon_of_public[DUFFID_MAX_PARAMS];
-    double nominal[DUFFID_MAX_PARAMS];     /* canonical order, |value| */
+    double nominal[DUFFID_MAX_PARAMS];     /* canonical order, |prior size| (0: none) */
 
     /* common state */
     int64_t n;                             /* index of the newest sample, -1 before any */
     int window_fixed;
     int64_t settled[DUFFID_MAX_PARAMS];    /* canonical order, saturated at settle_count */
+    int64_t unsettled[DUFFID_MAX_PARAMS];  /* canonical order, saturated at settle_count */
+    int status[DUFFID_MAX_PARAMS];         /* canonical order, DUFFID_STATUS_* */
     double held[DUFFID_MAX_PARAMS];        /* public order */
     int64_t settle_count;
 
@@ -120,7 +123,7 @@ struct duffid_estimator {
     double sv[MAX_UNK], scale[MAX_UNK], tmp[MAX_UNK * MAX_UNK];
     double u_in[3 * MAX_CH];
     double Ap[MAX_UNK * MAX_UNK], Dp[MAX_UNK], Aw[MAX_UNK * MAX_UNK];
-    double canon[DUFFID_MAX_PARAMS], canon_rse[DUFFID_MAX_PARAMS];
+    double canon[DUFFID_MAX_PARAMS], canon_rse[DUFFID_MAX_PARAMS], canon_share[DUFFID_MAX_PARAMS];
 
     void *block; /* the malloc'ed block (duffid_create), NULL for caller memory */
 };
@@ -180,8 +183,6 @@ static double max_builtin(double current, double candidate) /* Python max(curren
 
 static const char *const NAMES1[] = {"m", "b", "k", "kp", "c1"};
 static const char *const NAMES2[] = {"m1", "b1", "k1", "kp1", "b2", "k2", "kp2", "m2", "c1", "c2"};
-static const double NOMINAL1[] = {2.53, 12.47, 1272.1, -1.237e6, 0.0};
-static const double NOMINAL2[] = {2.53, 5.0, 1272.1, -1.237e6, 4.0, 1570.0, -1.350e6, 2.754, 0.0, 0.0};
 
 static int model_dofs(int model)
 {
@@ -204,7 +205,6 @@ static int public_to_canon(int model, int i)
 /* ------------------------------------------------------------------ configuration */
 int duffid_default_config(duffid_config *cfg, int model, int method, double dt)
 {
-    int i;
     if (cfg == NULL || model_dofs(model) == 0) {
         return DUFFID_ERR_ARGUMENT;
     }
@@ -213,9 +213,6 @@ int duffid_default_config(duffid_config *cfg, int model, int method, double dt)
     cfg->method = method;
     cfg->offset = 0;
     cfg->dt = dt;
-    for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
-        cfg->nominal[i] = model == DUFFID_DUFFING1 ? (i < 5 ? NOMINAL1[i] : 0.0) : NOMINAL2[i];
-    }
     cfg->max_condition = 1e6;
     cfg->min_time = 0.01;
     cfg->deadband = 0.0;
@@ -294,10 +291,8 @@ int duffid_check_config(const duffid_config *cfg, char *msg, size_t size)
     for (i = 0; i < n_pub; i++) {
         const char *name = cfg->model == DUFFID_DUFFING1 ? NAMES1[i] : NAMES2[i];
         double v = cfg->nominal[i];
-        int mass = name[0] == 'm';
-        if (!is_finite(v) || (mass && !(v > 0.0))) {
-            set_msg(msg, size, "parameter %s must be a finite%s number, got %g", name,
-                    mass ? " positive" : "", v);
+        if (!is_finite(v)) {
+            set_msg(msg, size, "the prior size %s_nominal must be a finite number (0: none), got %g", name, v);
             return DUFFID_ERR_CONFIG;
         }
     }
@@ -702,6 +697,8 @@ void duffid_reset(duffid_estimator *est)
     est->window_fixed = 0;
     for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
         est->settled[i] = 0;
+        est->unsettled[i] = 0;
+        est->status[i] = DUFFID_STATUS_UNCERTAIN;
         est->held[i] = DNAN;
     }
     if (est->cfg.method == DUFFID_ROBUST) {
@@ -727,7 +724,9 @@ void duffid_reset(duffid_estimator *est)
         for (u = 0; u < MAX_UNK; u++) {
             est->eq[i].theta[u] = DNAN;
             est->eq[i].rse[u] = DINF;
+            est->eq[i].share[u] = DNAN;
         }
+        est->eq[i].rhs_share = DNAN;
         est->eq[i].cond = DINF;
     }
 }
@@ -997,6 +996,23 @@ static void solve_factor(duffid_estimator *est, equation_t *eq, const double *Ra
         eq->theta[i] = sum / est->scale[i];
     }
     eq->cond = cond;
+    { /* shares of the terms |theta_i| ||A_i|| and of ||D|| in the force balance */
+        double sq[MAX_AUG], rhs, balance;
+        for (k = 0; k < p; k++) {
+            sq[k] = Raug[k * p + n] * Raug[k * p + n];
+        }
+        rhs = sqrt(duffid_la_pairwise_sum(sq, p, 1));
+        for (i = 0; i < n; i++) {
+            double term = fabs(eq->theta[i]) * est->scale[i];
+            sq[i] = term * term;
+        }
+        sq[n] = rhs * rhs;
+        balance = sqrt(duffid_la_pairwise_sum(sq, p, 1));
+        for (i = 0; i < n; i++) {
+            eq->share[i] = balance > 0.0 ? fabs(eq->theta[i]) * est->scale[i] / balance : DNAN;
+        }
+        eq->rhs_share = balance > 0.0 ? rhs / balance : DNAN;
+    }
     dof = rows - (double)n;
     if (dof <= 0.0) {
         for (i = 0; i < n; i++) {
@@ -1018,7 +1034,9 @@ singular:
     for (i = 0; i < n; i++) {
         eq->theta[i] = DNAN;
         eq->rse[i] = DINF;
+        eq->share[i] = DNAN;
     }
+    eq->rhs_share = DNAN;
     eq->cond = DINF;
 }
 
@@ -1292,6 +1310,24 @@ static void combine(duffid_estimator *est)
         est->canon[i] = val;
         est->canon_rse[i] = err;
     }
+    /* OnlineIdentifier._shares: the largest share over the equations with the term */
+    for (i = 0; i < n_canon; i++) {
+        double share = DNAN;
+        int j;
+        for (j = 0; j < n; j++) {
+            int u = find_unknown(&est->eq[j], i);
+            double v = DNAN;
+            if (u >= 0) {
+                v = est->eq[j].share[u];
+            } else if (i < 4 * n && i == 4 * j + P_M && !est->eq[j].forced) {
+                v = est->eq[j].rhs_share;
+            }
+            if (is_finite(v) && !(v <= share)) {
+                share = v;
+            }
+        }
+        est->canon_share[i] = share;
+    }
 }
 
 static double combined_condition(const duffid_estimator *est)
@@ -1364,56 +1400,106 @@ static int window_ok(const duffid_estimator *est, double cond, long L)
            est->n >= MIN_SAMPLES;
 }
 
+/* identification._next_status */
+static int next_status(int status, int64_t settled, int64_t unsettled, int64_t settle, int good, double share)
+{
+    if (settled >= settle) {
+        return DUFFID_STATUS_PUBLISHED;
+    }
+    if (status == DUFFID_STATUS_PUBLISHED) {
+        return unsettled >= settle ? DUFFID_STATUS_LOST : DUFFID_STATUS_PUBLISHED;
+    }
+    if (good && share < DUFFID_MIN_SHARE) {
+        return DUFFID_STATUS_NOT_EXCITED;
+    }
+    return status == DUFFID_STATUS_LOST ? DUFFID_STATUS_LOST : DUFFID_STATUS_UNCERTAIN;
+}
+
+/* OnlineIdentifier._window_known: masses and linear stiffnesses published, the rest
+ * published or not excited */
+static int window_known(const duffid_estimator *est)
+{
+    int i;
+    for (i = 0; i < est->n_params; i++) {
+        int kind = i < 4 * est->n_dof ? i % 4 : -1;
+        int needed = kind == P_M || kind == P_K1;
+        int s = est->status[i];
+        if (!(s == DUFFID_STATUS_PUBLISHED || (s == DUFFID_STATUS_NOT_EXCITED && !needed))) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+static void count_up(int64_t *counter, int64_t limit)
+{
+    if (*counter < limit) {
+        (*counter)++;
+    }
+}
+
 static void publish(duffid_estimator *est, long window, duffid_output *out)
 {
     const int np = est->n_params;
     double cond, worst = 0.0;
-    int i, ok = 1;
+    int i, ok = 1, good;
     combine(est);
     cond = combined_condition(est);
+    good = window_ok(est, cond, window);
     if (est->cfg.method == DUFFID_PAPER) {
         for (i = 0; i < np; i++) {
             double v = est->canon[est->canon_of_public[i]];
             est->held[i] = v;
             ok &= is_finite(v);
         }
-        ok = ok && window_ok(est, cond, window);
+        ok = ok && good;
         worst = DNAN;
+        for (i = 0; i < np; i++) {
+            est->status[i] = ok ? DUFFID_STATUS_PUBLISHED : DUFFID_STATUS_UNCERTAIN;
+        }
     } else {
-        const int good = window_ok(est, cond, window);
         double trusted[DUFFID_MAX_PARAMS];
         for (i = 0; i < np; i++) { /* canonical order */
             double v = est->canon[i];
-            double std = (is_finite(v) && v != 0.0) ? est->canon_rse[i] * fabs(v) : DINF;
-            double relative = DINF;
-            int small;
-            if (is_finite(std)) {
-                double size = fabs(v) > est->nominal[i] ? fabs(v) : est->nominal[i];
-                relative = std / size;
+            double relative = (is_finite(v) && v != 0.0) ? est->canon_rse[i] : DINF;
+            int small, large;
+            if (est->nominal[i] > 0.0 && is_finite(relative)) { /* the user's prior size */
+                relative = relative * fabs(v) / (fabs(v) > est->nominal[i] ? fabs(v) : est->nominal[i]);
             }
             worst = max_builtin(worst, relative);
             small = good && relative <= est->cfg.max_uncertainty;
+            large = !(good && relative <= DUFFID_LOSS_FACTOR * est->cfg.max_uncertainty);
             if (small) {
-                if (est->settled[i] < est->settle_count) {
-                    est->settled[i]++;
-                }
+                count_up(&est->settled[i], est->settle_count);
             } else {
                 est->settled[i] = 0;
             }
+            if (large) {
+                count_up(&est->unsettled[i], est->settle_count);
+            } else {
+                est->unsettled[i] = 0;
+            }
+            est->status[i] = next_status(est->status[i], est->settled[i], est->unsettled[i], est->settle_count,
+                                         good, est->canon_share[i]);
             trusted[i] = est->settled[i] >= est->settle_count ? v : DNAN;
-            ok &= est->settled[i] >= est->settle_count;
         }
         for (i = 0; i < np; i++) {
-            double v = trusted[est->canon_of_public[i]];
-            if (is_finite(v)) {
+            int c = est->canon_of_public[i];
+            double v = trusted[c];
+            if (est->status[c] != DUFFID_STATUS_PUBLISHED) {
+                est->held[i] = DNAN;
+            } else if (is_finite(v)) {
                 est->held[i] = v;
             }
+            ok &= est->status[c] == DUFFID_STATUS_PUBLISHED;
         }
     }
     if (out != NULL) {
         out->t = (double)est->n * est->cfg.dt;
         for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
             out->parameters[i] = i < np ? est->held[i] : DNAN;
+            out->status[i] = i < np ? est->status[est->cfg.method == DUFFID_PAPER ? i : est->canon_of_public[i]]
+                                    : DUFFID_STATUS_UNCERTAIN;
         }
         out->n_parameters = np;
         out->identified = ok;
@@ -1423,13 +1509,12 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
         for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
             double v = DNAN;
             if (i < np) {
-                v = est->cfg.method == DUFFID_PAPER ? est->held[i]
-                    : (window_ok(est, cond, window) ? est->canon[est->canon_of_public[i]] : DNAN);
+                v = est->cfg.method == DUFFID_PAPER ? est->held[i] : (good ? est->canon[est->canon_of_public[i]] : DNAN);
             }
             out->current[i] = v;
         }
     }
-    if (est->cfg.method == DUFFID_ROBUST && est->auto_window && !est->window_fixed && ok) {
+    if (est->cfg.method == DUFFID_ROBUST && est->auto_window && !est->window_fixed && window_known(est)) {
         est->window_fixed = 1;
         est->target = auto_window(est, window);
     }

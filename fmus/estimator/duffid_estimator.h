@@ -62,23 +62,37 @@ extern "C" {
 #define DUFFID_ROWS_BERNSTEIN 1
 #define DUFFID_ROWS_PAPER 2
 
+/* Status of a parameter (duffid.identification.STATUSES, in this order):
+ *   UNCERTAIN    not (yet) determined well enough;
+ *   PUBLISHED    its relative standard error stayed at most max_uncertainty for settle s:
+ *                the value is output;
+ *   NOT_EXCITED  its term carries less than DUFFID_MIN_SHARE of the force balance;
+ *   LOST         it was published and its error has been above DUFFID_LOSS_FACTOR x
+ *                max_uncertainty for settle s since: the value is withdrawn (NaN). */
+#define DUFFID_STATUS_UNCERTAIN 0
+#define DUFFID_STATUS_PUBLISHED 1
+#define DUFFID_STATUS_NOT_EXCITED 2
+#define DUFFID_STATUS_LOST 3
+#define DUFFID_MIN_SHARE 0.01
+#define DUFFID_LOSS_FACTOR 2.0
+
 /* Quadrature of the paper method's integrators. */
 #define DUFFID_ADAMS3 0
 #define DUFFID_TRAPEZOID 1
 
 /*
  * Configuration. duffid_default_config fills it with the defaults of
- * duffid.identification (_ROBUST_DEFAULTS / _PAPER_DEFAULTS) and the model's nominal
- * parameter values; change fields afterwards. Fields of the other method are ignored.
+ * duffid.identification (_ROBUST_DEFAULTS / _PAPER_DEFAULTS); change fields afterwards.
+ * Fields of the other method are ignored.
  */
 typedef struct duffid_config {
     int model;              /* DUFFID_DUFFING1 or DUFFID_DUFFING2 */
     int method;             /* DUFFID_ROBUST or DUFFID_PAPER */
     int offset;             /* 1: an unknown constant force per DOF (c1, c2) */
     double dt;              /* sampling period [s], > 0 */
-    /* Nominal parameter values in public order (the model's parameter values in
-     * Python): a parameter is trustworthy when its standard error is below
-     * max_uncertainty x max(|estimate|, |nominal|). Masses must be > 0. */
+    /* Optional prior sizes in public order (the option "nominal" in Python), 0 = none
+     * (default: every scale comes from the data). A parameter with a prior is trustworthy
+     * when its standard error is below max_uncertainty x max(|estimate|, |nominal|). */
     double nominal[DUFFID_MAX_PARAMS];
     /* both methods */
     double max_condition;   /* 1e6: largest condition number of an identified solution */
@@ -102,9 +116,9 @@ typedef struct duffid_config {
 /* Result of one update. */
 typedef struct duffid_output {
     double t;                              /* time of the sample, n * dt [s] */
-    double parameters[DUFFID_MAX_PARAMS];  /* public order; NaN until published */
+    double parameters[DUFFID_MAX_PARAMS];  /* public order; NaN unless published */
     int n_parameters;
-    int identified;                        /* 1 when every parameter is trustworthy */
+    int identified;                        /* 1 when every parameter is published */
     double condition;                      /* largest condition number over the equations */
     double uncertainty;                    /* largest relative standard error (robust), NaN (paper) */
     double window;                         /* window length [s] */
@@ -112,6 +126,8 @@ typedef struct duffid_output {
                                             * or not (robust: NaN while the window is not
                                             * usable; paper: as parameters). An input to the
                                             * checks of duffid.trust, never a published value. */
+    int status[DUFFID_MAX_PARAMS];         /* public order: DUFFID_STATUS_* (robust; paper:
+                                            * PUBLISHED while identified, else UNCERTAIN) */
 } duffid_output;
 
 typedef struct duffid_estimator duffid_estimator;

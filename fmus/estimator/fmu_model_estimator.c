@@ -12,8 +12,9 @@
  *   n_dof + 1                force (input)
  *   then n_params            estimates (outputs, NaN until published)
  *   then 4                   identified (Boolean), condition, uncertainty, window_length
+ *   then n_params            <name>_status (Integer, DUFFID_STATUS_*)
  *   then N_OPTIONS           options (fixed parameters; codes are Integer, see below)
- *   then n_params            nominal parameter values <name>_nominal
+ *   then n_params            optional prior sizes <name>_nominal (0: none)
  *
  * Semantics: each doStep(t, h) consumes one sample, the inputs set for time t, with h as
  * the sampling period. The first doStep fixes the period and builds the estimator (one
@@ -67,7 +68,8 @@ enum {
 #define VR_CONDITION (VR_IDENTIFIED + 1)
 #define VR_UNCERTAINTY (VR_IDENTIFIED + 2)
 #define VR_WINDOW_LENGTH (VR_IDENTIFIED + 3)
-#define VR_OPT (VR_IDENTIFIED + 4)
+#define VR_STATUS (VR_IDENTIFIED + 4)
+#define VR_OPT (VR_STATUS + N_PARAMS)
 #define VR_NOMINAL (VR_OPT + N_OPTIONS)
 #define N_VARS_EXPECTED (VR_NOMINAL + N_PARAMS)
 
@@ -103,12 +105,14 @@ static int evaluate(Instance *inst)
     int i;
     if (d != NULL && d->have_out) {
         for (i = 0; i < N_PARAMS; i++) v[VR_EST + i] = d->out.parameters[i];
+        for (i = 0; i < N_PARAMS; i++) v[VR_STATUS + i] = (double)d->out.status[i];
         v[VR_IDENTIFIED] = d->out.identified ? 1.0 : 0.0;
         v[VR_CONDITION] = d->out.condition;
         v[VR_UNCERTAINTY] = d->out.uncertainty;
         v[VR_WINDOW_LENGTH] = d->out.window;
     } else {
         for (i = 0; i < N_PARAMS; i++) v[VR_EST + i] = NAN;
+        for (i = 0; i < N_PARAMS; i++) v[VR_STATUS + i] = (double)DUFFID_STATUS_UNCERTAIN;
         v[VR_IDENTIFIED] = 0.0;
         v[VR_CONDITION] = NAN;
         v[VR_UNCERTAINTY] = NAN;

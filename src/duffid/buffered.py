@@ -471,7 +471,7 @@ class BufferedIdentifier:
                 R = _triangular_factor(np.vstack([self._factors[g], R]), len(names) + 1)
                 rows += self._rows[g]
             self._factors[g], self._rows[g] = R, rows
-            theta, c, rse = _solve_factor(R, rows, 1.0)
+            theta, c, rse = _solve_factor(R, rows, 1.0)[:3]
             cond = max(cond, c)
             worst = max(worst, float(np.max(rse)) if len(rse) else 0.0)
             values = dict(zip(names, theta))

@@ -27,7 +27,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .identification import Estimate, Identification, check_record, check_options
+from .identification import STATUSES, Estimate, Identification, check_record, check_options
 from .models import Chain, Duffing1, Duffing2, model_from_name
 from .record import Record
 
@@ -98,12 +98,13 @@ class _Output(ctypes.Structure):
         ("uncertainty", ctypes.c_double),
         ("window", ctypes.c_double),
         ("current", ctypes.c_double * _MAX_PARAMS),
+        ("status", ctypes.c_int * _MAX_PARAMS),
     ]
 
 
 _OUTPUT_DTYPE = np.dtype([("t", "f8"), ("parameters", "f8", (_MAX_PARAMS,)), ("n_parameters", "i4"),
                           ("identified", "i4"), ("condition", "f8"), ("uncertainty", "f8"), ("window", "f8"),
-                          ("current", "f8", (_MAX_PARAMS,))],
+                          ("current", "f8", (_MAX_PARAMS,)), ("status", "i4", (_MAX_PARAMS,))],
                          align=True)
 
 
@@ -260,8 +261,8 @@ class CIdentifier:
     Parameters
     ----------
     model : Duffing1, Duffing2 or {"duffing1", "duffing2"}
-        Model structure; its parameter values are the nominal sizes (as in Python), its
-        ``offset`` flag adds the offset unknowns.
+        Model structure (its parameter values are not used); its ``offset`` flag adds the
+        offset unknowns.
     dt : float
         Sampling period [s].
     method : {"robust", "paper"}
@@ -292,8 +293,13 @@ class CIdentifier:
         cfg = _Config()
         self._lib.duffid_default_config(ctypes.byref(cfg), _MODELS[self.model.name], _METHODS[method], self.dt)
         cfg.offset = int(bool(self.model.offset))
-        for i, value in enumerate(self.model.parameters.values()):
-            cfg.nominal[i] = float(value)
+        prior = self.options.get("nominal") or {}
+        unknown = set(prior) - set(self.model.parameters)
+        if unknown:
+            raise ValueError(f"option nominal: {self.model.name} has no parameter(s) {sorted(unknown)}; "
+                             f"its parameters are {list(self.model.parameters)}")
+        for i, name in enumerate(self.model.parameters):
+            cfg.nominal[i] = abs(float(prior.get(name, 0.0)))
         o = self.options
         cfg.max_condition = float(o["max_condition"])
         cfg.min_time = float(o["min_time"])
@@ -382,14 +388,17 @@ class CIdentifier:
         out = self._out
         params = {name: out.parameters[i] for i, name in enumerate(self._names)}
         current = {name: out.current[i] for i, name in enumerate(self._names)}
-        return Estimate(out.t, params, bool(out.identified), out.condition, out.uncertainty, out.window, current)
+        status = {name: STATUSES[out.status[i]] for i, name in enumerate(self._names)}
+        return Estimate(out.t, params, bool(out.identified), out.condition, out.uncertainty, out.window, current,
+                        status)
 
     def run(self, x: np.ndarray, f: np.ndarray) -> np.ndarray:
         """Consume many samples in one call: ``x`` (n, n_dof), ``f`` (n, n_forces).
 
         Returns the outputs as a structured array with fields ``t``, ``parameters``
-        (n, parameters), ``identified``, ``condition``, ``uncertainty``, ``window`` and
-        ``current`` (see :class:`~duffid.identification.Estimate`).
+        (n, parameters), ``identified``, ``condition``, ``uncertainty``, ``window``,
+        ``current`` and ``status`` (codes: indices into
+        :data:`~duffid.identification.STATUSES`; see :class:`~duffid.identification.Estimate`).
         """
         xa = np.ascontiguousarray(np.asarray(x, dtype=float).reshape(len(x), -1))
         fa = np.ascontiguousarray(np.asarray(f, dtype=float).reshape(len(f), -1))
@@ -425,4 +434,5 @@ class CIdentifier:
             t_identified=float(record.t[np.argmax(flags)] - record.t[0]) if flags.any() else None,
             window=float(rows["window"][-1]), options=dict(self.options), source=record.source,
             estimates={name: float(rows["current"][-1, i]) for i, name in enumerate(self._names)},
+            status={name: STATUSES[rows["status"][-1, i]] for i, name in enumerate(self._names)},
         )

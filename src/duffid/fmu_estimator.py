@@ -10,8 +10,11 @@ model ``fmus/estimator/fmu_model_estimator.c`` and the glue of ``fmus/common`` i
   ``f1``; outputs ``m1_hat``, ``b1_hat``, ``k1_hat``, ``kp1_hat``, ``b2_hat``, ``k2_hat``,
   ``kp2_hat``, ``m2_hat``;
 
-each also with the outputs ``identified`` (0/1), ``condition``, ``uncertainty`` and
-``window_length`` [s], and adds the pythonfmu fallbacks of :mod:`duffid.fmu_python`.
+each also with the outputs ``identified`` (0/1), ``condition``, ``uncertainty``,
+``window_length`` [s] and ``<name>_status`` per parameter (Integer: the index of its status
+in :data:`duffid.identification.STATUSES`: 0 uncertain, 1 published, 2 not excited,
+3 lost), and adds the pythonfmu fallbacks of :mod:`duffid.fmu_python`. The parameters
+``<name>_nominal`` are optional prior sizes (0: none, the scale comes from the data).
 
 Interface differences to the pythonfmu FMU: the glue has no String variables, so the
 options ``method`` (0 robust, 1 paper), ``rows`` (0 integrals, 1 bernstein, 2 paper) and
@@ -34,10 +37,11 @@ from pathlib import Path
 
 from .fmu_export.c_model import build_c_model_fmu
 from .fmu_export.variables import FmuVariable
+from .identification import status_codes
 from .models import Duffing1, Duffing2
 
-__all__ = ["build_estimator_fmus", "build_estimator_fmu", "estimator_variables", "C_FMU_NAMES",
-           "OPTIONS", "TYPES"]
+__all__ = ["build_estimator_fmus", "build_estimator_fmu", "estimator_variables", "variable_types",
+           "C_FMU_NAMES", "OPTIONS", "TYPES"]
 
 #: Model name -> model identifier of the C FMUs (FMI 3 files get a ``_fmi3`` suffix).
 C_FMU_NAMES = {"duffing1": "DuffingEstimator1", "duffing2": "DuffingEstimator2"}
@@ -64,9 +68,15 @@ OPTIONS = (
     ("quadrature", None, "paper: 0 adams3, 1 trapezoid"),
     ("sign_in_numerator", None, "paper: the sign convention of the numerator (sign_in_numerator)"),
 )
-#: Variables that are not Float64.
+#: Variables that are not Float64 (and every ``<name>_status``: Integer).
 TYPES = {"method": "Integer", "rows": "Integer", "n_rows": "Integer", "quadrature": "Integer",
          "sign_in_numerator": "Boolean", "identified": "Boolean"}
+
+
+def variable_types(model_name: str) -> dict[str, str]:
+    """:data:`TYPES` with the ``<name>_status`` outputs of the model."""
+    model = Duffing1() if model_name == "duffing1" else Duffing2()
+    return {**TYPES, **{f"{name}_status": "Integer" for name in model.parameters}}
 _ESTIMATOR_DIR = Path(__file__).resolve().parents[2] / "fmus" / "estimator"
 _CORE_FILES = ("duffid_estimator.c", "duffid_estimator.h", "duffid_linalg.c", "duffid_linalg.h",
                "fmu_model_estimator.c")
@@ -115,11 +125,14 @@ def estimator_variables(model_name: str) -> list[FmuVariable]:
     add("condition", "output", "discrete", "calculated", None, "1", "largest condition number of the equations")
     add("uncertainty", "output", "discrete", "calculated", None, "1", "largest relative standard error (robust)")
     add("window_length", "output", "discrete", "calculated", None, "s", "window length")
+    for name in model.parameters:
+        add(f"{name}_status", "output", "discrete", "calculated", None, None,
+            f"status of {name}: {status_codes()}")
     for name, unit, text in OPTIONS:
         add(name, "parameter", "fixed", "exact", defaults[name], unit, text)
     for name in model.parameters:
         add(f"{name}_nominal", "parameter", "fixed", "exact", defaults[f"{name}_nominal"], _param_unit(name),
-            f"nominal size of {name} (scale of the trust test)")
+            f"optional prior size of {name} for the trust test (0: none, the scale comes from the data)")
     return table
 
 
@@ -148,7 +161,8 @@ def build_estimator_fmu(model_name: str, out_dir: str | Path, fmi_version: int =
     return build_c_model_fmu(out_dir, C_FMU_NAMES[model_name], fmi_version, table, prefix="estimator",
                              model_dir=_ESTIMATOR_DIR, model_files=_CORE_FILES,
                              description=f"duffid online algebraic identification of {model} (C estimator core)",
-                             types=TYPES, defines={"MODEL": _CODES[model_name]}, compiler=compiler)
+                             types=variable_types(model_name), defines={"MODEL": _CODES[model_name]},
+                             compiler=compiler)
 
 
 def build_estimator_fmus(out_dir: str | Path = Path("build/fmus"), *, python: bool = True) -> list[Path]:

@@ -12,15 +12,17 @@ Outputs (initial exact)
     ``m_hat``, ``b_hat``, ``k_hat``, ``kp_hat`` (1-DOF) or ``m1_hat``, ``b1_hat``,
     ``k1_hat``, ``kp1_hat``, ``b2_hat``, ``k2_hat``, ``kp2_hat``, ``m2_hat`` (2-DOF):
     the estimates (Real); ``identified`` (Boolean); ``condition``, ``uncertainty`` and
-    ``window_length`` [s] (Real), the fields of :class:`~duffid.identification.Estimate`.
+    ``window_length`` [s] (Real), the fields of :class:`~duffid.identification.Estimate`;
+    ``<name>_status`` (Integer) per parameter, the index of its status in
+    :data:`~duffid.identification.STATUSES` (as the C FMUs).
 Parameters (tunable; read at the first step)
     ``method`` (String, "robust" or "paper"); ``window`` [s] (0 = "auto"),
     ``window_periods``, ``max_window`` [s], ``forgetting`` [s] (0 = none), ``rows``
     (String), ``n_rows`` (Integer, 0 = default), ``max_condition``, ``max_uncertainty``,
     ``min_time`` [s], ``settle`` [s] (robust); ``gamma``, ``quadrature`` (String),
-    ``sign_in_numerator`` (Boolean) (paper); and the nominal sizes ``<name>_nominal`` of
-    every parameter (the model's defaults). Defaults are identify()'s, so a record run
-    through the FMU gives the CLI's answer.
+    ``sign_in_numerator`` (Boolean) (paper); and optional prior sizes ``<name>_nominal``
+    of every parameter (0: none, the default: the trust test's scale comes from the data).
+    Defaults are identify()'s, so a record run through the FMU gives the CLI's answer.
 
 Semantics
 ---------
@@ -56,7 +58,7 @@ from pathlib import Path
 from typing import Any
 from xml.etree.ElementTree import Element, SubElement
 
-from .identification import OnlineIdentifier, default_options
+from .identification import STATUSES, OnlineIdentifier, default_options, status_codes
 from .models import Duffing1, Duffing2
 
 __all__ = ["build_python_fmu", "FMU_NAMES", "EstimatorSlave"]
@@ -153,7 +155,7 @@ class EstimatorSlave:
         Real, Integer, Boolean, String, causality, initial, variability = _variable_types()
         self.slave = slave
         self.model_name = model_name
-        self.nominal = _MODELS[model_name]().parameters
+        self.names = list(_MODELS[model_name]().parameters)
         self.x_names, self.f_names = _INPUTS[model_name]
         self.ident: OnlineIdentifier | None = None
         self.dt: float | None = None
@@ -165,11 +167,11 @@ class EstimatorSlave:
             setattr(slave, name, 0.0)
             slave.register_variable(Real(name, causality=causality.input, variability=variability.continuous,
                                          description="displacement [m]" if name[0] == "x" else "force [N]"))
-        self.outputs = [f"{name}_hat" for name in self.nominal]
+        self.outputs = [f"{name}_hat" for name in self.names]
         for name in self.outputs:
             setattr(slave, name, math.nan)
             slave.register_variable(Real(name, causality=causality.output, initial=initial.exact,
-                                         description=f"estimate of {name[:-4]} (NaN until identified)"))
+                                         description=f"estimate of {name[:-4]} (NaN unless published)"))
         slave.identified = False
         slave.register_variable(Boolean("identified", causality=causality.output, initial=initial.exact,
                                         variability=variability.discrete,
@@ -180,6 +182,11 @@ class EstimatorSlave:
             setattr(slave, name, start)
             slave.register_variable(Real(name, causality=causality.output, initial=initial.exact,
                                          description=text))
+        for name in self.names:
+            setattr(slave, f"{name}_status", 0)
+            slave.register_variable(Integer(f"{name}_status", causality=causality.output, initial=initial.exact,
+                                            variability=variability.discrete,
+                                            description=f"status of {name}: {status_codes()}"))
 
         self.parameters: dict[str, Any] = {"method": "robust"}
         slave.method = "robust"
@@ -190,12 +197,13 @@ class EstimatorSlave:
             setattr(slave, name, default)
             slave.register_variable(types[kind](name, causality=causality.parameter,
                                                 variability=variability.tunable))
-        for name, value in self.nominal.items():
+        for name in self.names:
             pname = f"{name}_nominal"
-            self.parameters[pname] = float(value)
-            setattr(slave, pname, float(value))
+            self.parameters[pname] = 0.0
+            setattr(slave, pname, 0.0)
             slave.register_variable(Real(pname, causality=causality.parameter, variability=variability.tunable,
-                                         description=f"nominal size of {name}"))
+                                         description=f"optional prior size of {name} for the trust test "
+                                                     "(0: none, the scale comes from the data)"))
 
     # ------------------------------------------------------------------ FMI
     def exit_initialization_mode(self) -> None:
@@ -244,10 +252,11 @@ class EstimatorSlave:
     def _create(self, step_size: float) -> None:
         values = self._current_parameters()
         method, options = self._options(values)
-        nominal = {name: float(values[f"{name}_nominal"]) for name in self.nominal}
+        prior = {name: float(values[f"{name}_nominal"]) for name in self.names if values[f"{name}_nominal"] != 0}
+        if prior and method == "robust":
+            options["nominal"] = prior
         try:
-            model = _MODELS[self.model_name](**nominal)
-            self.ident = OnlineIdentifier(model, float(step_size), method, **options)
+            self.ident = OnlineIdentifier(_MODELS[self.model_name](), float(step_size), method, **options)
         except (TypeError, ValueError) as exc:
             self._fail(f"{self.model_name} estimator: {exc}")
         self.dt = float(step_size)
@@ -299,6 +308,8 @@ class EstimatorSlave:
         slave.condition = float(estimate.condition)
         slave.uncertainty = float(estimate.uncertainty)
         slave.window_length = float(estimate.window)
+        for name, status in (estimate.status or {}).items():
+            setattr(slave, f"{name}_status", STATUSES.index(status))
 
 
 def build_python_fmu(model_name: str, out_dir: str | Path, *, needs_execution_tool: bool = True) -> Path:

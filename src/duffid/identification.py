@@ -34,12 +34,34 @@ from .record import Record, RecordError
 from .regressors import KernelBank, SlidingMoments, row_exponents
 
 __all__ = ["OnlineIdentifier", "estimate", "check_record", "Identification", "Estimate", "METHODS", "ONLINE_METHODS",
-           "default_options", "check_options", "filtered_cramer", "combine_equations", "auto_window"]
+           "STATUSES", "MIN_SHARE", "status_codes", "default_options", "check_options", "filtered_cramer", "combine_equations",
+           "auto_window"]
 
 #: Online methods (OnlineIdentifier) and the buffered orthogonal-function methods of
 #: section 4 (duffid.buffered); identify() accepts all of them.
 ONLINE_METHODS = ("robust", "paper")
 METHODS = ONLINE_METHODS + ("legendre", "chebyshev", "block-pulse", "haar")
+
+#: Status of a parameter; its index is the status code of the C core (DUFFID_STATUS_*) and of
+#: the estimator FMUs' ``<name>_status`` outputs. ``uncertain``: not (yet) determined well
+#: enough; ``published``: its relative standard error stayed within ``max_uncertainty`` for
+#: ``settle`` s, the value is shown; ``not excited``: its term carries less than
+#: :data:`MIN_SHARE` of the force balance; ``lost``: it was published and has not been
+#: trustworthy for ``settle`` s since (its value is withdrawn).
+STATUSES = ("uncertain", "published", "not excited", "lost")
+
+
+def status_codes() -> str:
+    """The status codes of the C core and the estimator FMUs in words: ``"0 uncertain, ..."``."""
+    return ", ".join(f"{code} {name}" for code, name in enumerate(STATUSES))
+
+
+#: A term carrying less than this share of its equation's force balance is "not excited".
+MIN_SHARE = 0.01
+#: A published parameter is lost once its error stayed above this many times
+#: ``max_uncertainty`` for ``settle`` s (a band, so that an error hovering at the limit
+#: does not switch the value on and off).
+LOSS_FACTOR = 2.0
 
 _ROBUST_DEFAULTS: dict[str, Any] = {
     "window": "auto",         # seconds, or "auto": window_periods x the identified natural period
@@ -53,6 +75,7 @@ _ROBUST_DEFAULTS: dict[str, Any] = {
     "min_time": 0.01,         # and the window spans at least this many seconds;
     "settle": 0.01,           # a parameter is published after its error stayed small this long (s)
     "deadband": 0.0,          # |dx| <= deadband keeps the previous sign of velocity
+    "nominal": None,          # optional prior sizes {public name: size}: the trust test's scale
 }
 _PAPER_DEFAULTS: dict[str, Any] = {
     "gamma": 20.0,
@@ -100,6 +123,11 @@ def check_options(method: str, options: Mapping[str, Any]) -> dict[str, Any]:
         fg = merged["forgetting"]
         if fg is not None and not (np.isfinite(fg) and fg > 0):
             raise ValueError(f"option forgetting must be None or a positive time constant in s, got {fg!r}")
+        prior = merged["nominal"]
+        if prior is not None and not (isinstance(prior, Mapping) and all(
+                isinstance(v, (int, float)) and np.isfinite(v) for v in prior.values())):
+            raise ValueError(f"option nominal must be None or a mapping of parameter names to finite "
+                             f"sizes, got {prior!r}")
     elif merged["quadrature"] not in ("adams3", "trapezoid"):
         raise ValueError(f"option quadrature must be 'adams3' or 'trapezoid', got {merged['quadrature']!r}")
     return merged
@@ -182,34 +210,41 @@ def _triangular_factor(M: np.ndarray, size: int) -> np.ndarray:
     return out
 
 
-def _solve_factor(R_aug: np.ndarray, rows: float, overlap: float) -> tuple[np.ndarray, float, np.ndarray]:
+def _solve_factor(R_aug: np.ndarray, rows: float, overlap: float
+                  ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, float]:
     """Solve the least-squares problem held in the factor ``R_aug`` of ``[A D]``.
 
-    Returns the unknowns, the condition number of the column-equilibrated factor and
-    the relative standard error of each unknown: ``sqrt(diag(cov)) / |theta|`` with
+    Returns the unknowns, the condition number of the column-equilibrated factor, the
+    relative standard error of each unknown: ``sqrt(diag(cov)) / |theta|`` with
     ``cov = s^2 (R^T R)^-1``, ``s^2 = residual^2 / (rows - n)`` inflated by ``overlap``
-    (consecutive windows share samples, so their residuals are not independent).
+    (consecutive windows share samples, so their residuals are not independent), and the
+    share of each term and of the right-hand side in the force balance:
+    ``|theta_i| ||A_i||`` and ``||D||`` over the root of the sum of their squares.
     """
     n = R_aug.shape[0] - 1
     R = R_aug[:n, :n]
     scale = np.linalg.norm(R, axis=0)
     nan = np.full(n, np.nan)
     if not np.all(scale > 0):
-        return nan, np.inf, np.full(n, np.inf)
+        return nan, np.inf, np.full(n, np.inf), nan, np.nan
     U, sv, Vt = np.linalg.svd(R / scale)
     cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else np.inf
     if not np.isfinite(cond) or cond > 1e14:
-        return nan, np.inf, np.full(n, np.inf)
+        return nan, np.inf, np.full(n, np.inf), nan, np.nan
     Rinv = (Vt.T / sv) @ U.T
     theta = Rinv @ R_aug[:n, n] / scale
+    terms = np.abs(theta) * scale
+    rhs = float(np.sqrt(np.sum(R_aug[:, n] ** 2)))
+    balance = float(np.sqrt(np.sum(np.append(terms**2, rhs**2))))
+    share, rhs_share = (terms / balance, rhs / balance) if balance > 0 else (nan, np.nan)
     dof = rows - n
     if dof <= 0:
-        return theta, cond, np.full(n, np.inf)
+        return theta, cond, np.full(n, np.inf), share, rhs_share
     s2 = R_aug[n, n] ** 2 / dof * overlap
     std = np.sqrt(s2 * np.sum(Rinv**2, axis=1)) / scale
     with np.errstate(divide="ignore", invalid="ignore"):
         rse = np.where(theta != 0, std / np.abs(theta), np.inf)
-    return theta, cond, rse
+    return theta, cond, rse, share, rhs_share
 
 
 class _Integrators:
@@ -247,6 +282,37 @@ class _Integrators:
 
 
 # ---------------------------------------------------------------------- estimate
+def _next_status(status: str, settled: int, unsettled: int, settle: int, good: bool, share: float) -> str:
+    """A parameter's status after a sample (see :data:`STATUSES`): ``settled`` counts the
+    samples since its error was last above ``max_uncertainty``, ``unsettled`` those since
+    it was last within :data:`LOSS_FACTOR` times that."""
+    published, not_excited, lost = STATUSES[1], STATUSES[2], STATUSES[3]
+    if settled >= settle:
+        return published
+    if status == published:
+        return lost if unsettled >= settle else published
+    if good and share < MIN_SHARE:
+        return not_excited
+    return lost if status == lost else STATUSES[0]
+
+
+def _prior_sizes(model: Chain, nominal: Mapping[str, float] | None) -> dict[str, float]:
+    """Canonical sizes from the optional prior ``nominal`` (public names)."""
+    if not nominal:
+        return {}
+    unknown = set(nominal) - set(model.parameters)
+    if unknown:
+        raise ValueError(f"option nominal: {model.name} has no parameter(s) {sorted(unknown)}; "
+                         f"its parameters are {list(model.parameters)}")
+    sizes = {}
+    for public, size in nominal.items():
+        name = model.canonical_name(public)
+        # the public value is the canonical one or (the circuit's C = 1/k) its reciprocal
+        probe = model.from_canonical({**model.canonical_parameters(), name: 2.0})[public]
+        sizes[name] = abs(float(size)) if probe == 2.0 or size == 0 else 1.0 / abs(float(size))
+    return sizes
+
+
 @dataclass(frozen=True)
 class Estimate:
     """One step of the online identifier.
@@ -256,22 +322,25 @@ class Estimate:
     t : float
         Time of the sample [s] (relative to the first sample).
     parameters : dict
-        Estimates under the model's public names; NaN until identified.
+        Estimates under the model's public names; NaN unless published (robust: see
+        ``status``).
     identified : bool
-        True when every parameter is trustworthy (robust: each one published, see
-        ``max_uncertainty`` and ``settle``; paper: a well-conditioned, finite solution).
+        True when every parameter is published (robust: see ``status``; paper: a
+        well-conditioned, finite solution).
     condition : float
         Largest condition number over the equations (column-equilibrated).
     uncertainty : float
-        Largest standard error of a parameter relative to max(|estimate|, |nominal|)
-        (robust method; NaN for paper), an approximate figure from the least-squares
-        residual.
+        Largest relative standard error of a parameter (robust method; NaN for paper), an
+        approximate figure from the least-squares residual; relative to
+        max(|estimate|, prior size) for a parameter given an optional prior (``nominal``).
     window : float
         Current window length [s].
     current : dict or None
         The estimator's solution at this sample (public names), trusted or not (NaN where
         the system is singular); None when the estimator does not report it. Input to
         :func:`duffid.trust.assess`, never a published value.
+    status : dict or None
+        Public name -> one of :data:`STATUSES` (None when the estimator does not report it).
     """
 
     t: float
@@ -281,6 +350,7 @@ class Estimate:
     uncertainty: float
     window: float
     current: dict[str, float] | None = None
+    status: dict[str, str] | None = None
 
 
 class _EquationState:
@@ -290,6 +360,15 @@ class _EquationState:
         self.theta = np.full(len(equation.unknowns), np.nan)
         self.cond = np.inf
         self.rse = np.full(len(equation.unknowns), np.inf)
+        self.share = np.full(len(equation.unknowns), np.nan)
+        self.rhs_share = np.nan
+
+    def clear(self) -> None:
+        self.theta[:] = np.nan
+        self.cond = np.inf
+        self.rse[:] = np.inf
+        self.share[:] = np.nan
+        self.rhs_share = np.nan
 
 
 class OnlineIdentifier:
@@ -298,9 +377,14 @@ class OnlineIdentifier:
     Parameters
     ----------
     model : Chain
-        Model structure (e.g. :class:`~duffid.models.Duffing1`). Its parameter values are
-        nominal sizes: an estimate is trustworthy when its standard error is below
-        ``max_uncertainty`` times the larger of its own size and the nominal one.
+        Model structure (e.g. :class:`~duffid.models.Duffing1`); its parameter values are
+        not used. A parameter is published once its relative standard error stayed at most
+        ``max_uncertainty`` for ``settle`` s, withdrawn ("lost") once it has not for
+        ``settle`` s; "not excited" while its term carries less than :data:`MIN_SHARE` of
+        the force balance (see :data:`STATUSES`). Every scale comes from the data, unless
+        the optional prior ``nominal`` gives a parameter a size: then its standard error is
+        taken relative to the larger of the estimate and that size (so that a parameter
+        known to be small next to that size is published).
     dt : float
         Sampling period [s].
     method : {"robust", "paper"}
@@ -310,7 +394,8 @@ class OnlineIdentifier:
         (auto window in natural periods, 1.5), ``max_window`` (s, 1.0), ``forgetting``
         (time constant in s or None), ``rows`` ("integrals", "bernstein" or "paper"),
         ``n_rows`` (max(unknowns + 1, 8)), ``max_condition`` (1e6), ``max_uncertainty``
-        (0.01), ``settle`` (s, 0.01), ``min_time`` (s, 0.01), ``deadband`` (m).
+        (0.01), ``settle`` (s, 0.01), ``min_time`` (s, 0.01), ``deadband`` (m),
+        ``nominal`` (None, or prior sizes by public name).
         ``paper``: ``gamma`` (20), ``quadrature`` ("adams3" or "trapezoid"),
         ``sign_in_numerator`` (False), ``max_condition``, ``min_time``, ``deadband``.
 
@@ -329,7 +414,7 @@ class OnlineIdentifier:
         self.method = method
         self.options = check_options(method, options)
         self.equations = model.equations()
-        self._nominal = {k: abs(v) for k, v in model.canonical_parameters().items()}
+        self._prior = _prior_sizes(model, self.options.get("nominal"))
         channels: dict[Channel, None] = {}
         for eq in self.equations:
             for c in eq.channels:
@@ -360,7 +445,10 @@ class OnlineIdentifier:
         self.n = -1
         self._channels.reset()
         self._window_fixed = False
-        self._settled: dict[str, int] = {}
+        canonical = self.model.canonical_parameters()
+        self._settled = {k: 0 for k in canonical}
+        self._unsettled = {k: 0 for k in canonical}
+        self._status = {k: STATUSES[0] for k in canonical}
         self._held = {name: np.nan for name in self.parameter_names}
         if self.method == "robust":
             self._moments.reset()
@@ -370,9 +458,7 @@ class OnlineIdentifier:
         else:
             self._paper_reset()
         for st in self._states:
-            st.theta[:] = np.nan
-            st.cond = np.inf
-            st.rse[:] = np.inf
+            st.clear()
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
@@ -400,45 +486,66 @@ class OnlineIdentifier:
         return estimate
 
     def _publish(self, window_samples: int) -> Estimate:
-        canonical, cond, rse = self._combine()
+        canonical, cond, rse, share = self._combine()
         if self.method == "paper":
             # the paper's estimator outputs its estimate from the start (faithful)
             self._held = self.model.from_canonical(canonical)
             ok = self._window_ok(cond, window_samples) and all(np.isfinite(v) for v in canonical.values())
+            status = {k: STATUSES[1] if ok else STATUSES[0] for k in self._held}
             return Estimate(self.n * self.dt, dict(self._held), ok, cond, np.nan, window_samples * self.dt,
-                            dict(self._held))
-        # each parameter is published once its relative error stayed small for `settle` s;
-        # the error is taken relative to the larger of the estimate and the model's nominal
-        # value, so that a parameter that is truly zero is identified once it is small
-        # compared with the size the model expects
+                            dict(self._held), status)
         good = self._window_ok(cond, window_samples)
         settle = max(int(round(self.options["settle"] / self.dt)), 1)
-        trusted = {}
         worst = 0.0
+        trusted = {}
         for k, v in canonical.items():
-            std = rse[k] * abs(v) if np.isfinite(v) and v != 0 else np.inf
-            relative = std / max(abs(v), self._nominal.get(k, 0.0)) if np.isfinite(std) else np.inf
+            relative = rse[k] if np.isfinite(v) and v != 0 else np.inf
+            if self._prior.get(k, 0.0) > 0 and np.isfinite(relative):  # the user's prior size
+                relative = relative * abs(v) / max(abs(v), self._prior[k])
             worst = max(worst, relative)
             small = good and relative <= self.options["max_uncertainty"]
-            self._settled[k] = self._settled.get(k, 0) + 1 if small else 0
+            large = not (good and relative <= LOSS_FACTOR * self.options["max_uncertainty"])
+            self._settled[k] = self._settled[k] + 1 if small else 0
+            self._unsettled[k] = self._unsettled[k] + 1 if large else 0
+            self._status[k] = _next_status(self._status[k], self._settled[k], self._unsettled[k], settle,
+                                           good, share[k])
             trusted[k] = v if self._settled[k] >= settle else np.nan
         public = self.model.from_canonical(trusted)
-        self._held = {k: (v if np.isfinite(v) else self._held[k]) for k, v in public.items()}
-        ok = all(c >= settle for c in self._settled.values())
+        status = {name: self._status[self.model.canonical_name(name)] for name in public}
+        self._held = {name: (v if np.isfinite(v) else self._held[name]) if status[name] == STATUSES[1] else np.nan
+                      for name, v in public.items()}
+        ok = all(s == STATUSES[1] for s in status.values())
         current = self.model.from_canonical(canonical) if good else {k: np.nan for k in self._held}
-        return Estimate(self.n * self.dt, dict(self._held), ok, cond, worst, window_samples * self.dt, current)
+        return Estimate(self.n * self.dt, dict(self._held), ok, cond, worst, window_samples * self.dt, current,
+                        status)
 
     def _window_ok(self, cond: float, L: int) -> bool:
         o = self.options
         return bool(cond <= o["max_condition"] and L * self.dt >= o["min_time"] - 1e-12
                     and self.n >= _MIN_SAMPLES)
 
-    def _combine(self) -> tuple[dict[str, float], float, dict[str, float]]:
+    def _combine(self) -> tuple[dict[str, float], float, dict[str, float], dict[str, float]]:
         solutions = [dict(zip(st.equation.unknowns, st.theta)) for st in self._states]
         errors = [dict(zip(st.equation.unknowns, st.rse)) for st in self._states]
         cond = max(st.cond for st in self._states)
         values, rse = combine_equations(self.model, solutions, errors)
-        return values, cond, rse
+        return values, cond, rse, self._shares(values)
+
+    def _shares(self, canonical: Mapping[str, float]) -> dict[str, float]:
+        """Share of each canonical parameter's term in the force balance of the equations
+        it appears in (the largest); an unforced DOF's mass is its equation's right-hand side."""
+        out = {}
+        for name in canonical:
+            found = []
+            for j, st in enumerate(self._states):
+                key = name if j in self.model.forced else f"{name}/m{j + 1}"
+                if key in st.equation.unknowns:
+                    found.append(float(st.share[st.equation.unknowns.index(key)]))
+                elif name == f"m{j + 1}" and j not in self.model.forced:
+                    found.append(float(st.rhs_share))
+            found = [v for v in found if np.isfinite(v)]
+            out[name] = max(found) if found else np.nan
+        return out
 
     # -------------------------------------------------------------- robust
     def _robust_step(self, g: np.ndarray) -> int:
@@ -460,18 +567,26 @@ class OnlineIdentifier:
         for st, solver, (A, D) in zip(self._states, self._solvers, systems):
             if full:
                 solver.update(A, D)
-                st.theta, st.cond, st.rse = _solve_factor(solver.R, solver.rows, float(L))
+                st.theta, st.cond, st.rse, st.share, st.rhs_share = _solve_factor(solver.R, solver.rows, float(L))
             else:
                 R = _triangular_factor(np.column_stack([A, D]), len(st.equation.unknowns) + 1)
-                st.theta, st.cond, st.rse = _solve_factor(R, len(A), 1.0)
+                st.theta, st.cond, st.rse, st.share, st.rhs_share = _solve_factor(R, len(A), 1.0)
 
     def _after_publish(self, estimate: Estimate, L: int) -> None:
-        """Fix the auto window once every parameter is identified."""
-        if self._auto and not self._window_fixed and estimate.identified:
+        """Fix the auto window once every parameter is published or not excited, the
+        masses and linear stiffnesses published."""
+        if self._auto and not self._window_fixed and self._window_known():
             self._window_fixed = True
             canonical = self._combine()[0]
             self._target = auto_window(self.model, canonical, self.dt, L, self.capacity,
                                        self.options["window_periods"])
+
+    def _window_known(self) -> bool:
+        """Every mass and linear stiffness published, every other parameter published or
+        not excited: the natural periods are known."""
+        def needed(name: str) -> bool:
+            return (name[0] == "m" and name[1:].isdigit()) or (name[0] == "k" and name.endswith("_1"))
+        return all(s == STATUSES[1] or (s == STATUSES[2] and not needed(k)) for k, s in self._status.items())
 
     # -------------------------------------------------------------- paper
     def _paper_setup(self) -> None:
@@ -670,6 +785,10 @@ class Identification:
         :func:`duffid.trust.identify`; None for a bare estimator run (:func:`estimate`, or
         ``identify(check=False)``), whose ``parameters`` are the estimator's final values,
         unchecked.
+    status : dict
+        The online estimator's own status of each parameter at the last sample (see
+        :data:`STATUSES`); empty for the buffered methods. The checked status is the
+        assessment's.
     """
 
     model: str
@@ -685,6 +804,7 @@ class Identification:
     source: str = ""
     estimates: dict[str, float] = field(default_factory=dict)
     assessment: Any = None
+    status: dict[str, str] = field(default_factory=dict)
 
     @classmethod
     def from_estimates(cls, ident: OnlineIdentifier, record: Record, estimates: list[Estimate]) -> "Identification":
@@ -700,6 +820,7 @@ class Identification:
             t_identified=float(record.t[np.argmax(flags)] - record.t[0]) if flags.any() else None,
             window=estimates[-1].window, options=dict(ident.options), source=record.source,
             estimates={name: float(final[name]) for name in names},
+            status=dict(estimates[-1].status or {}),
         )
 
     def errors(self, truth: Mapping[str, float]) -> dict[str, float]:
@@ -741,6 +862,8 @@ class Identification:
         }
         if self.assessment is not None:
             out.update(self.assessment.to_dict())
+        elif self.status:
+            out["status"] = dict(self.status)
         out.update({
             "t_identified": self.t_identified if self.is_identified else None,
             "condition": clean(self.condition[-1]) if len(self.condition) else None,

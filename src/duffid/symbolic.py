@@ -46,7 +46,7 @@ import casadi as ca
 import numpy as np
 
 from .buffered import LinearTerm, Regression, identify_buffered, velocity_signs
-from .identification import Identification, _equilibrated_condition, _Integrators, default_options, filtered_cramer
+from .identification import STATUSES, Identification, _equilibrated_condition, _Integrators, default_options, filtered_cramer
 from .orthogonal import BASES
 from .record import Record
 
@@ -968,6 +968,7 @@ def _identify_paper(record: Record, reg: DerivedRegressor, options: Mapping[str,
         t=record.t - record.t[0], history=history, condition=condition, identified=flags,
         t_identified=float(record.t[np.argmax(flags)] - record.t[0]) if flags.any() else None,
         window=float(record.duration),
-        options={**o, "equation": "; ".join(reg.equations)}, source=record.source)
+        options={**o, "equation": "; ".join(reg.equations)}, source=record.source,
+        status={k: STATUSES[1] if len(flags) and flags[-1] else STATUSES[0] for k in names})
 
 

@@ -361,9 +361,9 @@ static void selftest_config(void)
     check(duffid_create(&est, &cfg, msg, sizeof msg) == DUFFID_ERR_CONFIG && strstr(msg, "window") != NULL,
           "negative window");
     duffid_default_config(&cfg, DUFFID_DUFFING1, DUFFID_ROBUST, 1e-3);
-    cfg.nominal[0] = 0.0;
-    check(duffid_create(&est, &cfg, msg, sizeof msg) == DUFFID_ERR_CONFIG && strstr(msg, "parameter m") != NULL,
-          "zero nominal mass");
+    cfg.nominal[0] = INFINITY;
+    check(duffid_create(&est, &cfg, msg, sizeof msg) == DUFFID_ERR_CONFIG && strstr(msg, "m_nominal") != NULL,
+          "infinite prior size");
     duffid_default_config(&cfg, DUFFID_DUFFING2, DUFFID_PAPER, 1e-3);
     cfg.quadrature = 5;
     check(duffid_create(&est, &cfg, msg, sizeof msg) == DUFFID_ERR_CONFIG && strstr(msg, "quadrature") != NULL,
