@@ -301,3 +301,31 @@ def test_c_program_on_a_csv_record(c_program, tmp_path, case_a, two_dof_exact, m
     c = _run(CIdentifier(model, record.dt, method, **options), record)
     _, Cb = _history(c)
     assert np.array_equal(C, Cb, equal_nan=True)
+
+
+def test_outliers_are_excluded_as_in_python(case_b_exact):
+    clean = measure(case_b_exact, snr_db=40, seed=3)
+    x = clean.x.copy()
+    x[700, 0], x[1200, 0], x[-1, 0] = 1.0, 0.0, 2.0   # the last one is never confirmed: processed as measured
+    record = Record(clean.t, clean.f, x, source="glitched")
+    py = estimate(record, Duffing1())
+    with CIdentifier(Duffing1(), record.dt) as ident:
+        c = ident.identify_record(record)
+    assert c.outliers == py.outliers and [o["value"] for o in py.outliers] == [1.0, 0.0]
+    assert np.array_equal(c.identified, py.identified) and c.status == py.status
+    spread = identifier_spread(Duffing1(), record)
+    spread.assert_final(c.parameters, py.parameters)
+
+
+def test_the_c_constants_are_pythons():
+    """Status codes and the trust and outlier constants: one fact, two languages."""
+    import re
+
+    from duffid import identification as ident
+
+    header = (source_dir() / "duffid_estimator.h").read_text()
+    defines = dict(re.findall(r"^#define (DUFFID_\w+) (\S+)", header, flags=re.M))
+    assert [int(defines[f"DUFFID_STATUS_{name.upper().replace(' ', '_')}"]) for name in ident.STATUSES] == \
+        list(range(len(ident.STATUSES)))
+    for name in ("MIN_SHARE", "LOSS_FACTOR", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "OUTLIER_MEMORY"):
+        assert float(defines[f"DUFFID_{name}"]) == getattr(ident, name), name

@@ -21,7 +21,7 @@ from fmpy.validation import validate_fmu  # noqa: E402
 
 from fmu_helpers import simulate_record, start_fmi2  # noqa: E402
 from rounding import identifier_spread  # noqa: E402
-from duffid import Duffing1, Duffing2, measure  # noqa: E402
+from duffid import Duffing1, Duffing2, Record, measure  # noqa: E402
 from duffid.identification import STATUSES  # noqa: E402
 from duffid.fmu_estimator import TYPES, build_estimator_fmu, build_estimator_fmus  # noqa: E402
 from duffid.identification import OnlineIdentifier, estimate  # noqa: E402
@@ -72,7 +72,7 @@ def test_interface(fmus, model_name, version):
     outputs = [v.name for v in md.modelVariables if v.causality == "output"]
     assert outputs == [f"{n}_hat" for n in model.parameters] + ["identified", "condition", "uncertainty",
                                                                    "window_length"] + [
-        f"{n}_status" for n in model.parameters]
+        f"{n}_status" for n in model.parameters] + ["outliers"]
     assert len(md.outputs) == len(outputs)
     for name in model.parameters:
         assert float(variables[f"{name}_nominal"].start) == 0.0  # no prior: the data give the scale
@@ -358,3 +358,18 @@ def test_c_host_program_matches_python(fmus, case_a, tmp_path):
     result = simulate_record(fmus["DuffingEstimator1.fmu"], case_a, ["x", "f"])
     expected = np.array([result[f"{p}_hat"][-1] for p in Duffing1().parameters])
     np.testing.assert_array_equal(host, expected)
+
+
+def test_a_glitch_is_excluded_by_both_fmus(fmus, case_b_exact):
+    clean = measure(case_b_exact, snr_db=40, seed=3)
+    x = clean.x.copy()
+    x[900, 0] = 1.0  # a spike of 1 m
+    record = Record(clean.t, clean.f, x, source="glitched")
+    expected = estimate(record, Duffing1())
+    assert len(expected.outliers) == 1
+    names = ["DuffingEstimator1.fmu"] + (["DuffingEstimator1_python.fmu"] if "DuffingEstimator1_python.fmu" in fmus else [])
+    for name in names:
+        result = simulate_record(fmus[name], record, ["x", "f"])
+        assert list(result["outliers"][[900, 901, 902, -1]]) == [0, 0, 1, 1], name
+        identifier_spread(Duffing1(), record).assert_final(
+            {p: result[f"{p}_hat"][-1] for p in expected.parameters}, expected.parameters)

@@ -51,7 +51,7 @@ def test_interface(fmus, model_name, inputs, outputs):
     assert [v.name for v in md.modelVariables if v.causality == "input"] == inputs
     out = [v.name for v in md.modelVariables if v.causality == "output"]
     assert out == outputs + ["identified", "condition", "uncertainty", "window_length"] + [
-        f"{n[:-4]}_status" for n in outputs]
+        f"{n[:-4]}_status" for n in outputs] + ["outliers"]
     assert all(variables[name].initial == "exact" for name in out)
     assert variables["identified"].type == "Boolean"
     assert np.isnan(float(variables[outputs[0]].start))

@@ -209,3 +209,35 @@ def test_sign_in_numerator_removes_most_sign_flips_of_the_paper_estimator(case_b
 
     faithful, fixed = wrong_sign_samples(), wrong_sign_samples(sign_in_numerator=True)
     assert faithful > 3 * fixed
+
+
+def _glitched(record, glitches):
+    x = record.x.copy()
+    for k, value in glitches.items():
+        x[k, 0] = value
+    return Record(record.t, record.f, x, source="glitched")
+
+
+def test_an_isolated_glitch_online_is_excluded_reported_and_harmless(case_b_exact):
+    """A spike, a dropout to 0 and a wrapped count, fed sample by sample: each is held back
+    one sample, replaced and counted; the run ends as the clean run does."""
+    clean = measure(case_b_exact, snr_db=40, seed=3)
+    glitches = {700: 1.0, 1200: 0.05, 1650: -0.3}
+    ident = OnlineIdentifier(Duffing1(), clean.dt)
+    estimates = [ident.update(x, f) for x, f in zip(_glitched(clean, glitches).x, clean.f)]
+    assert [round(o["t"] / clean.dt) for o in ident.outliers] == sorted(glitches)
+    assert [o["value"] for o in ident.outliers] == [glitches[k] for k in sorted(glitches)]
+    assert estimates[-1].outliers == 3 and estimates[701].outliers == 1 and estimates[699].outliers == 0
+    # the sample held back repeats the previous estimate, at its own time
+    assert estimates[700].t == pytest.approx(700 * clean.dt) and estimates[700].parameters == estimates[699].parameters
+    reference = estimate(clean, Duffing1())
+    assert estimates[-1].status == reference.status
+    for name, value in reference.parameters.items():  # the replacements are within the noise
+        assert estimates[-1].parameters[name] == pytest.approx(value, rel=2e-3)
+    # clean records, noisy, quantised or noise-free, lose no sample
+    assert estimate(case_b_exact, Duffing1()).outliers == [] and reference.outliers == []
+
+
+def test_a_step_from_rest_is_no_outlier():
+    record = measure(simulate(Duffing1(), Step(10.0, 0.2), 1.0, 1e-3))
+    assert estimate(record, Duffing1()).outliers == []

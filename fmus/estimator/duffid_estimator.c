@@ -125,6 +125,20 @@ struct duffid_estimator {
     double Ap[MAX_UNK * MAX_UNK], Dp[MAX_UNK], Aw[MAX_UNK * MAX_UNK];
     double canon[DUFFID_MAX_PARAMS], canon_rse[DUFFID_MAX_PARAMS], canon_share[DUFFID_MAX_PARAMS];
 
+    /* isolated outliers (identification._OutlierGuard) */
+    int64_t received;                      /* index of the newest sample received */
+    double gh[3 * DUFFID_MAX_DOF];         /* accepted x at n-1, n-2, n-3: [level * n_dof + j] */
+    int64_t g_count;
+    double g_mean[DUFFID_MAX_DOF], g_lo[DUFFID_MAX_DOF], g_hi[DUFFID_MAX_DOF], g_step[DUFFID_MAX_DOF];
+    int pending;
+    int64_t p_k;
+    double p_x[DUFFID_MAX_DOF], p_f[DUFFID_MAX_FORCES], p_threshold[DUFFID_MAX_DOF];
+    int p_suspect[DUFFID_MAX_DOF];
+    long outliers;
+    double outlier_t, outlier_value, outlier_replaced_by;
+    int outlier_column;
+    duffid_output last;                    /* output after the latest processed sample */
+
     void *block; /* the malloc'ed block (duffid_create), NULL for caller memory */
 };
 
@@ -695,6 +709,22 @@ void duffid_reset(duffid_estimator *est)
     }
     est->n = -1;
     est->window_fixed = 0;
+    est->received = -1;
+    memset(est->gh, 0, sizeof est->gh);
+    est->g_count = 0;
+    for (i = 0; i < DUFFID_MAX_DOF; i++) {
+        est->g_mean[i] = 0.0;
+        est->g_lo[i] = DINF;
+        est->g_hi[i] = -DINF;
+        est->g_step[i] = DINF;
+    }
+    est->pending = 0;
+    est->outliers = 0;
+    est->outlier_t = DNAN;
+    est->outlier_value = DNAN;
+    est->outlier_replaced_by = DNAN;
+    est->outlier_column = -1;
+    memset(&est->last, 0, sizeof est->last);
     for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
         est->settled[i] = 0;
         est->unsettled[i] = 0;
@@ -1520,11 +1550,88 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
     }
 }
 
+/* ------------------------------------------------------------------ outliers */
+static void guard_threshold(const duffid_estimator *est, double *threshold)
+{
+    int j;
+    for (j = 0; j < est->n_dof; j++) {
+        double step = is_finite(est->g_step[j]) ? est->g_step[j] : 0.0;
+        double scale = 1.2533141373155003 * est->g_mean[j];
+        double range = DUFFID_OUTLIER_RANGE * (est->g_hi[j] - est->g_lo[j]);
+        scale = step > scale ? step : scale;
+        scale = range > scale ? range : scale;
+        threshold[j] = DUFFID_OUTLIER_SIGMAS * scale;
+    }
+}
+
+static double guard_prediction(const duffid_estimator *est, int j)
+{
+    const int n = est->n_dof;
+    return 3.0 * est->gh[j] - 3.0 * est->gh[n + j] + est->gh[2 * n + j];
+}
+
+/* _OutlierGuard._accept (threshold NULL: no clipping) */
+static void guard_accept(duffid_estimator *est, const double *x, const double *threshold)
+{
+    const int n = est->n_dof;
+    int j;
+    for (j = 0; j < n; j++) {
+        if (est->g_count >= 3) {
+            double r = fabs(x[j] - guard_prediction(est, j));
+            if (threshold != NULL && threshold[j] < r) {
+                r = threshold[j];
+            }
+            est->g_mean[j] = est->g_count == 3 ? r : est->g_mean[j] + (r - est->g_mean[j]) / DUFFID_OUTLIER_MEMORY;
+        }
+        if (est->g_count >= 1) {
+            double d = fabs(x[j] - est->gh[j]);
+            if (d > 0.0 && d < est->g_step[j]) {
+                est->g_step[j] = d;
+            }
+        }
+        if (x[j] < est->g_lo[j]) {
+            est->g_lo[j] = x[j];
+        }
+        if (x[j] > est->g_hi[j]) {
+            est->g_hi[j] = x[j];
+        }
+        est->gh[2 * n + j] = est->gh[n + j];
+        est->gh[n + j] = est->gh[j];
+        est->gh[j] = x[j];
+    }
+    est->g_count++;
+}
+
 /* ------------------------------------------------------------------ update */
-int duffid_update(duffid_estimator *est, const double *x, const double *f, duffid_output *out)
+/* OnlineIdentifier._process: one sample into the estimator, its output into est->last */
+static void process(duffid_estimator *est, const double *x, const double *f)
 {
     long window;
-    int i;
+    est->n++;
+    evaluate_channels(est, x, f);
+    window = est->cfg.method == DUFFID_ROBUST ? robust_step(est) : paper_step(est);
+    publish(est, window, &est->last);
+}
+
+/* OnlineIdentifier._reported */
+static void report(const duffid_estimator *est, duffid_output *out)
+{
+    if (out == NULL) {
+        return;
+    }
+    *out = est->last;
+    out->t = (double)est->received * est->cfg.dt;
+    out->outliers = est->outliers;
+    out->outlier_t = est->outlier_t;
+    out->outlier_column = est->outlier_column;
+    out->outlier_value = est->outlier_value;
+    out->outlier_replaced_by = est->outlier_replaced_by;
+}
+
+int duffid_update(duffid_estimator *est, const double *x, const double *f, duffid_output *out)
+{
+    double threshold[DUFFID_MAX_DOF];
+    int i, j, suspect = 0;
     if (est == NULL || x == NULL || f == NULL) {
         return DUFFID_ERR_ARGUMENT;
     }
@@ -1538,11 +1645,63 @@ int duffid_update(duffid_estimator *est, const double *x, const double *f, duffi
             return DUFFID_ERR_SAMPLE;
         }
     }
-    est->n++;
-    evaluate_channels(est, x, f);
-    window = est->cfg.method == DUFFID_ROBUST ? robust_step(est) : paper_step(est);
-    publish(est, window, out);
+    est->received++;
+    if (est->pending) { /* _OutlierGuard.admit: was the held sample an isolated glitch? */
+        const int n = est->n_dof;
+        est->pending = 0;
+        for (j = 0; j < n; j++) {
+            double ahead = 6.0 * est->gh[j] - 8.0 * est->gh[n + j] + 3.0 * est->gh[2 * n + j];
+            if (est->p_suspect[j] && fabs(x[j] - ahead) <= est->p_threshold[j]) {
+                double value = (3.0 * est->gh[j] - est->gh[n + j] + x[j]) / 3.0;
+                est->outliers++;
+                est->outlier_t = (double)est->p_k * est->cfg.dt;
+                est->outlier_column = j;
+                est->outlier_value = est->p_x[j];
+                est->outlier_replaced_by = value;
+                est->p_x[j] = value;
+            }
+        }
+        guard_accept(est, est->p_x, est->p_threshold);
+        process(est, est->p_x, est->p_f);
+    }
+    if (est->g_count >= MIN_SAMPLES) {
+        guard_threshold(est, threshold);
+        for (j = 0; j < est->n_dof; j++) {
+            est->p_suspect[j] = fabs(x[j] - guard_prediction(est, j)) > threshold[j];
+            suspect |= est->p_suspect[j];
+        }
+        if (suspect) { /* held back one sample */
+            est->pending = 1;
+            est->p_k = est->received;
+            for (j = 0; j < est->n_dof; j++) {
+                est->p_x[j] = x[j];
+                est->p_threshold[j] = threshold[j];
+            }
+            for (j = 0; j < est->n_forces; j++) {
+                est->p_f[j] = f[j];
+            }
+            report(est, out);
+            return DUFFID_OK;
+        }
+        guard_accept(est, x, threshold);
+    } else {
+        guard_accept(est, x, NULL);
+    }
+    process(est, x, f);
+    report(est, out);
     return DUFFID_OK;
+}
+
+int duffid_flush(duffid_estimator *est, duffid_output *out)
+{
+    if (est == NULL || !est->pending) {
+        return 0;
+    }
+    est->pending = 0;
+    guard_accept(est, est->p_x, est->p_threshold);
+    process(est, est->p_x, est->p_f);
+    report(est, out);
+    return 1;
 }
 
 int duffid_run(duffid_estimator *est, long n, const double *x, const double *f, duffid_output *out,

@@ -76,6 +76,16 @@ extern "C" {
 #define DUFFID_MIN_SHARE 0.01
 #define DUFFID_LOSS_FACTOR 2.0
 
+/* Isolated displacement outliers (duffid.identification.OUTLIER_*): a sample further than
+ * DUFFID_OUTLIER_SIGMAS robust standard deviations (never less than the quantisation
+ * step nor DUFFID_OUTLIER_RANGE of the range covered) from the quadratic through the three
+ * samples before it is held back one sample; if the next sample agrees with the samples
+ * before it, the held one is replaced by the quadratic through its neighbours and counted.
+ * Meanwhile the previous output is repeated. */
+#define DUFFID_OUTLIER_SIGMAS 12.0
+#define DUFFID_OUTLIER_RANGE 1e-4
+#define DUFFID_OUTLIER_MEMORY 64.0
+
 /* Quadrature of the paper method's integrators. */
 #define DUFFID_ADAMS3 0
 #define DUFFID_TRAPEZOID 1
@@ -128,6 +138,10 @@ typedef struct duffid_output {
                                             * checks of duffid.trust, never a published value. */
     int status[DUFFID_MAX_PARAMS];         /* public order: DUFFID_STATUS_* (robust; paper:
                                             * PUBLISHED while identified, else UNCERTAIN) */
+    long outliers;                         /* isolated displacement outliers excluded so far */
+    double outlier_t;                      /* the latest: time [s], displacement index, */
+    int outlier_column;                    /* value measured and value used (NaN before any) */
+    double outlier_value, outlier_replaced_by;
 } duffid_output;
 
 typedef struct duffid_estimator duffid_estimator;
@@ -159,6 +173,10 @@ void duffid_destroy(duffid_estimator *est);
 
 /* Forget all samples (start a new identification). */
 void duffid_reset(duffid_estimator *est);
+
+/* Process a sample held back as a suspect outlier (the end of a record). Returns 1 and
+ * fills out (if not NULL) when there was one, 0 otherwise. */
+int duffid_flush(duffid_estimator *est, duffid_output *out);
 
 /* Consume one sample: displacements x[n_dof] and forces f[n_forces]. out may be NULL.
  * A non-finite sample returns DUFFID_ERR_SAMPLE and leaves the state unchanged. */

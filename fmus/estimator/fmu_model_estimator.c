@@ -13,6 +13,7 @@
  *   then n_params            estimates (outputs, NaN until published)
  *   then 4                   identified (Boolean), condition, uncertainty, window_length
  *   then n_params            <name>_status (Integer, DUFFID_STATUS_*)
+ *   then 1                   outliers (Integer: isolated displacement outliers excluded)
  *   then N_OPTIONS           options (fixed parameters; codes are Integer, see below)
  *   then n_params            optional prior sizes <name>_nominal (0: none)
  *
@@ -69,7 +70,8 @@ enum {
 #define VR_UNCERTAINTY (VR_IDENTIFIED + 2)
 #define VR_WINDOW_LENGTH (VR_IDENTIFIED + 3)
 #define VR_STATUS (VR_IDENTIFIED + 4)
-#define VR_OPT (VR_STATUS + N_PARAMS)
+#define VR_OUTLIERS (VR_STATUS + N_PARAMS)
+#define VR_OPT (VR_OUTLIERS + 1)
 #define VR_NOMINAL (VR_OPT + N_OPTIONS)
 #define N_VARS_EXPECTED (VR_NOMINAL + N_PARAMS)
 
@@ -106,6 +108,7 @@ static int evaluate(Instance *inst)
     if (d != NULL && d->have_out) {
         for (i = 0; i < N_PARAMS; i++) v[VR_EST + i] = d->out.parameters[i];
         for (i = 0; i < N_PARAMS; i++) v[VR_STATUS + i] = (double)d->out.status[i];
+        v[VR_OUTLIERS] = (double)d->out.outliers;
         v[VR_IDENTIFIED] = d->out.identified ? 1.0 : 0.0;
         v[VR_CONDITION] = d->out.condition;
         v[VR_UNCERTAINTY] = d->out.uncertainty;
@@ -113,6 +116,7 @@ static int evaluate(Instance *inst)
     } else {
         for (i = 0; i < N_PARAMS; i++) v[VR_EST + i] = NAN;
         for (i = 0; i < N_PARAMS; i++) v[VR_STATUS + i] = (double)DUFFID_STATUS_UNCERTAIN;
+        v[VR_OUTLIERS] = 0.0;
         v[VR_IDENTIFIED] = 0.0;
         v[VR_CONDITION] = NAN;
         v[VR_UNCERTAINTY] = NAN;
@@ -242,6 +246,11 @@ static int do_step(Instance *inst, double t, double h)
     if (duffid_update(d->est, x, f, &out) != DUFFID_OK) {
         fmu_log(inst, FMU_ERROR, "logStatusError", "sample at t = %.17g is not finite; rejected", t);
         return 1;
+    }
+    if (out.outliers > (d->have_out ? d->out.outliers : 0)) {
+        fmu_log(inst, FMU_WARNING, "logStatusWarning",
+                "x%d = %.17g at t = %.17g excluded as an isolated outlier (replaced by %.17g)",
+                out.outlier_column + 1, out.outlier_value, out.outlier_t, out.outlier_replaced_by);
     }
     d->out = out;
     d->have_out = 1;

@@ -99,12 +99,19 @@ class _Output(ctypes.Structure):
         ("window", ctypes.c_double),
         ("current", ctypes.c_double * _MAX_PARAMS),
         ("status", ctypes.c_int * _MAX_PARAMS),
+        ("outliers", ctypes.c_long),
+        ("outlier_t", ctypes.c_double),
+        ("outlier_column", ctypes.c_int),
+        ("outlier_value", ctypes.c_double),
+        ("outlier_replaced_by", ctypes.c_double),
     ]
 
 
 _OUTPUT_DTYPE = np.dtype([("t", "f8"), ("parameters", "f8", (_MAX_PARAMS,)), ("n_parameters", "i4"),
                           ("identified", "i4"), ("condition", "f8"), ("uncertainty", "f8"), ("window", "f8"),
-                          ("current", "f8", (_MAX_PARAMS,)), ("status", "i4", (_MAX_PARAMS,))],
+                          ("current", "f8", (_MAX_PARAMS,)), ("status", "i4", (_MAX_PARAMS,)),
+                          ("outliers", "i8"), ("outlier_t", "f8"), ("outlier_column", "i4"), ("outlier_value", "f8"),
+                          ("outlier_replaced_by", "f8")],
                          align=True)
 
 
@@ -227,6 +234,7 @@ def load_library(path: str | os.PathLike[str] | None = None) -> ctypes.CDLL:
         "duffid_create": (ctypes.c_int, [ctypes.POINTER(est_p), cfg_p, ctypes.c_char_p, ctypes.c_size_t]),
         "duffid_destroy": (None, [est_p]),
         "duffid_reset": (None, [est_p]),
+        "duffid_flush": (ctypes.c_int, [est_p, out_p]),
         "duffid_update": (ctypes.c_int, [est_p, dbl_p, dbl_p, out_p]),
         "duffid_run": (ctypes.c_int, [est_p, ctypes.c_long, dbl_p, dbl_p, out_p, ctypes.POINTER(ctypes.c_long)]),
         "duffid_n_parameters": (ctypes.c_int, [est_p]),
@@ -385,12 +393,19 @@ class CIdentifier:
         if rc != 0:
             raise RuntimeError(f"C estimator core: {_STATUS.get(rc, rc)}")
         self.n += 1
+        return self._estimate()
+
+    def flush(self) -> Estimate | None:
+        """Process a sample held back as a suspect outlier (see ``OnlineIdentifier.flush``)."""
+        return self._estimate() if self._lib.duffid_flush(self._live(), ctypes.byref(self._out)) else None
+
+    def _estimate(self) -> Estimate:
         out = self._out
         params = {name: out.parameters[i] for i, name in enumerate(self._names)}
         current = {name: out.current[i] for i, name in enumerate(self._names)}
         status = {name: STATUSES[out.status[i]] for i, name in enumerate(self._names)}
         return Estimate(out.t, params, bool(out.identified), out.condition, out.uncertainty, out.window, current,
-                        status)
+                        status, int(out.outliers))
 
     def run(self, x: np.ndarray, f: np.ndarray) -> np.ndarray:
         """Consume many samples in one call: ``x`` (n, n_dof), ``f`` (n, n_forces).
@@ -418,13 +433,17 @@ class CIdentifier:
         if rc != 0:
             raise RuntimeError(f"C estimator core: {_STATUS.get(rc, rc)}")
         self.n += n
-        return np.ctypeslib.as_array(out).view(_OUTPUT_DTYPE) if n else np.zeros(0, _OUTPUT_DTYPE)
+        return np.frombuffer(memoryview(out).cast("B"), dtype=_OUTPUT_DTYPE) if n else np.zeros(0, _OUTPUT_DTYPE)
 
     def identify_record(self, record: Record) -> Identification:
         """Run the identifier over a record in one call (like ``OnlineIdentifier.identify_record``)."""
         check_record(record, self.model, self.dt)
         self.reset()
         rows = self.run(record.x, record.f)
+        if len(rows) and self._lib.duffid_flush(self._live(), ctypes.byref(self._out)):
+            rows = rows.copy()
+            rows[-1] = np.frombuffer(memoryview(self._out).cast("B"), dtype=_OUTPUT_DTYPE)[0]
+        found = np.flatnonzero(np.diff(rows["outliers"], prepend=0) > 0)
         history = {name: rows["parameters"][:, i].copy() for i, name in enumerate(self._names)}
         flags = rows["identified"].astype(bool)
         return Identification(
@@ -435,4 +454,7 @@ class CIdentifier:
             window=float(rows["window"][-1]), options=dict(self.options), source=record.source,
             estimates={name: float(rows["current"][-1, i]) for i, name in enumerate(self._names)},
             status={name: STATUSES[rows["status"][-1, i]] for i, name in enumerate(self._names)},
+            outliers=[{"t": float(rows["outlier_t"][k]), "column": f"x{int(rows['outlier_column'][k]) + 1}",
+                       "value": float(rows["outlier_value"][k]), "replaced_by": float(rows["outlier_replaced_by"][k])}
+                      for k in found],
         )

@@ -13,7 +13,8 @@ model ``fmus/estimator/fmu_model_estimator.c`` and the glue of ``fmus/common`` i
 each also with the outputs ``identified`` (0/1), ``condition``, ``uncertainty``,
 ``window_length`` [s] and ``<name>_status`` per parameter (Integer: the index of its status
 in :data:`duffid.identification.STATUSES`: 0 uncertain, 1 published, 2 not excited,
-3 lost), and adds the pythonfmu fallbacks of :mod:`duffid.fmu_python`. The parameters
+3 lost) and ``outliers`` (Integer: isolated displacement outliers excluded, each logged
+with its time), and adds the pythonfmu fallbacks of :mod:`duffid.fmu_python`. The parameters
 ``<name>_nominal`` are optional prior sizes (0: none, the scale comes from the data).
 
 Interface differences to the pythonfmu FMU: the glue has no String variables, so the
@@ -76,7 +77,7 @@ TYPES = {"method": "Integer", "rows": "Integer", "n_rows": "Integer", "quadratur
 def variable_types(model_name: str) -> dict[str, str]:
     """:data:`TYPES` with the ``<name>_status`` outputs of the model."""
     model = Duffing1() if model_name == "duffing1" else Duffing2()
-    return {**TYPES, **{f"{name}_status": "Integer" for name in model.parameters}}
+    return {**TYPES, "outliers": "Integer", **{f"{name}_status": "Integer" for name in model.parameters}}
 _ESTIMATOR_DIR = Path(__file__).resolve().parents[2] / "fmus" / "estimator"
 _CORE_FILES = ("duffid_estimator.c", "duffid_estimator.h", "duffid_linalg.c", "duffid_linalg.h",
                "fmu_model_estimator.c")
@@ -128,6 +129,8 @@ def estimator_variables(model_name: str) -> list[FmuVariable]:
     for name in model.parameters:
         add(f"{name}_status", "output", "discrete", "calculated", None, None,
             f"status of {name}: {status_codes()}")
+    add("outliers", "output", "discrete", "calculated", None, None,
+        "isolated displacement outliers excluded so far (each one logged, category logStatusWarning)")
     for name, unit, text in OPTIONS:
         add(name, "parameter", "fixed", "exact", defaults[name], unit, text)
     for name in model.parameters:

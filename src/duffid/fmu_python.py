@@ -14,7 +14,8 @@ Outputs (initial exact)
     the estimates (Real); ``identified`` (Boolean); ``condition``, ``uncertainty`` and
     ``window_length`` [s] (Real), the fields of :class:`~duffid.identification.Estimate`;
     ``<name>_status`` (Integer) per parameter, the index of its status in
-    :data:`~duffid.identification.STATUSES` (as the C FMUs).
+    :data:`~duffid.identification.STATUSES` (as the C FMUs); ``outliers`` (Integer), the
+    isolated displacement outliers excluded so far.
 Parameters (tunable; read at the first step)
     ``method`` (String, "robust" or "paper"); ``window`` [s] (0 = "auto"),
     ``window_periods``, ``max_window`` [s], ``forgetting`` [s] (0 = none), ``rows``
@@ -187,6 +188,10 @@ class EstimatorSlave:
             slave.register_variable(Integer(f"{name}_status", causality=causality.output, initial=initial.exact,
                                             variability=variability.discrete,
                                             description=f"status of {name}: {status_codes()}"))
+        slave.outliers = 0
+        slave.register_variable(Integer("outliers", causality=causality.output, initial=initial.exact,
+                                        variability=variability.discrete,
+                                        description="isolated displacement outliers excluded so far"))
 
         self.parameters: dict[str, Any] = {"method": "robust"}
         slave.method = "robust"
@@ -310,6 +315,7 @@ class EstimatorSlave:
         slave.window_length = float(estimate.window)
         for name, status in (estimate.status or {}).items():
             setattr(slave, f"{name}_status", STATUSES.index(status))
+        slave.outliers = int(estimate.outliers)
 
 
 def build_python_fmu(model_name: str, out_dir: str | Path, *, needs_execution_tool: bool = True) -> Path:

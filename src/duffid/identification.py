@@ -24,7 +24,7 @@ neighbouring equation (``m2 = k2 / (k2/m2)`` for the 2-DOF chain of the paper).
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Mapping
 
 import numpy as np
@@ -34,7 +34,7 @@ from .record import Record, RecordError
 from .regressors import KernelBank, SlidingMoments, row_exponents
 
 __all__ = ["OnlineIdentifier", "estimate", "check_record", "Identification", "Estimate", "METHODS", "ONLINE_METHODS",
-           "STATUSES", "MIN_SHARE", "status_codes", "default_options", "check_options", "filtered_cramer", "combine_equations",
+           "STATUSES", "MIN_SHARE", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "default_options", "check_options", "filtered_cramer", "combine_equations",
            "auto_window"]
 
 #: Online methods (OnlineIdentifier) and the buffered orthogonal-function methods of
@@ -177,6 +177,100 @@ class _Assembly:
     def __call__(self, E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         flat = E.reshape(E.shape[:-2] + (-1,))
         return flat @ self.lhs, flat @ self.rhs
+
+
+# ---------------------------------------------------------------------- outliers
+#: A displacement sample further than this many robust standard deviations from the
+#: quadratic through the three samples before it is held back one sample: if the next
+#: sample agrees with the samples before it, the held one was an isolated glitch (a spike,
+#: a dropout to 0, a wrapped encoder count) and is replaced.
+OUTLIER_SIGMAS = 12.0
+#: The outlier test's scale is never below this share of the range the displacement has
+#: covered (a noise-free record's smooth differences are no scale).
+OUTLIER_RANGE = 1e-4
+#: Memory of the running scale of the prediction residuals [samples].
+OUTLIER_MEMORY = 64.0
+_GAUSS_MEAN_ABS = 1.2533141373155003  # sigma / mean|r| of a normal distribution
+
+
+class _OutlierGuard:
+    """Online exclusion of isolated displacement outliers (one sample of delay, only for
+    a suspect sample). :meth:`admit` returns the samples to process now, in order."""
+
+    def __init__(self, n_dof: int) -> None:
+        self.n_dof = n_dof
+        self.reset()
+
+    def reset(self) -> None:
+        n = self.n_dof
+        self.h = np.zeros((3, n))       # accepted x at n-1, n-2, n-3
+        self.count = 0                  # accepted samples
+        self.mean_abs = np.zeros(n)     # running mean |prediction residual|
+        self.lo = np.full(n, np.inf)
+        self.hi = np.full(n, -np.inf)
+        self.step = np.full(n, np.inf)  # smallest non-zero change (quantisation step)
+        self.pending: tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+        self.found: list[tuple[int, int, float, float]] = []
+
+    def _threshold(self) -> np.ndarray:
+        step = np.where(np.isfinite(self.step), self.step, 0.0)
+        scale = np.maximum(np.maximum(_GAUSS_MEAN_ABS * self.mean_abs, step), OUTLIER_RANGE * (self.hi - self.lo))
+        return OUTLIER_SIGMAS * scale
+
+    def _accept(self, x: np.ndarray, threshold: np.ndarray | None) -> None:
+        h = self.h
+        if self.count >= 3:
+            r = np.abs(x - (3.0 * h[0] - 3.0 * h[1] + h[2]))
+            if threshold is not None:
+                r = np.minimum(r, threshold)
+            self.mean_abs = r if self.count == 3 else self.mean_abs + (r - self.mean_abs) / OUTLIER_MEMORY
+        if self.count >= 1:
+            d = np.abs(x - h[0])
+            self.step = np.where(d > 0.0, np.minimum(self.step, d), self.step)
+        self.lo = np.minimum(self.lo, x)
+        self.hi = np.maximum(self.hi, x)
+        h[2] = h[1]
+        h[1] = h[0]
+        h[0] = x
+        self.count += 1
+
+    def admit(self, k: int, x: np.ndarray, f: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Sample ``k`` (``x``, ``f``): the samples to process now."""
+        out: list[tuple[np.ndarray, np.ndarray]] = []
+        h = self.h
+        if self.pending is not None:
+            kp, xp, fp, suspect, threshold = self.pending
+            self.pending = None
+            ahead = 6.0 * h[0] - 8.0 * h[1] + 3.0 * h[2]  # the samples before, two steps on
+            isolated = suspect & (np.abs(x - ahead) <= threshold)
+            if isolated.any():
+                xp = xp.copy()
+                for j in np.flatnonzero(isolated):
+                    value = (3.0 * h[0, j] - h[1, j] + x[j]) / 3.0  # the quadratic through n-2, n-1, n+1
+                    self.found.append((kp, int(j), float(xp[j]), float(value)))
+                    xp[j] = value
+            self._accept(xp, threshold)
+            out.append((xp, fp))
+        if self.count >= _MIN_SAMPLES:
+            threshold = self._threshold()
+            suspect = np.abs(x - (3.0 * h[0] - 3.0 * h[1] + h[2])) > threshold
+            if suspect.any():
+                self.pending = (k, x.copy(), f.copy(), suspect, threshold)
+                return out
+            self._accept(x, threshold)
+        else:
+            self._accept(x, None)
+        out.append((x, f))
+        return out
+
+    def flush(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The held sample, if any (the record ended: nothing tells it was a glitch)."""
+        if self.pending is None:
+            return []
+        _, xp, fp, _, threshold = self.pending
+        self.pending = None
+        self._accept(xp, threshold)
+        return [(xp, fp)]
 
 
 # ---------------------------------------------------------------------- solvers
@@ -341,6 +435,10 @@ class Estimate:
         :func:`duffid.trust.assess`, never a published value.
     status : dict or None
         Public name -> one of :data:`STATUSES` (None when the estimator does not report it).
+    outliers : int
+        Isolated displacement outliers excluded so far (see :data:`OUTLIER_SIGMAS`); a
+        suspect sample is processed one sample late, and meanwhile the previous estimate
+        is repeated.
     """
 
     t: float
@@ -351,6 +449,7 @@ class Estimate:
     window: float
     current: dict[str, float] | None = None
     status: dict[str, str] | None = None
+    outliers: int = 0
 
 
 class _EquationState:
@@ -421,6 +520,7 @@ class OnlineIdentifier:
                 channels.setdefault(c, None)
         self.channels = tuple(channels)
         self._channels = _Channels(self.channels, self.options["deadband"])
+        self._guard = _OutlierGuard(model.n_dof)
         max_order = max(eq.max_order for eq in self.equations)
         self._states = [_EquationState(eq, _Assembly(eq, self.channels, max_order)) for eq in self.equations]
         o = self.options
@@ -443,6 +543,9 @@ class OnlineIdentifier:
     def reset(self) -> None:
         """Forget all samples (start a new identification)."""
         self.n = -1
+        self._received = -1
+        self._guard.reset()
+        self._last: Estimate | None = None
         self._channels.reset()
         self._window_fixed = False
         canonical = self.model.canonical_parameters()
@@ -473,7 +576,39 @@ class OnlineIdentifier:
             raise ValueError(f"{self.model.name}: update needs {self.model.n_dof} displacement(s) and "
                              f"{self.model.n_forces} force(s), got {x.size} and {f.size}")
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(f))):
-            raise ValueError(f"{self.model.name}: sample {self.n + 1} is not finite (x={x}, f={f})")
+            raise ValueError(f"{self.model.name}: sample {self._received + 1} is not finite (x={x}, f={f})")
+        self._received += 1
+        estimate = None
+        for xi, fi in self._guard.admit(self._received, x, f):
+            estimate = self._process(xi, fi)
+        return self._reported(estimate)
+
+    def flush(self) -> Estimate | None:
+        """Process a sample held back as a suspect outlier (at the end of a record: nothing
+        tells it was a glitch); its estimate, or None if no sample was held."""
+        estimate = None
+        for xi, fi in self._guard.flush():
+            estimate = self._process(xi, fi)
+        return None if estimate is None else self._reported(estimate)
+
+    @property
+    def outliers(self) -> list[dict[str, Any]]:
+        """The displacement samples excluded as isolated outliers: ``t`` [s from the first
+        sample], ``column`` (x1, x2, ...), ``value`` and ``replaced_by``."""
+        return [{"t": k * self.dt, "column": f"x{j + 1}", "value": v, "replaced_by": r}
+                for k, j, v, r in self._guard.found]
+
+    def _reported(self, estimate: Estimate | None) -> Estimate:
+        """The estimate after the latest sample: ``estimate``, or the previous one while a
+        suspect sample is held back."""
+        if estimate is None:
+            assert self._last is not None  # the first samples are never held
+            estimate = self._last
+        estimate = replace(estimate, t=self._received * self.dt, outliers=len(self._guard.found))
+        self._last = estimate
+        return estimate
+
+    def _process(self, x: np.ndarray, f: np.ndarray) -> Estimate:
         self.n += 1
         g = self._channels.evaluate(x, f)
         if self.method == "robust":
@@ -637,7 +772,12 @@ class OnlineIdentifier:
         history = []
         for xi, fi in zip(record.x, record.f):
             history.append(self.update(xi, fi))
-        return Identification.from_estimates(self, record, history)
+        last = self.flush()
+        if last is not None:
+            history[-1] = last
+        result = Identification.from_estimates(self, record, history)
+        result.outliers = self.outliers
+        return result
 
 
 def filtered_cramer(A: np.ndarray, D: np.ndarray, filters: _Integrators, gamma: float, tau: float,
@@ -789,6 +929,9 @@ class Identification:
         The online estimator's own status of each parameter at the last sample (see
         :data:`STATUSES`); empty for the buffered methods. The checked status is the
         assessment's.
+    outliers : list of dict
+        Displacement samples the online estimator excluded as isolated outliers
+        (:attr:`OnlineIdentifier.outliers`).
     """
 
     model: str
@@ -805,6 +948,7 @@ class Identification:
     estimates: dict[str, float] = field(default_factory=dict)
     assessment: Any = None
     status: dict[str, str] = field(default_factory=dict)
+    outliers: list[dict[str, Any]] = field(default_factory=list)
 
     @classmethod
     def from_estimates(cls, ident: OnlineIdentifier, record: Record, estimates: list[Estimate]) -> "Identification":
@@ -864,6 +1008,8 @@ class Identification:
             out.update(self.assessment.to_dict())
         elif self.status:
             out["status"] = dict(self.status)
+        if self.outliers:
+            out["outliers_excluded"] = [dict(o) for o in self.outliers]
         out.update({
             "t_identified": self.t_identified if self.is_identified else None,
             "condition": clean(self.condition[-1]) if len(self.condition) else None,

@@ -78,7 +78,8 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from .identification import ONLINE_METHODS, Identification, check_options, check_record, estimate
+from .identification import (MIN_SHARE, ONLINE_METHODS, OUTLIER_RANGE, OUTLIER_SIGMAS, STATUSES, Identification,
+                             check_options, check_record, estimate)
 from .models import Chain
 from .record import Record, RecordError
 
@@ -89,8 +90,6 @@ __all__ = [
     "OFFSETS", "DISPLACEMENT_OFFSET", "displacement_offset_values",
 ]
 
-#: Status of a parameter, see the module documentation.
-STATUSES = ("published", "not excited", "uncertain", "lost")
 #: Samples per period of the highest frequency in the displacement that identification
 #: works at: a record with fewer is upsampled to this many (the Silverbox rule). Measured
 #: (noise-free 10 Hz plant, multisine to 25 Hz): the damping is biased by 7 % at 8 samples
@@ -100,8 +99,6 @@ SAMPLES_PER_PERIOD = 50.0
 MIN_SAMPLES_PER_PERIOD = 20.0
 #: Largest normalised RMS simulation error beyond the noise for a model that explains the record.
 SIMULATION_TOLERANCE = 0.05
-#: A term carrying less than this share of its equation's force balance is "not excited".
-MIN_SHARE = 0.01
 #: Noisy replicates of the record behind each standard error.
 REPLICATES = 8
 #: Records of at least this many samples show a progress bar while their replicates run
@@ -325,12 +322,10 @@ def natural_frequency(model: Chain, canonical: Mapping[str, float], *, lowest: b
     return float(omegas.min() if lowest else omegas.max()) / (2.0 * math.pi)
 
 
-#: A displacement sample further than this many robust standard deviations from the cubic
-#: through its four neighbours is an isolated outlier (a spike, a dropout to 0, a wrapped
-#: encoder count).
-OUTLIER_SIGMAS = 12.0
-#: The outlier test's scale is never below this share of the column's range.
-OUTLIER_RANGE = 1e-4
+# A displacement sample further than OUTLIER_SIGMAS robust standard deviations (never below
+# OUTLIER_RANGE of the column's range) from the cubic through its four neighbours is an
+# isolated outlier (a spike, a dropout to 0, a wrapped encoder count): the online
+# estimators' rule (duffid.identification), with both neighbours known.
 #: More outliers than this share of the samples are not isolated glitches: none is removed.
 MAX_OUTLIER_SHARE = 0.001
 
