@@ -124,15 +124,27 @@ class IdentifierSpread:
         Absolute spread of the uncertainty figure at each sample (it is itself a relative
         error, and near rounding level on noise-free records, where a relative spread of
         it says nothing).
+    current : ndarray
+        Relative spread of the estimator's current solution (``Estimate.current``, published
+        or not) at each sample.
     """
 
-    def __init__(self, names, history, parameters, parameters_absolute, condition, uncertainty) -> None:
+    def __init__(self, names, history, parameters, parameters_absolute, condition, uncertainty,
+                 current) -> None:
         self.names = tuple(names)
         self.history = history
         self.parameters = parameters
         self.parameters_absolute = parameters_absolute
         self.condition = condition
         self.uncertainty = uncertainty
+        self.current = current
+
+    def assert_estimates(self, actual, expected) -> None:
+        """Final current solutions ``actual`` equal ``expected`` (dicts by name, e.g.
+        ``Identification.estimates``) within the largest spread of the current solution
+        over the last :data:`FINAL_SAMPLES` samples."""
+        spread = np.nan_to_num(self.current[-FINAL_SAMPLES:], nan=0.0).max(axis=0)
+        assert_close(actual, expected, dict(zip(self.names, tolerance(spread))))
 
     def history_tolerance(self, rows: np.ndarray | None = None) -> np.ndarray:
         """Relative tolerance per parameter over the samples ``rows`` (all by default)."""
@@ -204,10 +216,12 @@ def identifier_spread(model, record, method: str = "robust", **options) -> Ident
             rows = []
             for x, f in zip(rec.x, rec.f):
                 e = ident.update(x, f)
-                rows.append([e.parameters[k] for k in names] + [e.condition, e.uncertainty])
+                rows.append([e.parameters[k] for k in names] + [e.current[k] for k in names]
+                            + [e.condition, e.uncertainty])
             return np.array(rows)
 
         relative, absolute = rounding_spreads(outputs, record)
-        _SPREADS[key] = IdentifierSpread(names, outputs(record)[:, :-2], relative[:, :-2], absolute[:, :-2],
-                                         relative[:, -2], absolute[:, -1])
+        n = len(names)
+        _SPREADS[key] = IdentifierSpread(names, outputs(record)[:, :n], relative[:, :n], absolute[:, :n],
+                                         relative[:, -2], absolute[:, -1], relative[:, n:2 * n])
     return _SPREADS[key]

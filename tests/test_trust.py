@@ -141,6 +141,12 @@ def test_the_circuit_and_the_two_dof_chain_are_checked_too():
     result = identify(_random(circuit, 5.0, 40.0, 4.0, 2000.0, snr_db=50, seed=5), circuit)
     assert result.assessment.fit["explained"]
     _published_within(result, circuit.parameters, 0.01)
+    # the C core runs the circuit as a Duffing1: its results come back in the circuit's words
+    from duffid.trust import run_estimator
+    record = _random(circuit, 5.0, 40.0, 1.0, 2000.0, snr_db=50, seed=5)
+    c, python = (run_estimator(record, circuit, engine=engine) for engine in ("c", "python"))
+    assert c.status == python.status and set(c.status) == set(circuit.parameters)
+    assert set(c.history) == set(c.estimates) == set(circuit.parameters)
     chain = Duffing2()
     record = simulate(chain, Step(6.0), 1.0, 1e-3)
     result = identify(record, chain)

@@ -84,6 +84,9 @@ struct duffid_estimator {
     /* common state */
     int64_t n;                             /* index of the newest sample, -1 before any */
     int window_fixed;
+    int64_t steady[DUFFID_MAX_PARAMS];     /* canonical order, saturated at settle_count */
+    double anchor[DUFFID_MAX_PARAMS];      /* canonical order: value the estimate stays near */
+    int64_t anchored[DUFFID_MAX_PARAMS];   /* ... since this sample */
     int64_t settled[DUFFID_MAX_PARAMS];    /* canonical order, saturated at settle_count */
     int64_t unsettled[DUFFID_MAX_PARAMS];  /* canonical order, saturated at settle_count */
     int status[DUFFID_MAX_PARAMS];         /* canonical order, DUFFID_STATUS_* */
@@ -726,6 +729,9 @@ void duffid_reset(duffid_estimator *est)
     est->outlier_column = -1;
     memset(&est->last, 0, sizeof est->last);
     for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
+        est->steady[i] = 0;
+        est->anchor[i] = DNAN;
+        est->anchored[i] = 0;
         est->settled[i] = 0;
         est->unsettled[i] = 0;
         est->status[i] = DUFFID_STATUS_UNCERTAIN;
@@ -1445,16 +1451,15 @@ static int next_status(int status, int64_t settled, int64_t unsettled, int64_t s
     return status == DUFFID_STATUS_LOST ? DUFFID_STATUS_LOST : DUFFID_STATUS_UNCERTAIN;
 }
 
-/* OnlineIdentifier._window_known: masses and linear stiffnesses published, the rest
- * published or not excited */
+/* OnlineIdentifier._window_known: masses and linear stiffnesses steady, the rest steady
+ * or not excited */
 static int window_known(const duffid_estimator *est)
 {
     int i;
     for (i = 0; i < est->n_params; i++) {
         int kind = i < 4 * est->n_dof ? i % 4 : -1;
         int needed = kind == P_M || kind == P_K1;
-        int s = est->status[i];
-        if (!(s == DUFFID_STATUS_PUBLISHED || (s == DUFFID_STATUS_NOT_EXCITED && !needed))) {
+        if (!(est->steady[i] >= est->settle_count || (est->status[i] == DUFFID_STATUS_NOT_EXCITED && !needed))) {
             return 0;
         }
     }
@@ -1489,6 +1494,8 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
         }
     } else {
         double trusted[DUFFID_MAX_PARAMS];
+        const int full = window >= est->target;
+        const double tol = 0.5 * est->cfg.max_uncertainty;
         for (i = 0; i < np; i++) { /* canonical order */
             double v = est->canon[i];
             double relative = (is_finite(v) && v != 0.0) ? est->canon_rse[i] : DINF;
@@ -1497,9 +1504,23 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
                 relative = relative * fabs(v) / (fabs(v) > est->nominal[i] ? fabs(v) : est->nominal[i]);
             }
             worst = max_builtin(worst, relative);
-            small = good && relative <= est->cfg.max_uncertainty;
+            {
+                const int kind = i < 4 * est->n_dof ? i % 4 : -1;
+                const int physical = kind == P_M ? v > 0.0 : (kind == P_B ? v >= 0.0 : 1);
+                const int excited = est->canon_share[i] >= DUFFID_MIN_SHARE || est->nominal[i] > 0.0;
+                small = good && excited && physical && relative <= est->cfg.max_uncertainty;
+            }
             large = !(good && relative <= DUFFID_LOSS_FACTOR * est->cfg.max_uncertainty);
             if (small) {
+                count_up(&est->steady[i], est->settle_count);
+            } else {
+                est->steady[i] = 0;
+            }
+            if (!(is_finite(v) && fabs(v - est->anchor[i]) <= tol * fabs(est->anchor[i]))) {
+                est->anchor[i] = v;
+                est->anchored[i] = est->n;
+            }
+            if (small && (full || (double)(est->n - est->anchored[i]) >= DUFFID_GROWTH_STEADY * (double)window)) {
                 count_up(&est->settled[i], est->settle_count);
             } else {
                 est->settled[i] = 0;

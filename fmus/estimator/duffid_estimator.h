@@ -75,6 +75,11 @@ extern "C" {
 #define DUFFID_STATUS_LOST 3
 #define DUFFID_MIN_SHARE 0.01
 #define DUFFID_LOSS_FACTOR 2.0
+/* A growing window's estimate is published once it has stayed within max_uncertainty / 2
+ * of one value while the window grew by this share of its length (full windows' need not).
+ * Without a prior size, only a physical value (mass > 0, damping >= 0) whose term carries
+ * at least DUFFID_MIN_SHARE of the force balance is published. */
+#define DUFFID_GROWTH_STEADY 0.25
 
 /* Isolated displacement outliers (duffid.identification.OUTLIER_*): a sample further than
  * DUFFID_OUTLIER_SIGMAS robust standard deviations (never less than the quantisation

@@ -724,7 +724,8 @@ def closed_loop(plant: Chain, controller: AdaptiveController, reference: Any,
     t_end : float
         Duration [s].
     identifier : OnlineIdentifier, optional
-        Default ``OnlineIdentifier(<plant's structure with the paper's values>, h)``.
+        Default ``OnlineIdentifier(<the plant's structure>, h)`` (no prior sizes: pass an
+        identifier with ``nominal=...`` for a term the loop barely excites).
     measurement : callable, optional
         Maps the true positions to the measured ones (default: exact).
 

@@ -34,7 +34,7 @@ from .record import Record, RecordError
 from .regressors import KernelBank, SlidingMoments, row_exponents
 
 __all__ = ["OnlineIdentifier", "estimate", "check_record", "Identification", "Estimate", "METHODS", "ONLINE_METHODS",
-           "STATUSES", "MIN_SHARE", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "default_options", "check_options", "filtered_cramer", "combine_equations",
+           "STATUSES", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "default_options", "check_options", "filtered_cramer", "combine_equations",
            "auto_window"]
 
 #: Online methods (OnlineIdentifier) and the buffered orthogonal-function methods of
@@ -62,6 +62,9 @@ MIN_SHARE = 0.01
 #: ``max_uncertainty`` for ``settle`` s (a band, so that an error hovering at the limit
 #: does not switch the value on and off).
 LOSS_FACTOR = 2.0
+#: A growing window's estimate is published once it has stayed within half of
+#: ``max_uncertainty`` of one value while the window grew by this share of its length.
+GROWTH_STEADY = 0.25
 
 _ROBUST_DEFAULTS: dict[str, Any] = {
     "window": "auto",         # seconds, or "auto": window_periods x the identified natural period
@@ -390,6 +393,15 @@ def _next_status(status: str, settled: int, unsettled: int, settle: int, good: b
     return lost if status == lost else STATUSES[0]
 
 
+def _physical(name: str, value: float) -> bool:
+    """A mass must be positive and a damping coefficient not negative (a passive plant)."""
+    if name[0] == "m" and name[1:].isdigit():
+        return value > 0
+    if name[0] == "b" and name[1:].isdigit():
+        return value >= 0
+    return True
+
+
 def _prior_sizes(model: Chain, nominal: Mapping[str, float] | None) -> dict[str, float]:
     """Canonical sizes from the optional prior ``nominal`` (public names)."""
     if not nominal:
@@ -549,6 +561,9 @@ class OnlineIdentifier:
         self._channels.reset()
         self._window_fixed = False
         canonical = self.model.canonical_parameters()
+        self._steady = {k: 0 for k in canonical}
+        self._anchor = {k: np.nan for k in canonical}
+        self._anchored = {k: 0 for k in canonical}
         self._settled = {k: 0 for k in canonical}
         self._unsettled = {k: 0 for k in canonical}
         self._status = {k: STATUSES[0] for k in canonical}
@@ -630,6 +645,12 @@ class OnlineIdentifier:
             return Estimate(self.n * self.dt, dict(self._held), ok, cond, np.nan, window_samples * self.dt,
                             dict(self._held), status)
         good = self._window_ok(cond, window_samples)
+        # a growing window's solution rests on its own few rows, whose standard errors are not
+        # credible: it is published only once it has stayed within max_uncertainty / 2 of
+        # one value while the window grew by a quarter (GROWTH_STEADY); the least-squares
+        # solution over full windows is (its errors account for the overlap of the windows)
+        full = window_samples >= self._target
+        tol = 0.5 * self.options["max_uncertainty"]
         settle = max(int(round(self.options["settle"] / self.dt)), 1)
         worst = 0.0
         trusted = {}
@@ -638,9 +659,16 @@ class OnlineIdentifier:
             if self._prior.get(k, 0.0) > 0 and np.isfinite(relative):  # the user's prior size
                 relative = relative * abs(v) / max(abs(v), self._prior[k])
             worst = max(worst, relative)
-            small = good and relative <= self.options["max_uncertainty"]
+            # without a prior, a term that carries almost nothing of the force balance is not
+            # published online however small its error looks (e.g. the mass at low frequency)
+            excited = share[k] >= MIN_SHARE or self._prior.get(k, 0.0) > 0
+            small = good and excited and _physical(k, v) and relative <= self.options["max_uncertainty"]
             large = not (good and relative <= LOSS_FACTOR * self.options["max_uncertainty"])
-            self._settled[k] = self._settled[k] + 1 if small else 0
+            self._steady[k] = self._steady[k] + 1 if small else 0
+            if not (np.isfinite(v) and abs(v - self._anchor[k]) <= tol * abs(self._anchor[k])):
+                self._anchor[k], self._anchored[k] = v, self.n
+            grown = self.n - self._anchored[k] >= GROWTH_STEADY * window_samples
+            self._settled[k] = self._settled[k] + 1 if small and (full or grown) else 0
             self._unsettled[k] = self._unsettled[k] + 1 if large else 0
             self._status[k] = _next_status(self._status[k], self._settled[k], self._unsettled[k], settle,
                                            good, share[k])
@@ -708,8 +736,8 @@ class OnlineIdentifier:
                 st.theta, st.cond, st.rse, st.share, st.rhs_share = _solve_factor(R, len(A), 1.0)
 
     def _after_publish(self, estimate: Estimate, L: int) -> None:
-        """Fix the auto window once every parameter is published or not excited, the
-        masses and linear stiffnesses published."""
+        """Fix the auto window once the masses and linear stiffnesses (the natural periods)
+        and every excited parameter have kept a small standard error for ``settle`` s."""
         if self._auto and not self._window_fixed and self._window_known():
             self._window_fixed = True
             canonical = self._combine()[0]
@@ -717,11 +745,14 @@ class OnlineIdentifier:
                                        self.options["window_periods"])
 
     def _window_known(self) -> bool:
-        """Every mass and linear stiffness published, every other parameter published or
-        not excited: the natural periods are known."""
+        """Every mass and linear stiffness steady (its standard error small for ``settle``
+        s), every other parameter steady or not excited: the natural periods are known."""
+        settle = max(int(round(self.options["settle"] / self.dt)), 1)
+
         def needed(name: str) -> bool:
             return (name[0] == "m" and name[1:].isdigit()) or (name[0] == "k" and name.endswith("_1"))
-        return all(s == STATUSES[1] or (s == STATUSES[2] and not needed(k)) for k, s in self._status.items())
+        return all(self._steady[k] >= settle or (self._status[k] == STATUSES[2] and not needed(k))
+                   for k in self._steady)
 
     # -------------------------------------------------------------- paper
     def _paper_setup(self) -> None:
@@ -910,7 +941,8 @@ class Identification:
     identified : ndarray of bool
         Identified flag at each sample.
     t_identified : float or None
-        First time the flag was set.
+        First time the flag was set (checked by :func:`duffid.trust.identify`: the end of
+        the record when the estimator integrated it in one window).
     window : float
         Final window length [s].
     options : dict

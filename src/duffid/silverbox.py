@@ -303,8 +303,10 @@ class Settings:
     linear: LinearFit
 
     def options(self) -> dict[str, Any]:
-        """Options of the robust identifier."""
-        return {"window": self.window, "max_window": self.window}
+        """Options of the robust identifier: the window, and the nominal sizes of rule 1
+        (from the record's linear fit) as the trust test's prior sizes."""
+        prior = {k: v for k, v in silverbox_model(self.linear).parameters.items() if v != 0.0}
+        return {"window": self.window, "max_window": self.window, "nominal": prior}
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary."""

@@ -672,6 +672,8 @@ def _renamed(result: Identification, model: Chain) -> Identification:
     result.history = {k: np.array([row[k] for row in rows]) for k in model.parameters}
     result.parameters = public(result.parameters)
     result.estimates = public(result.estimates)
+    by_canonical = {core.canonical_name(k): v for k, v in result.status.items()}
+    result.status = {k: by_canonical[model.canonical_name(k)] for k in model.parameters}
     result.model = model.name
     return result
 
@@ -833,6 +835,9 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
                                               "value": float(measured.x[i, j]), "replaced_by": value}
                                              for i, j, value in outliers]
     result.parameters = result.assessment.published(result.estimates)
+    if result.assessment.identified and result.t_identified is None:
+        # the estimator integrated the whole record in one window: it needed all of it
+        result.t_identified = float(result.t[-1])
     return result
 
 
