@@ -10,7 +10,7 @@
  *   0                        time
  *   1 .. n_dof               displacements (inputs)
  *   n_dof + 1                force (input)
- *   then n_params            estimates (outputs, NaN until published)
+ *   then n_params            estimates (outputs, NaN unless published)
  *   then 4                   identified (Boolean), condition, uncertainty, window_length
  *   then n_params            <name>_status (Integer, DUFFID_STATUS_*)
  *   then 1                   outliers (Integer: isolated displacement outliers excluded)

@@ -28,7 +28,7 @@ Semantics are those of the pythonfmu FMU: each ``doStep(t, h)`` consumes the inp
 for time ``t`` with ``h`` as sampling period; the first step fixes the period (and builds
 the estimator, its only allocation), a later step of another size fails with Discard and
 a logged error; non-finite inputs are rejected when set (Error, logged). Estimates are
-NaN until published. To identify a record of ``n`` samples, simulate from ``t[0]`` to
+NaN unless published. To identify a record of ``n`` samples, simulate from ``t[0]`` to
 ``t[-1] + dt`` with communication step ``dt``.
 """
 from __future__ import annotations
@@ -121,7 +121,7 @@ def estimator_variables(model_name: str) -> list[FmuVariable]:
         add(name, "input", "continuous", None, 0.0, unit, f"{text} (one sample per doStep)")
     for name in model.parameters:
         add(f"{name}_hat", "output", "discrete", "calculated", None, _param_unit(name),
-            f"estimate of {name} (NaN until published)")
+            f"estimate of {name} (NaN unless published)")
     add("identified", "output", "discrete", "calculated", None, None, "1 when every estimate is trustworthy")
     add("condition", "output", "discrete", "calculated", None, "1", "largest condition number of the equations")
     add("uncertainty", "output", "discrete", "calculated", None, "1", "largest relative standard error (robust)")
