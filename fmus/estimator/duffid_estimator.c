@@ -1509,8 +1509,8 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
                 const int physical = kind == P_M ? v > 0.0 : (kind == P_B ? v >= 0.0 : 1);
                 const int excited = est->canon_share[i] >= DUFFID_MIN_SHARE || est->nominal[i] > 0.0;
                 small = good && excited && physical && relative <= est->cfg.max_uncertainty;
+                large = !(good && physical && relative <= DUFFID_LOSS_FACTOR * est->cfg.max_uncertainty);
             }
-            large = !(good && relative <= DUFFID_LOSS_FACTOR * est->cfg.max_uncertainty);
             if (small) {
                 count_up(&est->steady[i], est->settle_count);
             } else {

@@ -67,8 +67,9 @@ extern "C" {
  *   PUBLISHED    its relative standard error stayed at most max_uncertainty for settle s:
  *                the value is output;
  *   NOT_EXCITED  its term carries less than DUFFID_MIN_SHARE of the force balance;
- *   LOST         it was published and its error has been above DUFFID_LOSS_FACTOR x
- *                max_uncertainty for settle s since: the value is withdrawn (NaN). */
+ *   LOST         it was published and since then its error has been above
+ *                DUFFID_LOSS_FACTOR x max_uncertainty (or its value non-physical) for settle
+ *                s: the value is withdrawn (NaN). */
 #define DUFFID_STATUS_UNCERTAIN 0
 #define DUFFID_STATUS_PUBLISHED 1
 #define DUFFID_STATUS_NOT_EXCITED 2

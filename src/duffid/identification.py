@@ -47,7 +47,8 @@ METHODS = ONLINE_METHODS + ("legendre", "chebyshev", "block-pulse", "haar")
 #: enough; ``published``: its relative standard error stayed within ``max_uncertainty`` for
 #: ``settle`` s, the value is shown; ``not excited``: its term carries less than
 #: :data:`MIN_SHARE` of the force balance; ``lost``: it was published and has not been
-#: trustworthy for ``settle`` s since (its value is withdrawn).
+#: trustworthy for ``settle`` s since (its error above :data:`LOSS_FACTOR` times
+#: ``max_uncertainty``, or its value non-physical; the value is withdrawn).
 STATUSES = ("uncertain", "published", "not excited", "lost")
 
 
@@ -490,9 +491,12 @@ class OnlineIdentifier:
     model : Chain
         Model structure (e.g. :class:`~duffid.models.Duffing1`); its parameter values are
         not used. A parameter is published once its relative standard error stayed at most
-        ``max_uncertainty`` for ``settle`` s, withdrawn ("lost") once it has not for
-        ``settle`` s; "not excited" while its term carries less than :data:`MIN_SHARE` of
-        the force balance (see :data:`STATUSES`). Every scale comes from the data, unless
+        ``max_uncertainty`` for ``settle`` s (a growing window's estimate must also have
+        stayed put while the window grew by :data:`GROWTH_STEADY`; without a prior, only a
+        physical value of an excited term), withdrawn ("lost") once its error stayed above
+        :data:`LOSS_FACTOR` times that, or its value non-physical, for ``settle`` s; "not
+        excited" while its term carries less than :data:`MIN_SHARE` of the force balance
+        (see :data:`STATUSES`). Every scale comes from the data, unless
         the optional prior ``nominal`` gives a parameter a size: then its standard error is
         taken relative to the larger of the estimate and that size (so that a parameter
         known to be small next to that size is published).
@@ -662,8 +666,9 @@ class OnlineIdentifier:
             # without a prior, a term that carries almost nothing of the force balance is not
             # published online however small its error looks (e.g. the mass at low frequency)
             excited = share[k] >= MIN_SHARE or self._prior.get(k, 0.0) > 0
-            small = good and excited and _physical(k, v) and relative <= self.options["max_uncertainty"]
-            large = not (good and relative <= LOSS_FACTOR * self.options["max_uncertainty"])
+            physical = _physical(k, v)
+            small = good and excited and physical and relative <= self.options["max_uncertainty"]
+            large = not (good and physical and relative <= LOSS_FACTOR * self.options["max_uncertainty"])
             self._steady[k] = self._steady[k] + 1 if small else 0
             if not (np.isfinite(v) and abs(v - self._anchor[k]) <= tol * abs(self._anchor[k])):
                 self._anchor[k], self._anchored[k] = v, self.n
