@@ -27,7 +27,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .identification import STATUSES, Estimate, Identification, check_record, check_options
+from .identification import STATUSES, Estimate, Identification, check_options, check_record, prior_sizes
 from .models import Chain, Duffing1, Duffing2, model_from_name
 from .record import Record
 
@@ -301,13 +301,9 @@ class CIdentifier:
         cfg = _Config()
         self._lib.duffid_default_config(ctypes.byref(cfg), _MODELS[self.model.name], _METHODS[method], self.dt)
         cfg.offset = int(bool(self.model.offset))
-        prior = self.options.get("nominal") or {}
-        unknown = set(prior) - set(self.model.parameters)
-        if unknown:
-            raise ValueError(f"option nominal: {self.model.name} has no parameter(s) {sorted(unknown)}; "
-                             f"its parameters are {list(self.model.parameters)}")
+        sizes = prior_sizes(self.model, self.options.get("nominal"))
         for i, name in enumerate(self.model.parameters):
-            cfg.nominal[i] = abs(float(prior.get(name, 0.0)))
+            cfg.nominal[i] = sizes.get(self.model.canonical_name(name), 0.0)
         o = self.options
         cfg.max_condition = float(o["max_condition"])
         cfg.min_time = float(o["min_time"])

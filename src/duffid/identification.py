@@ -34,7 +34,7 @@ from .record import Record, RecordError
 from .regressors import KernelBank, SlidingMoments, row_exponents
 
 __all__ = ["OnlineIdentifier", "estimate", "check_record", "Identification", "Estimate", "METHODS", "ONLINE_METHODS",
-           "STATUSES", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "default_options", "check_options", "filtered_cramer", "combine_equations",
+           "STATUSES", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "prior_sizes", "default_options", "check_options", "filtered_cramer", "combine_equations",
            "auto_window"]
 
 #: Online methods (OnlineIdentifier) and the buffered orthogonal-function methods of
@@ -403,8 +403,9 @@ def _physical(name: str, value: float) -> bool:
     return True
 
 
-def _prior_sizes(model: Chain, nominal: Mapping[str, float] | None) -> dict[str, float]:
-    """Canonical sizes from the optional prior ``nominal`` (public names)."""
+def prior_sizes(model: Chain, nominal: Mapping[str, float] | None) -> dict[str, float]:
+    """Canonical sizes from the optional prior ``nominal`` (the option of that name, by
+    public name); ValueError for a name the model does not have."""
     if not nominal:
         return {}
     unknown = set(nominal) - set(model.parameters)
@@ -469,11 +470,10 @@ class _EquationState:
     def __init__(self, equation: Equation, assembly: _Assembly) -> None:
         self.equation = equation
         self.assembly = assembly
-        self.theta = np.full(len(equation.unknowns), np.nan)
-        self.cond = np.inf
-        self.rse = np.full(len(equation.unknowns), np.inf)
-        self.share = np.full(len(equation.unknowns), np.nan)
-        self.rhs_share = np.nan
+        self.theta = np.empty(len(equation.unknowns))
+        self.rse = np.empty(len(equation.unknowns))
+        self.share = np.empty(len(equation.unknowns))
+        self.clear()
 
     def clear(self) -> None:
         self.theta[:] = np.nan
@@ -529,7 +529,8 @@ class OnlineIdentifier:
         self.method = method
         self.options = check_options(method, options)
         self.equations = model.equations()
-        self._prior = _prior_sizes(model, self.options.get("nominal"))
+        self._prior = prior_sizes(model, self.options.get("nominal"))
+        self._settle = max(int(round(self.options["settle"] / self.dt)), 1)
         channels: dict[Channel, None] = {}
         for eq in self.equations:
             for c in eq.channels:
@@ -636,7 +637,7 @@ class OnlineIdentifier:
             window = self._paper_step(g)
         estimate = self._publish(window)
         if self.method == "robust":
-            self._after_publish(estimate, window)
+            self._after_publish(window)
         return estimate
 
     def _publish(self, window_samples: int) -> Estimate:
@@ -655,7 +656,7 @@ class OnlineIdentifier:
         # solution over full windows is (its errors account for the overlap of the windows)
         full = window_samples >= self._target
         tol = 0.5 * self.options["max_uncertainty"]
-        settle = max(int(round(self.options["settle"] / self.dt)), 1)
+        settle = self._settle
         worst = 0.0
         trusted = {}
         for k, v in canonical.items():
@@ -740,7 +741,7 @@ class OnlineIdentifier:
                 R = _triangular_factor(np.column_stack([A, D]), len(st.equation.unknowns) + 1)
                 st.theta, st.cond, st.rse, st.share, st.rhs_share = _solve_factor(R, len(A), 1.0)
 
-    def _after_publish(self, estimate: Estimate, L: int) -> None:
+    def _after_publish(self, L: int) -> None:
         """Fix the auto window once the masses and linear stiffnesses (the natural periods)
         and every excited parameter have kept a small standard error for ``settle`` s."""
         if self._auto and not self._window_fixed and self._window_known():
@@ -752,11 +753,9 @@ class OnlineIdentifier:
     def _window_known(self) -> bool:
         """Every mass and linear stiffness steady (its standard error small for ``settle``
         s), every other parameter steady or not excited: the natural periods are known."""
-        settle = max(int(round(self.options["settle"] / self.dt)), 1)
-
         def needed(name: str) -> bool:
             return (name[0] == "m" and name[1:].isdigit()) or (name[0] == "k" and name.endswith("_1"))
-        return all(self._steady[k] >= settle or (self._status[k] == STATUSES[2] and not needed(k))
+        return all(self._steady[k] >= self._settle or (self._status[k] == STATUSES[2] and not needed(k))
                    for k in self._steady)
 
     # -------------------------------------------------------------- paper
