@@ -530,7 +530,8 @@ class OnlineIdentifier:
         self.options = check_options(method, options)
         self.equations = model.equations()
         self._prior = prior_sizes(model, self.options.get("nominal"))
-        self._settle = max(int(round(self.options["settle"] / self.dt)), 1)
+        # robust: samples a parameter's error must stay small before it is published
+        self._settle = max(int(round(self.options["settle"] / self.dt)), 1) if method == "robust" else 1
         channels: dict[Channel, None] = {}
         for eq in self.equations:
             for c in eq.channels:
