@@ -135,6 +135,9 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--n-rows", type=int, default=None, help="rows per window (default max(unknowns + 1, 8))")
     g.add_argument("--max-uncertainty", type=_positive_float, default=None,
                    help="largest relative standard error of a published parameter (default 0.01)")
+    g.add_argument("--no-refine", action="store_true",
+                   help="do not refine by output-error least squares when the algebraic estimate leaves "
+                        "excited parameters undetermined (faster; fewer values published)")
     g = p.add_argument_group("paper method options")
     g.add_argument("--gamma", type=float, default=None, help="filter gain of eq. (19) (default 20)")
     g.add_argument("--quadrature", choices=("adams3", "trapezoid", "gauss", "simpson"), default=None,
@@ -263,10 +266,13 @@ def _identify(args: argparse.Namespace) -> int:
         if args.offset is not None:
             raise ValueError("--offset applies to the named models; with --equation write the offset into the "
                              "equation (e.g. '... + c = f', or x - x0 in place of x)")
+        if args.no_refine:
+            raise ValueError("--no-refine applies to the named models; equation models are not refined")
         from .symbolic import identify_equation
         result = identify_equation(record, args.equation, method, **options)
     else:
-        result = identify(record, _model(args, record.n_dof), method, offsets=args.offset, **options)
+        result = identify(record, _model(args, record.n_dof), method, offsets=args.offset,
+                          refine=not args.no_refine, **options)
     if args.plot is not None:
         from .plots import plot_estimates
         plot_estimates(result, args.plot)

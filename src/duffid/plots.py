@@ -1,6 +1,8 @@
 """Plots written to files (matplotlib, non-interactive Agg backend)."""
 from __future__ import annotations
 
+import math
+
 import os
 from typing import Mapping
 
@@ -24,7 +26,8 @@ def plot_estimates(result: Identification, path: str | os.PathLike[str], *,
     Parameters
     ----------
     result : Identification
-        Result of :func:`duffid.identify`.
+        Result of :func:`duffid.identify`: the estimator's run; with its assessment, each
+        panel's title gives the status and standard error and the published value is drawn.
     path : path
         PNG file to write.
     truth : mapping, optional
@@ -35,6 +38,7 @@ def plot_estimates(result: Identification, path: str | os.PathLike[str], *,
         Figure title.
     """
     curves = dict(series) if series is not None else dict(result.history)
+    assessment = getattr(result, "assessment", None)
     n = len(curves)
     cols = 2 if n > 3 else 1
     rows = int(np.ceil(n / cols))
@@ -47,6 +51,13 @@ def plot_estimates(result: Identification, path: str | os.PathLike[str], *,
             if finite.size:  # zoom on the truth: early transients would hide the result
                 span = max(abs(truth[name]) * 0.2, 1e-12)
                 ax.set_ylim(truth[name] - span, truth[name] + span)
+        if assessment is not None and name in assessment.status:  # what the text and JSON say
+            value = result.parameters.get(name, math.nan)
+            if np.isfinite(value):
+                ax.axhline(value, color="C1", lw=1.0, label="published")
+            u = assessment.uncertainty.get(name, math.nan)
+            ax.set_title(f"{name}: {assessment.status[name]}"
+                         + (f", standard error {100 * u:.2g} %" if np.isfinite(u) else ""), fontsize=9)
         ax.set_ylabel(name)
         ax.grid(alpha=0.3)
     for ax in axes.flat[n:]:

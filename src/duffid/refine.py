@@ -54,9 +54,14 @@ __all__ = [
     "rms_error",
     "refine",
     "Refinement",
+    "stretches",
+    "correlation_factor",
 ]
 
 INTERPOLATIONS = ("bandlimited", "linear")
+#: :func:`refine` solves with a dense Jacobian (exact trust-region steps) up to this many
+#: entries, with a sparse one (LSMR steps) beyond.
+DENSE_JACOBIAN = 20_000_000
 _FILTER_HALF = 24     # taps per side of the interpolation filter, in input samples
 _FILTER_BETA = 8.6    # Kaiser window: passband ripple ~1e-5 up to 0.33 fs
 
@@ -283,7 +288,11 @@ class OdeSimulator:
             raise ValueError(f"{self.model.name}: missing parameter(s) {sorted(missing)}")
         return np.array([float(parameters[name]) for name in self.names])
 
-    def _stage_inputs(self, f: np.ndarray) -> np.ndarray:
+    def stage_inputs(self, f: np.ndarray) -> np.ndarray:
+        """The input at every RK4 stage: shape ``(3 nf, substeps (N - 1))``, columns per step
+        (start, middle, end). A stretch of it, ``[:, substeps i : substeps j]``, drives
+        :meth:`simulate_stages` from sample ``i`` to ``j`` with the interpolation of the
+        whole record (no edge of its own)."""
         f = np.asarray(f, dtype=float).reshape(len(f), -1)
         if f.shape[1] != self.model.n_forces:
             raise ValueError(f"{self.model.name} has {self.model.n_forces} input(s), got {f.shape[1]} column(s)")
@@ -314,8 +323,14 @@ class OdeSimulator:
             Only with ``sensitivities``: derivatives of ``x`` with respect to the free
             parameters (in :attr:`free` order) and the initial state ``(x0, v0)``.
         """
+        return self.simulate_stages(parameters, self.stage_inputs(f), x0, v0, sensitivities=sensitivities)
+
+    def simulate_stages(self, parameters: Mapping[str, float], stages: np.ndarray, x0: Sequence[float],
+                        v0: Sequence[float], *, sensitivities: bool = False
+                        ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """:meth:`simulate` under stage inputs (:meth:`stage_inputs`, or a stretch of them)."""
         n = self.model.n_dof
-        U = self._stage_inputs(f)
+        U = stages
         samples = U.shape[1] // self.substeps + 1
         z0 = np.concatenate([np.asarray(x0, float).reshape(n), np.asarray(v0, float).reshape(n)])
         p = self.parameter_vector(parameters)
@@ -355,12 +370,11 @@ def rms_error(measured: np.ndarray, simulated: np.ndarray, *, skip: int = 50) ->
     return float(np.sqrt(np.mean(err**2)))
 
 
-def _difference_state(record: Record) -> tuple[np.ndarray, np.ndarray]:
+def _difference_state(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """First displacement and a second-order one-sided difference for the velocity."""
-    x = record.x
-    if record.n_samples < 3:
-        return x[0].copy(), (x[1] - x[0]) / record.dt
-    return x[0].copy(), (-3.0 * x[0] + 4.0 * x[1] - x[2]) / (2.0 * record.dt)
+    if len(x) < 3:
+        return x[0].copy(), (x[1] - x[0]) / dt
+    return x[0].copy(), (-3.0 * x[0] + 4.0 * x[1] - x[2]) / (2.0 * dt)
 
 
 def fit_initial_state(simulator: OdeSimulator, parameters: Mapping[str, float], record: Record,
@@ -372,27 +386,34 @@ def fit_initial_state(simulator: OdeSimulator, parameters: Mapping[str, float], 
     This is the "state initialisation window" of the Silverbox benchmark: errors are then
     reported from sample ``window`` on.
     """
-    from scipy.optimize import least_squares
-
-    x0, v0 = _difference_state(record)
-    n = record.n_dof
     stop = min(max(window, 3), record.n_samples)
     # the input is interpolated over a margin past the window so that its end is not an edge
-    f, x = record.f[:stop + _FILTER_HALF + 1], record.x[:stop]
-    scale_x = max(float(np.std(record.x)), 1e-300)
-    scale_v = scale_x / record.dt
-    scales = np.concatenate([np.full(n, scale_x), np.full(n, scale_v)])
+    stages = simulator.stage_inputs(record.f[:stop + _FILTER_HALF + 1])
+    return _fit_state(simulator, parameters, stages[:, :simulator.substeps * (stop - 1)], record.x[:stop],
+                      record.dt, float(np.std(record.x)))
+
+
+def _fit_state(simulator: OdeSimulator, parameters: Mapping[str, float], stages: np.ndarray, x: np.ndarray,
+               dt: float, spread: float) -> tuple[np.ndarray, np.ndarray]:
+    """The state at the first of the samples ``x`` from which the simulation under ``stages``
+    best reproduces them (started from a finite-difference state; kept when that escapes)."""
+    from scipy.optimize import least_squares
+
+    n = x.shape[1]
+    x0, v0 = _difference_state(x, dt)
+    scale_x = max(spread, 1e-300)
+    scales = np.concatenate([np.full(n, scale_x), np.full(n, scale_x / dt)])
 
     def residual(z: np.ndarray) -> np.ndarray:
         s = z * scales
-        out = simulator.simulate(parameters, f, s[:n], s[n:])[:stop]
+        out = simulator.simulate_stages(parameters, stages, s[:n], s[n:])
         r = (out - x).ravel() / scale_x
         return np.where(np.isfinite(r), r, 1e6)
 
     def jacobian(z: np.ndarray) -> np.ndarray:
         s = z * scales
-        _, dx = simulator.simulate(parameters, f, s[:n], s[n:], sensitivities=True)
-        J = dx[:stop, :, -2 * n:].reshape(-1, 2 * n) * scales / scale_x
+        _, dx = simulator.simulate_stages(parameters, stages, s[:n], s[n:], sensitivities=True)
+        J = dx[:, :, -2 * n:].reshape(-1, 2 * n) * scales / scale_x
         return np.where(np.isfinite(J), J, 0.0)
 
     start = np.concatenate([x0, v0]) / scales
@@ -436,7 +457,7 @@ def simulate_record(record: Record, model: Chain, parameters: Mapping[str, float
     elif init_window > 0:
         x0, v0 = fit_initial_state(sim, canonical, record, window=init_window)
     else:
-        x0, v0 = _difference_state(record)
+        x0, v0 = _difference_state(record.x, record.dt)
     x = sim.simulate(canonical, record.f, x0, v0)
     if not np.all(np.isfinite(x)):
         bad = int(np.argmax(~np.all(np.isfinite(x), axis=1)))
@@ -462,7 +483,9 @@ class Refinement:
         Canonical starting values (the algebraic estimate).
     relative_std : dict
         Relative standard error of each free parameter from the final Jacobian
-        (``s^2 (J^T J)^-1``, white-residual assumption: optimistic for coloured residuals).
+        (``s^2 (J^T J)^-1``, the stretches' initial states eliminated), inflated by the
+        residual's autocorrelation (:func:`correlation_factor`); it assumes the model
+        structure is right.
     initial_state : tuple of ndarray
         Fitted displacements and velocities at the first sample.
     rms_start, rms : float
@@ -513,7 +536,7 @@ def _progress_bar(enabled: bool | None, total: int, desc: str) -> tqdm:
 
 def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Sequence[str] | None = None,
            skip: int = 0, substeps: int = 4, interpolation: str = "bandlimited", max_nfev: int = 50,
-           progress: bool | None = None, **lsq_options: Any) -> Refinement:
+           progress: bool | None = None, segment: int | None = None, **lsq_options: Any) -> Refinement:
     """Refine parameters by output-error least squares (offline).
 
     Minimises ``sum (x_sim - x)^2`` over the samples from ``skip`` on, where ``x_sim`` is
@@ -521,6 +544,12 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
     from a fitted initial state, with :func:`scipy.optimize.least_squares`
     (trust-region reflective, exact Jacobian from the forward sensitivities, parameters
     scaled by their starting values).
+
+    A lightly damped nonlinear plant's free run can drift onto another branch (or be
+    chaotic: a hardening spring under random force) so that no parameter set follows a long
+    record from one initial state. ``segment`` then cuts the record into stretches that are
+    each simulated from their own state, fitted with the parameters (multiple shooting:
+    ``2 n_dof`` more unknowns per stretch, a sparse Jacobian).
 
     Parameters
     ----------
@@ -542,6 +571,9 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
         Largest number of simulations.
     progress : bool or None
         tqdm progress bar; None: only when stderr is a terminal.
+    segment : int, optional
+        Samples per stretch (at least 4) for multiple shooting; None: one simulation over
+        the whole record. The last stretch takes the remainder when it is shorter than half.
     **lsq_options
         Passed to :func:`scipy.optimize.least_squares` (e.g. ``ftol``, ``xtol``).
 
@@ -552,11 +584,13 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
     Raises
     ------
     ValueError
-        On a non-finite starting value, or when the start does not simulate (escapes).
+        On a non-finite starting value, a stretch shorter than 4 samples, or when the start
+        does not simulate (escapes).
     RecordError
         When the record does not fit the model.
     """
     from scipy.optimize import least_squares
+    from scipy.sparse import block_diag, csr_matrix, hstack
 
     bad = [k for k, v in start.items() if not np.isfinite(v)]
     canonical = canonical_from_public(model, start) if not bad else {}
@@ -568,42 +602,77 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
                           f"{model.n_forces} input(s), the record has {record.n_dof} and {record.n_forces}")
     if record.n_samples <= skip + 3:
         raise RecordError(f"{record.source}: {record.n_samples} samples, too few to refine with skip={skip}")
+    if segment is not None and (int(segment) != segment or segment < 4):
+        raise ValueError(f"segment must be a whole number of samples >= 4, got {segment!r}")
     sim = OdeSimulator(model, record.dt, substeps=substeps, interpolation=interpolation, free=free)
-    n = model.n_dof
+    n, q = model.n_dof, sim.substeps
     names = sim.free
+    bounds = stretches(record.n_samples, record.n_samples if segment is None else int(segment))
+    stages = sim.stage_inputs(record.f)
+    drive = [stages[:, q * a:q * (b - 1)] for a, b in bounds]
+    kept = [np.arange(a, b) >= skip for a, b in bounds]  # samples in the criterion
     p_scale = np.array([abs(canonical[k]) or abs(model.canonical_parameters()[k]) or 1.0 for k in names])
     x_scale = max(float(np.std(record.x)), 1e-300)
-    s_scale = np.concatenate([np.full(n, x_scale), np.full(n, x_scale / record.dt)])
+    s_scale = np.tile(np.concatenate([np.full(n, x_scale), np.full(n, x_scale / record.dt)]), len(bounds))
     scales = np.concatenate([p_scale, s_scale])
-    x0, v0 = fit_initial_state(sim, canonical, record)
-    start_vec = np.concatenate([[canonical[k] for k in names], x0, v0]) / scales
-    target = record.x[skip:]
+    window = 50 if segment is None else max(3, int(segment) // 4)
+    states = [np.concatenate(_fit_state(sim, canonical, U[:, :q * (min(window, b - a) - 1)],
+                                        record.x[a:a + min(window, b - a)], record.dt, x_scale))
+              for U, (a, b) in zip(drive, bounds)]
+    start_vec = np.concatenate([[canonical[k] for k in names], *states]) / scales
+    target = np.concatenate([record.x[a:b][m] for (a, b), m in zip(bounds, kept)])
     bar = _progress_bar(progress, max_nfev, f"refine {model.name}")
     cache: dict[str, Any] = {}
+    n_p = len(names)
 
-    def unpack(z: np.ndarray) -> tuple[dict[str, float], np.ndarray, np.ndarray]:
+    def unpack(z: np.ndarray) -> tuple[dict[str, float], np.ndarray]:
         values = z * scales
         params = dict(canonical)
-        params.update(zip(names, values[:len(names)]))
-        return params, values[len(names):len(names) + n], values[len(names) + n:]
+        params.update(zip(names, values[:n_p]))
+        return params, values[n_p:].reshape(len(bounds), 2 * n)
 
-    def evaluate(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def evaluate(z: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
         key = z.tobytes()
         if cache.get("key") != key:
-            params, xs, vs = unpack(z)
-            x, dx = sim.simulate(params, record.f, xs, vs, sensitivities=True)
-            cache.update(key=key, x=x, dx=dx)
+            params, initial = unpack(z)
+            xs, dxs = [], []
+            for U, state, m in zip(drive, initial, kept):
+                x, dx = sim.simulate_stages(params, U, state[:n], state[n:], sensitivities=True)
+                xs.append(x[m])
+                dxs.append(dx[m])
+            cache.update(key=key, x=np.concatenate(xs), dx=dxs)
             bar.update(1)
         return cache["x"], cache["dx"]
 
     def residual(z: np.ndarray) -> np.ndarray:
         x, _ = evaluate(z)
-        return ((x[skip:] - target) / x_scale).ravel()
+        return ((x - target) / x_scale).ravel()
 
-    def jacobian(z: np.ndarray) -> np.ndarray:
-        _, dx = evaluate(z)
-        J = dx[skip:].reshape(-1, dx.shape[2]) * scales / x_scale
-        return np.where(np.isfinite(J), J, 0.0)
+    def blocks(z: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Per stretch: the Jacobian's columns of the parameters and of its own state."""
+        _, dxs = evaluate(z)
+        out = []
+        for i, dx in enumerate(dxs):
+            J = dx.reshape(-1, dx.shape[2]) / x_scale
+            J = np.where(np.isfinite(J), J, 0.0)
+            out.append((J[:, :n_p] * p_scale, J[:, n_p:] * s_scale[2 * n * i:2 * n * (i + 1)]))
+        return out
+
+    rows, columns = target.size, len(scales)
+    dense = len(bounds) == 1 or rows * columns <= DENSE_JACOBIAN
+
+    def jacobian(z: np.ndarray) -> np.ndarray | Any:
+        parts = blocks(z)
+        if dense:
+            out = np.zeros((rows, columns))
+            row = 0
+            for i, (p, s) in enumerate(parts):
+                out[row:row + len(p), :n_p] = p
+                out[row:row + len(p), n_p + 2 * n * i:n_p + 2 * n * (i + 1)] = s
+                row += len(p)
+            return out
+        return hstack([csr_matrix(np.vstack([p for p, _ in parts])), block_diag([s for _, s in parts])],
+                      format="csr")
 
     r0 = residual(start_vec)
     if not np.all(np.isfinite(r0)):
@@ -615,27 +684,64 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
         sol = least_squares(residual, start_vec, jac=jacobian, **options)
     finally:
         bar.close()
-    params, xs, vs = unpack(sol.x)
+    params, initial = unpack(sol.x)
     rms_start = float(np.sqrt(np.mean(r0**2))) * x_scale
     rms = float(np.sqrt(np.mean(sol.fun**2))) * x_scale
-    relative = _relative_std(sol.jac, sol.fun, sol.x, len(names))
+    lag = max(1, min(len(target) // 10, 4 * (bounds[0][1] - bounds[0][0])))
+    relative = _relative_std(blocks(sol.x), sol.fun.reshape(len(target), n), sol.x[:n_p], lag)
     return Refinement(
         model=model.name, parameters=model.from_canonical(params), canonical=params, start=canonical,
-        relative_std=dict(zip(names, relative)), initial_state=(xs, vs), rms_start=rms_start, rms=rms,
-        nfev=int(sol.nfev), success=bool(sol.success), message=str(sol.message),
+        relative_std=dict(zip(names, relative)), initial_state=(initial[0, :n], initial[0, n:]),
+        rms_start=rms_start, rms=rms, nfev=int(sol.nfev), success=bool(sol.success), message=str(sol.message),
         options={"free": list(names), "skip": skip, "substeps": substeps, "interpolation": interpolation,
-                 "max_nfev": max_nfev},
+                 "max_nfev": max_nfev, "segment": segment, "stretches": len(bounds)},
     )
 
 
-def _relative_std(J: np.ndarray, r: np.ndarray, z: np.ndarray, n_params: int) -> np.ndarray:
-    """Relative standard errors of the scaled parameters ``z[:n_params]`` (Gauss-Newton)."""
-    dof = max(len(r) - len(z), 1)
-    s2 = float(r @ r) / dof
+def stretches(n_samples: int, length: int) -> list[tuple[int, int]]:
+    """Consecutive ``(start, stop)`` sample ranges of ``length`` (the last one takes a
+    remainder shorter than half a stretch)."""
+    bounds, start = [], 0
+    while start < n_samples:
+        stop = n_samples if n_samples - start < length + length // 2 else start + length
+        bounds.append((start, stop))
+        start = stop
+    return bounds
+
+
+def correlation_factor(residual: np.ndarray, max_lag: int) -> float:
+    """Variance inflation of a mean over correlated residuals: ``1 + 2 sum rho_k`` over the
+    lags ``1..max_lag`` up to the first non-positive autocorrelation (1 for white residuals;
+    each column of ``residual`` is one sequence, the largest factor is returned)."""
+    from scipy.signal import correlate
+
+    worst = 1.0
+    for r in np.asarray(residual, dtype=float).reshape(len(residual), -1).T:
+        energy = float(r @ r)
+        if energy == 0 or len(r) < 3:
+            continue
+        rho = correlate(r, r, mode="full", method="fft")[len(r):len(r) + max_lag] / energy
+        stop = int(np.argmax(rho <= 0)) if np.any(rho <= 0) else len(rho)
+        worst = max(worst, 1.0 + 2.0 * float(np.sum(rho[:stop])))
+    return worst
+
+
+def _relative_std(blocks: list[tuple[np.ndarray, np.ndarray]], r: np.ndarray, z: np.ndarray,
+                  max_lag: int) -> np.ndarray:
+    """Relative standard errors of the scaled parameters ``z`` (Gauss-Newton,
+    ``s^2 (J^T J)^-1`` with the stretches' states eliminated by their Schur complement,
+    inflated for the residual's autocorrelation, :func:`correlation_factor`)."""
+    n_params = len(z)
+    unknowns = n_params + sum(s.shape[1] for _, s in blocks)
+    s2 = float(np.sum(r**2)) / max(r.size - unknowns, 1) * correlation_factor(r, max_lag)
+    schur = np.zeros((n_params, n_params))
+    for P, S in blocks:
+        coupling = P.T @ S
+        schur += P.T @ P - coupling @ np.linalg.pinv(S.T @ S) @ coupling.T
     try:
-        cov = s2 * np.linalg.pinv(J.T @ J)
+        cov = s2 * np.linalg.pinv(schur)
     except np.linalg.LinAlgError:
         return np.full(n_params, np.inf)
-    std = np.sqrt(np.abs(np.diag(cov)))[:n_params]
+    std = np.sqrt(np.abs(np.diag(cov)))
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(z[:n_params] != 0, std / np.abs(z[:n_params]), np.inf)
+        return np.where(z != 0, std / np.abs(z), np.inf)

@@ -146,8 +146,15 @@ class Assessment:
         and when offsets are modelled ``offsets``: per offset (``c1``, ..., ``x0``) its
         ``value`` (None unless published), ``standard_error`` (absolute, in the parameter's
         unit) and ``status``.
+        When the algebraic estimate left excited values undetermined and the output-error
+        refinement was run, ``refinement``: its ``values``, stated ``uncertainty``,
+        ``half_rate_change``, ``rms``, ``stretches``, ``evaluations`` and whether it was
+        ``accepted``.
     notes : list of str
         What was found, in plain words (what is missing when a value is not published).
+    values : dict
+        The values assessed (public names): the estimator's, or the refinement's when it
+        was accepted; ``uncertainty`` and ``status`` are theirs.
     """
 
     status: dict[str, str]
@@ -155,6 +162,7 @@ class Assessment:
     share: dict[str, float]
     fit: dict[str, Any]
     notes: list[str] = field(default_factory=list)
+    values: dict[str, float] = field(default_factory=dict)
 
     @property
     def identified(self) -> bool:
@@ -421,29 +429,34 @@ SEGMENT_PERIODS = 2.0
 MAX_ESCAPED = 0.1
 
 
+def _segment_samples(record: Record, natural: float) -> tuple[int, int]:
+    """Samples of a stretch's initial-state window and of a stretch (:data:`SEGMENT_PERIODS`
+    natural periods, at least four windows)."""
+    n = record.n_samples
+    period = record.fs / natural if np.isfinite(natural) and natural > 0 else n
+    init = int(max(period / 2, 10))
+    return init, int(min(n, max(SEGMENT_PERIODS * period, 4 * init)))
+
+
 def _simulation_fit(record: Record, model: Chain, canonical: Mapping[str, float], natural: float,
                     noise: np.ndarray) -> tuple[dict[str, Any], np.ndarray | None, str | None]:
     """Simulate the identified model under the measured force, in segments of
     :data:`SEGMENT_PERIODS` natural periods each started from a state fitted to its first
     half period; the NRMSE of the simulated displacement against the record."""
-    from .refine import OdeSimulator, fit_initial_state
+    from .refine import OdeSimulator, stretches
 
     spread = np.std(record.x, axis=0)
     fit: dict[str, Any] = {"simulation_nrmse": math.nan, "noise_nrmse": math.nan, "explained": False}
     noise_nrmse = float(np.max(noise / spread))
     fit["noise_nrmse"] = noise_nrmse
     n = record.n_samples
-    period = record.fs / natural if np.isfinite(natural) and natural > 0 else n
-    init = int(max(period / 2, 10))
-    length = int(min(n, max(SEGMENT_PERIODS * period, 4 * init)))
+    init, length = _segment_samples(record, natural)
     try:
         simulator = OdeSimulator(model, record.dt, free=())
         simulated = np.empty_like(record.x)
         pieces: list[tuple[float, float, int]] = []  # (mean square error / variance, sum, samples)
-        start = 0
         with np.errstate(all="ignore"):  # a trial initial state may make the simulation overflow
-            while start < n:
-                stop = n if n - start < length + length // 2 else start + length
+            for start, stop in stretches(n, length):
                 segment = Record(record.t[start:stop], record.f[start:stop], record.x[start:stop],
                                  source=record.source)
                 response = _segment_response(simulator, canonical, segment, min(init, len(segment.t) // 4))
@@ -451,7 +464,6 @@ def _simulation_fit(record: Record, model: Chain, canonical: Mapping[str, float]
                 worst = float(np.max(np.mean(scaled, axis=0))) if np.all(np.isfinite(scaled)) else math.inf
                 pieces.append((worst, float(np.max(np.sum(scaled, axis=0))), len(scaled)))
                 simulated[start:stop] = response if np.all(np.isfinite(response)) else segment.x
-                start = stop
     except (RecordError, ValueError, ArithmeticError) as exc:
         return fit, None, f"the identified model cannot be simulated under the measured force ({exc})"
     # near a softening spring's escape or a lightly damped jump, a noisy initial state can
@@ -680,7 +692,7 @@ def _renamed(result: Identification, model: Chain) -> Identification:
 
 def identify(record: Record, model: Chain, method: str = "robust", *, offsets: str | None = None,
              check: bool = True, engine: str = "auto", progress: bool | None = None,
-             **options: Any) -> Identification:
+             refine: bool = True, **options: Any) -> Identification:
     """Identify ``model``'s parameters from a record, publishing only what the record supports.
 
     The estimator (:func:`duffid.identification.estimate`: the online methods sample by
@@ -727,6 +739,9 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
         x^2 term, which only the Python identifier runs).
     progress : bool or None
         Progress bar on stderr while the checks run (None: for long records on a terminal).
+    refine : bool
+        Refine by output-error least squares when the algebraic estimate leaves excited
+        values undetermined (see :func:`assess`; CLI ``--no-refine`` turns it off).
     **options
         Method options (see :class:`~duffid.identification.OnlineIdentifier`).
 
@@ -823,7 +838,7 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
 
     result.assessment = assess(record, physical, result.estimates, rerun, max_uncertainty=max_uncertainty,
                                upsampled=factor, with_offsets=with_offsets, at_half_rate=at_half_rate,
-                               progress=progress, displacement_offset=mode["shifted"])
+                               progress=progress, displacement_offset=mode["shifted"], refine=refine)
     if kind in ("displacement", "both"):
         _report_displacement_offset(result, kind, separable=mode["shifted"], cubic_share=cubic_share)
     if outliers:
@@ -834,7 +849,7 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
         result.assessment.fit["outliers"] = [{"column": f"x{j + 1}", "t": float(measured.t[i]),
                                               "value": float(measured.x[i, j]), "replaced_by": value}
                                              for i, j, value in outliers]
-    result.parameters = result.assessment.published(result.estimates)
+    result.parameters = result.assessment.published({**result.estimates, **result.assessment.values})
     if result.assessment.identified and result.t_identified is None:
         # the estimator integrated the whole record in one window: it needed all of it
         result.t_identified = float(result.t[-1])
@@ -846,7 +861,7 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
            replicates: int = REPLICATES, upsampled: int = 1, seed: int = 0,
            with_offsets: Callable[[], Mapping[str, float]] | None = None,
            at_half_rate: Callable[[], Mapping[str, float]] | None = None,
-           progress: bool | None = None, displacement_offset: bool = False) -> Assessment:
+           progress: bool | None = None, displacement_offset: bool = False, refine: bool = True) -> Assessment:
     """Decide which of ``estimates`` (public names) the record supports.
 
     Parameters
@@ -887,6 +902,13 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
         the measured displacement minus ``x0``, and ``x0`` is assessed like the parameters
         (its share is that of the cubic term, the only one that separates it from a force
         bias).
+    refine : bool
+        When excited values are left undetermined by the algebraic estimate (and no offset
+        check moved them), refine all values by output-error least squares
+        (:func:`duffid.refine.refine` in stretches of :data:`SEGMENT_PERIODS` periods),
+        whose stated errors come from its covariance and its change at half the sampling
+        rate; it is kept only when it agrees with the algebraic values within 3 combined
+        standard errors (``fit["refinement"]``).
 
     Offsets (``c1``, ... of a model with ``offset``, and ``x0``) are published when their
     relative standard error is at most ``max_uncertainty`` or their standard error at most
@@ -915,13 +937,13 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
     if refusal is not None:
         notes.append(refusal)
         fit.update({"simulation_nrmse": math.nan, "noise_nrmse": math.nan, "explained": False})
-        return Assessment(status, uncertainty, share, fit, notes)
+        return Assessment(status, uncertainty, share, fit, notes, values)
     if canonical is None:
         notes.append("the identified values do not describe a physical " + model.name + " (" +
                      ", ".join(f"{k} = {v:.4g}" for k, v in values.items()) + "): the record does not "
                      "support this model (check the columns, units and the model)")
         fit.update({"simulation_nrmse": math.nan, "noise_nrmse": math.nan, "explained": False})
-        return Assessment(status, uncertainty, share, fit, notes)
+        return Assessment(status, uncertainty, share, fit, notes, values)
     shift = values.get(DISPLACEMENT_OFFSET, 0.0) if displacement_offset else 0.0
     physical = record if shift == 0.0 else Record(record.t, record.f, record.x - shift, source=record.source,
                                                   sampling_rtol=record.sampling_rtol)
@@ -934,7 +956,7 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
             share[DISPLACEMENT_OFFSET] = shares.get(f"k1_{max(model.orders)}", math.nan)
     if problem is not None:
         notes.append(problem)
-        return Assessment(status, uncertainty, share, fit, notes)
+        return Assessment(status, uncertainty, share, fit, notes, values)
     uncertainty = _bootstrap_uncertainty(record, values, noise, rerun, replicates, seed, progress)
     bias = BALANCE_FLOOR + QUADRATURE_BIAS / spp**4
     for k in names:  # the quadrature's share of the error, larger for a term that carries little
@@ -960,10 +982,20 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
                      "values assume that the sensors read zero at rest with no force (a record with rest "
                      "before the step, or a varying force, lets duffid check it)")
     scales = _offset_scales(record, model, names)
-    for k in names:
-        determined = uncertainty[k] <= max_uncertainty or (
+
+    def determined(k: str) -> bool:
+        return uncertainty[k] <= max_uncertainty or (
             k in scales and uncertainty[k] * abs(values[k]) <= max_uncertainty * scales[k])
-        if determined and k not in offset_moved:
+
+    pending = [k for k in names if not determined(k) and not share[k] < MIN_SHARE]
+    if refine and pending and not offset_moved and not displacement_offset:
+        # the equation error left excited values undetermined: the output error, an
+        # efficient estimator for displacement noise, from the algebraic values
+        refined = _refinement(record, model, values, uncertainty, natural, spp / upsampled, notes, pending)
+        if refined is not None:
+            values, uncertainty, fit["refinement"] = refined
+    for k in names:
+        if determined(k) and k not in offset_moved:
             status[k] = "published"
         elif np.isfinite(share[k]) and share[k] < MIN_SHARE and (k not in scales or k == DISPLACEMENT_OFFSET):
             status[k] = "not excited"
@@ -984,7 +1016,76 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
                      + ", ".join(f"{k} {100 * uncertainty[k]:.2g} %" for k in unsure)
                      + f" above the {100 * max_uncertainty:.3g} % allowed (--max-uncertainty); more data, "
                        "less noise or a richer excitation would determine it")
-    return Assessment(status, uncertainty, share, fit, notes)
+    return Assessment(status, uncertainty, share, fit, notes, values)
+
+
+#: The output-error refinement needs this many samples per period of the highest frequency
+#: at half the sampling rate (its bias check) for the band-limited interpolation of the force.
+REFINE_SAMPLES_PER_PERIOD = 4.0
+#: Largest RK4 step of the refinement's simulation, in radians of the highest frequency.
+REFINE_STEP = 0.1
+
+
+def _refinement(record: Record, model: Chain, values: Mapping[str, float], uncertainty: Mapping[str, float],
+                natural: float, spp: float, notes: list[str], pending: list[str]
+                ) -> tuple[dict[str, float], dict[str, float], dict[str, Any]] | None:
+    """Output-error refinement of ``values`` (:func:`duffid.refine.refine`, multiple
+    shooting over stretches of :data:`SEGMENT_PERIODS` natural periods), with the
+    stated errors of the Gauss-Newton covariance (inflated for correlated residuals) and the
+    change at half the sampling rate beyond what the noise explains (the interpolation's
+    bias, first order where the force jumps). None, with a note, when it fails or disagrees
+    with the algebraic values by more than 3 combined standard errors."""
+    from .refine import refine
+
+    if not spp / 2 >= REFINE_SAMPLES_PER_PERIOD:
+        return None
+    _, length = _segment_samples(record, natural)
+    canonical_names = {k: model.canonical_name(k) for k in model.parameters}
+
+    def run(rec: Record, segment: int, samples_per_period: float) -> Any:
+        substeps = max(4, math.ceil(2 * math.pi / (samples_per_period * REFINE_STEP)))
+        return refine(rec, model, {k: values[k] for k in model.parameters}, segment=max(segment, 8),
+                      substeps=substeps, progress=False)
+
+    try:
+        with np.errstate(all="ignore"):
+            full = run(record, length, spp)
+            half = run(Record(record.t[::2], record.f[::2], record.x[::2], source=record.source,
+                              sampling_rtol=record.sampling_rtol), length // 2, spp / 2)
+    except (ValueError, RecordError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        notes.append(f"the output-error refinement of {', '.join(pending)} failed ({exc}); "
+                     "the algebraic values stand")
+        return None
+    if not (full.success and half.success):
+        notes.append(f"the output-error refinement of {', '.join(pending)} did not converge "
+                     f"({full.message if not full.success else half.message}); the algebraic values stand")
+        return None
+    refined, stated, change = {}, {}, {}
+    for k, c in canonical_names.items():
+        v = full.parameters[k]
+        sd = max(full.relative_std.get(c, math.inf), UNCERTAINTY_FLOOR)
+        change[k] = (half.parameters[k] - v) / abs(v) if v else math.inf
+        bias = math.sqrt(max(change[k]**2 - (2.0 * sd) ** 2, 0.0)) if np.isfinite(change[k]) else math.inf
+        refined[k], stated[k] = v, math.hypot(sd, bias)
+    apart = {k: (refined[k] - values[k]) / abs(values[k]) for k in canonical_names if values[k]}
+    disagree = [k for k, d in apart.items()
+                if not abs(d) <= 3.0 * math.hypot(uncertainty[k], stated[k])]
+    info = {"values": refined, "uncertainty": stated, "half_rate_change": change,
+            "rms": full.rms, "stretches": full.options["stretches"], "evaluations": full.nfev,
+            "accepted": not disagree}
+    if disagree:
+        notes.append("the output-error refinement disagrees with the algebraic estimate beyond their "
+                     "uncertainties (" + ", ".join(f"{k} {100 * apart[k]:+.3g} %" for k in disagree)
+                     + "): the model may not describe the plant; the algebraic values stand")
+        return None
+    notes.append(f"the algebraic estimate left {', '.join(pending)} undetermined: the values are refined by "
+                 f"output-error least squares (the model simulated under the measured force in "
+                 f"{full.options['stretches']} stretches of {SEGMENT_PERIODS:g} natural periods)")
+    out_values = dict(values)
+    out_values.update(refined)
+    out_uncertainty = dict(uncertainty)
+    out_uncertainty.update(stated)
+    return out_values, out_uncertainty, info
 
 
 def _with_offsets(model: Chain) -> Chain:
