@@ -43,16 +43,51 @@ def _published_within(result, truth, tolerance):
 
 
 def test_a_well_excited_record_publishes_values_within_their_uncertainty(lab):
-    result = identify(lab, Duffing1())
-    a = result.assessment
+    algebraic = identify(lab, Duffing1(), refine=False)
+    a = algebraic.assessment
     assert set(a.status.values()) <= set(STATUSES)
     assert a.fit["explained"] and a.fit["simulation_nrmse"] < 0.05
     assert [k for k, s in a.status.items() if s == "published"] == ["m", "b", "k"]
-    _published_within(result, Duffing1().parameters, 0.01)
-    data = result.to_dict()
-    assert data["identified"] is result.is_identified is False  # kp is not published here
+    assert "refinement" not in a.fit
+    _published_within(algebraic, Duffing1().parameters, 0.01)
+    data = algebraic.to_dict()
+    assert data["identified"] is algebraic.is_identified is False  # kp is not published by the equation error
     assert data["status"] == a.status and set(data["uncertainty"]) == set(a.uncertainty)
-    assert data["parameters"]["kp"] is None and data["parameters"]["m"] == result.parameters["m"]
+    assert data["parameters"]["kp"] is None and data["parameters"]["m"] == algebraic.parameters["m"]
+
+
+def test_the_output_error_refinement_determines_what_the_algebraic_estimate_left_open(lab):
+    """kp's equation-error standard error is above 1 %: the output error (stretches of two
+    periods, its stated error from the covariance and the half-rate change) pins it down."""
+    result = identify(lab, Duffing1())
+    a = result.assessment
+    refinement = a.fit["refinement"]
+    assert refinement["accepted"] and refinement["stretches"] > 1
+    assert any("refined by output-error least squares" in note and "left kp undetermined" in note
+               for note in a.notes)
+    assert result.is_identified and result.to_dict()["identified"] is True
+    assert a.values == refinement["values"] and result.parameters == refinement["values"]
+    assert a.uncertainty["kp"] < 0.01 < identify(lab, Duffing1(), refine=False).assessment.uncertainty["kp"]
+    _published_within(result, Duffing1().parameters, 0.01)
+    assert result.estimates != result.parameters  # the estimator's own values are kept apart
+
+
+def test_a_refinement_that_disagrees_with_the_algebraic_estimate_is_not_used(lab, monkeypatch):
+    import duffid.refine
+    genuine = duffid.refine.refine
+
+    def shifted(*args, **kwargs):  # a refinement 30 % off in the mass, with a small stated error
+        out = genuine(*args, **kwargs)
+        out.parameters["m"] *= 1.3
+        return out
+
+    monkeypatch.setattr(duffid.refine, "refine", shifted)
+    result = identify(lab, Duffing1())
+    a = result.assessment
+    assert a.fit["refinement"]["accepted"] is False
+    assert any("disagrees with the algebraic estimate" in note and "m +30 %" in note for note in a.notes)
+    assert a.status["kp"] == "uncertain" and math.isnan(result.parameters["kp"])
+    _published_within(result, Duffing1().parameters, 0.01)
 
 
 def test_nothing_depends_on_the_models_default_values():
@@ -185,18 +220,20 @@ def _cli(*args):
 def test_cli_text_and_json_agree(lab, tmp_path):
     path = tmp_path / "lab.csv"
     lab.to_csv(path)
-    data = json.loads(_cli("identify", path, "--json"))
-    text = _cli("identify", path)
-    assert data["identified"] is False and "identified: no" in text and "identified at" not in text
-    for name, value in data["parameters"].items():
-        row = next(line for line in text.splitlines() if line.split()[:1] == [name])
-        assert data["status"][name] in row
-        if value is None:
-            assert row.split()[1] == "-"
-        else:
-            assert float(row.split()[1]) == pytest.approx(value, rel=1e-5)
-    for note in data["notes"]:
-        assert note in text
+    for flags, identified in ((["--no-refine"], False), ([], True)):  # kp is left open without the refinement
+        data = json.loads(_cli("identify", path, "--json", *flags))
+        text = _cli("identify", path, *flags)
+        assert data["identified"] is identified and "identified at" not in text
+        assert ("identified: yes" if identified else "identified: no") in text
+        for name, value in data["parameters"].items():
+            row = next(line for line in text.splitlines() if line.split()[:1] == [name])
+            assert data["status"][name] in row
+            if value is None:
+                assert row.split()[1] == "-"
+            else:
+                assert float(row.split()[1]) == pytest.approx(value, rel=1e-5)
+        for note in data["notes"]:
+            assert note in text
     swapped = tmp_path / "swapped.csv"
     Record(lab.t, lab.x, lab.f).to_csv(swapped)
     data = json.loads(_cli("identify", swapped, "--json"))

@@ -849,7 +849,8 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
         result.assessment.fit["outliers"] = [{"column": f"x{j + 1}", "t": float(measured.t[i]),
                                               "value": float(measured.x[i, j]), "replaced_by": value}
                                              for i, j, value in outliers]
-    result.parameters = result.assessment.published({**result.estimates, **result.assessment.values})
+    a = result.assessment
+    result.parameters = a.published({k: a.values.get(k, v) for k, v in result.estimates.items()})
     if result.assessment.identified and result.t_identified is None:
         # the estimator integrated the whole record in one window: it needed all of it
         result.t_identified = float(result.t[-1])
@@ -991,9 +992,12 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
     if refine and pending and not offset_moved and not displacement_offset:
         # the equation error left excited values undetermined: the output error, an
         # efficient estimator for displacement noise, from the algebraic values
-        refined = _refinement(record, model, values, uncertainty, natural, spp / upsampled, notes, pending)
-        if refined is not None:
-            values, uncertainty, fit["refinement"] = refined
+        refinement = _refinement(record, model, values, uncertainty, natural, spp / upsampled, notes, pending)
+        if refinement is not None:
+            fit["refinement"] = refinement
+            if refinement["accepted"]:
+                values = {**values, **refinement["values"]}
+                uncertainty = {**uncertainty, **refinement["uncertainty"]}
     for k in names:
         if determined(k) and k not in offset_moved:
             status[k] = "published"
@@ -1027,14 +1031,14 @@ REFINE_STEP = 0.1
 
 
 def _refinement(record: Record, model: Chain, values: Mapping[str, float], uncertainty: Mapping[str, float],
-                natural: float, spp: float, notes: list[str], pending: list[str]
-                ) -> tuple[dict[str, float], dict[str, float], dict[str, Any]] | None:
+                natural: float, spp: float, notes: list[str], pending: list[str]) -> dict[str, Any] | None:
     """Output-error refinement of ``values`` (:func:`duffid.refine.refine`, multiple
     shooting over stretches of :data:`SEGMENT_PERIODS` natural periods), with the
     stated errors of the Gauss-Newton covariance (inflated for correlated residuals) and the
     change at half the sampling rate beyond what the noise explains (the interpolation's
-    bias, first order where the force jumps). None, with a note, when it fails or disagrees
-    with the algebraic values by more than 3 combined standard errors."""
+    bias, first order where the force jumps): ``fit["refinement"]``, not ``accepted`` (with a
+    note) when it disagrees with the algebraic values by more than 3 combined standard errors;
+    None (with a note) when it fails."""
     from .refine import refine
 
     if not spp / 2 >= REFINE_SAMPLES_PER_PERIOD:
@@ -1077,15 +1081,11 @@ def _refinement(record: Record, model: Chain, values: Mapping[str, float], uncer
         notes.append("the output-error refinement disagrees with the algebraic estimate beyond their "
                      "uncertainties (" + ", ".join(f"{k} {100 * apart[k]:+.3g} %" for k in disagree)
                      + "): the model may not describe the plant; the algebraic values stand")
-        return None
-    notes.append(f"the algebraic estimate left {', '.join(pending)} undetermined: the values are refined by "
-                 f"output-error least squares (the model simulated under the measured force in "
-                 f"{full.options['stretches']} stretches of {SEGMENT_PERIODS:g} natural periods)")
-    out_values = dict(values)
-    out_values.update(refined)
-    out_uncertainty = dict(uncertainty)
-    out_uncertainty.update(stated)
-    return out_values, out_uncertainty, info
+    else:
+        notes.append(f"the algebraic estimate left {', '.join(pending)} undetermined: the values are refined by "
+                     f"output-error least squares (the model simulated under the measured force in "
+                     f"{full.options['stretches']} stretches of {SEGMENT_PERIODS:g} natural periods)")
+    return info
 
 
 def _with_offsets(model: Chain) -> Chain:
