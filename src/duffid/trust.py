@@ -26,6 +26,12 @@ Checks, in order (:func:`assess`):
    second sample (the quadrature's bias, of first order where the force jumps). Its term's share of
    the force balance (:func:`term_shares`) tells a parameter the record does not excite
    from one it excites but cannot pin down.
+4. **Refinement.** When the algebraic (equation-error) estimate leaves an excited value
+   undetermined, all values are refined by output-error least squares
+   (:func:`duffid.refine.refine` in stretches of :data:`SEGMENT_PERIODS` natural periods,
+   each from its own fitted state), stated errors from its covariance and its change at half
+   the sampling rate; kept only when it agrees with the algebraic values within 3 combined
+   standard errors.
 
 Status of each parameter (:data:`STATUSES`):
 
