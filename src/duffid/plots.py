@@ -44,7 +44,7 @@ def plot_estimates(result: Identification, path: str | os.PathLike[str], *,
     rows = int(np.ceil(n / cols))
     fig, axes = plt.subplots(rows, cols, figsize=(6 * cols, 2.2 * rows), sharex=True, squeeze=False)
     for ax, (name, values) in zip(axes.flat, curves.items()):
-        ax.plot(result.t, values, lw=1.2, label="estimate")
+        ax.plot(result.t, values, lw=1.2, label="estimator run")
         if truth is not None and name in truth:
             ax.axhline(truth[name], color="k", ls="--", lw=0.8, label="truth")
             finite = values[np.isfinite(values)]
