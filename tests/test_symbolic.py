@@ -10,7 +10,7 @@ import pytest
 
 from duffid import Duffing1, Duffing2, Record, measure
 from duffid.buffered import velocity_signs
-from duffid.identification import OnlineIdentifier, _Integrators, estimate
+from duffid.identification import OnlineIdentifier, Integrators, estimate
 from duffid.models import Chain
 from duffid.symbolic import EquationError, derive, identify_equation, parse_equations
 from rounding import assert_close, final_spread, identifier_spread
@@ -57,7 +57,7 @@ def _hand_rows(model, record):
 
 def _derived_rows(regressor, record):
     sgn = velocity_signs(record.x)
-    bank = _Integrators(len(regressor.bank), regressor.depth, record.dt, "adams3")
+    bank = Integrators(len(regressor.bank), regressor.depth, record.dt, "adams3")
     out = []
     for n in range(record.n_samples):
         u = np.asarray(regressor.bank_function(record.x[n], record.f[n], record.t[n], sgn[n], n * record.dt))

@@ -5,8 +5,8 @@
  *   channels        models.Channel / identification._Channels
  *   kernel bank     regressors.row_exponents, regressors.KernelBank
  *   moments         regressors.SlidingMoments, regressors.gregory_corrections
- *   robust solve    identification._QRLeastSquares, _solve_factor
- *   paper method    identification._Integrators, OnlineIdentifier._paper_step
+ *   robust solve    identification._QRLeastSquares, solve_factor
+ *   paper method    identification.Integrators, OnlineIdentifier._paper_step
  *   combination     identification.combine_equations, auto_window
  *   publication     OnlineIdentifier._publish, _window_ok, _after_publish
  *
@@ -980,7 +980,7 @@ static void assemble(const equation_t *eq, const double *E, int n_rows, double *
 }
 
 /* ------------------------------------------------------------------ least squares */
-/* identification._solve_factor on the p x p factor Raug (p = n + 1) */
+/* identification.solve_factor on the p x p factor Raug (p = n + 1) */
 static void solve_factor(duffid_estimator *est, equation_t *eq, const double *Raug, double rows,
                          double overlap)
 {
@@ -1106,7 +1106,7 @@ static long robust_step(duffid_estimator *est)
 }
 
 /* ------------------------------------------------------------------ paper method */
-/* identification._Integrators.push: returns y (levels 0..depth, n_in each) */
+/* identification.Integrators.push: returns y (levels 0..depth, n_in each) */
 static const double *integrators_push(integrators_t *it, const double *u, double h, int adams)
 {
     const size_t n = (size_t)(it->depth + 1) * (size_t)it->n_in;
@@ -1137,7 +1137,7 @@ static const double *integrators_push(integrators_t *it, const double *u, double
     return it->y;
 }
 
-/* identification._equilibrated_condition */
+/* identification.equilibrated_condition */
 static double equilibrated_condition(duffid_estimator *est, const double *A, int n)
 {
     double col[MAX_UNK], row[MAX_UNK], sq[MAX_UNK];

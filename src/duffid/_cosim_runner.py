@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from .cosim import (_DTYPES, _KINDS, _N_MESSAGES, _N_REPORTED, _STATUS, Connection, CosimError, Failure, Result,
+from .cosim import (_DTYPES, VARIABLE_KINDS, _N_MESSAGES, _N_REPORTED, _STATUS, Connection, CosimError, Failure, Result,
                     System, _check_external_value, _Component, _External)
 
 __all__ = ["Runner"]
@@ -105,7 +105,7 @@ class Runner:
             for v in comp.md.modelVariables:
                 full = f"{comp.name}.{v.name}"
                 if full in wanted:
-                    kind = _KINDS[v.type]
+                    kind = VARIABLE_KINDS[v.type]
                     lows.setdefault(kind, counts[kind])
                     reads.setdefault(kind, []).append((v.name, v.valueReference))
                     self.slots[full] = (kind, counts[kind])

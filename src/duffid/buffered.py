@@ -51,8 +51,8 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from .identification import (Estimate, Identification, check_record, _solve_factor, _triangular_factor,
-                             combine_equations)
+from .identification import (Estimate, Identification, check_record, combine_equations, solve_factor,
+                             triangular_factor)
 from .models import Chain, Channel
 from .orthogonal import BASES, QUADRATURES, make_basis, projection_matrix
 from .record import Record, RecordError
@@ -465,13 +465,13 @@ class BufferedIdentifier:
         cond, worst = 0.0, 0.0
         for g, (eqs, names) in enumerate(self._groups):
             A, D = _stack(systems, eqs, names, self.regression.unknowns)
-            R = _triangular_factor(np.column_stack([A, D]), len(names) + 1)
+            R = triangular_factor(np.column_stack([A, D]), len(names) + 1)
             rows = float(len(A))
             if self.options["accumulate"] and self._factors[g] is not None:
-                R = _triangular_factor(np.vstack([self._factors[g], R]), len(names) + 1)
+                R = triangular_factor(np.vstack([self._factors[g], R]), len(names) + 1)
                 rows += self._rows[g]
             self._factors[g], self._rows[g] = R, rows
-            theta, c, rse = _solve_factor(R, rows, 1.0)[:3]
+            theta, c, rse = solve_factor(R, rows, 1.0)[:3]
             cond = max(cond, c)
             worst = max(worst, float(np.max(rse)) if len(rse) else 0.0)
             values = dict(zip(names, theta))

@@ -74,7 +74,7 @@ from typing import Any, Callable, Iterable, Mapping, Sequence, Union
 import numpy as np
 
 __all__ = ["System", "Result", "Connection", "Failure", "CosimError", "WiringError", "ORDERINGS",
-           "EXACT_ORDER_LIMIT"]
+           "EXACT_ORDER_LIMIT", "VARIABLE_KINDS", "with_article"]
 
 #: Accepted values of ``run(ordering=...)``.
 ORDERINGS = ("jacobi", "gauss-seidel")
@@ -85,7 +85,8 @@ EXACT_ORDER_LIMIT = 12
 #: Source of an external input: a constant, a function of time, or samples ``(t, values)``.
 InputSource = Union[float, Callable[[float], float], tuple]
 
-_KINDS = {"Real": "Real", "Float64": "Real", "Integer": "Integer", "Int32": "Integer", "Boolean": "Boolean"}
+#: FMI 2 and FMI 3 variable types -> the kind duffid exchanges them as.
+VARIABLE_KINDS = {"Real": "Real", "Float64": "Real", "Integer": "Integer", "Int32": "Integer", "Boolean": "Boolean"}
 _STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 _NAME_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 _N_MESSAGES = 200      # log messages kept per component
@@ -228,7 +229,7 @@ class Result:
 
 
 # --------------------------------------------------------------------------------- model info
-def _article(word: str) -> str:
+def with_article(word: str) -> str:
     """``"an output"``, ``"a parameter"``."""
     return f"{'an' if word[:1] in 'aeiou' else 'a'} {word}"
 
@@ -278,7 +279,7 @@ class _Component:
 
     def kind(self, variable: Any, purpose: str) -> str:
         """Real, Integer or Boolean; other types cannot be connected, driven or recorded."""
-        kind = _KINDS.get(variable.type)
+        kind = VARIABLE_KINDS.get(variable.type)
         if kind is None or variable.shape or variable.dimensions:
             raise WiringError(f"{self.where()}: {variable.name} has type {variable.type}"
                               f"{' (array)' if variable.dimensions else ''}; only scalar Real/Float64, "
@@ -286,7 +287,7 @@ class _Component:
         return kind
 
     def outputs(self) -> list[Any]:
-        return [v for v in self.md.modelVariables if v.causality == "output" and v.type in _KINDS
+        return [v for v in self.md.modelVariables if v.causality == "output" and v.type in VARIABLE_KINDS
                 and not v.dimensions]
 
 
@@ -297,7 +298,7 @@ def _typed_parameter(comp: _Component, variable: Any, value: Any) -> Any:
         raise WiringError(f"{where} is an input; drive it with set_input or connect")
     if variable.causality != "parameter" or variable.variability not in ("fixed", "tunable") \
             or variable.initial == "calculated":
-        raise WiringError(f"{where} is {_article(variable.causality)} ({variable.variability}) variable, "
+        raise WiringError(f"{where} is {with_article(variable.causality)} ({variable.variability}) variable, "
                           "not a settable parameter")
     kind = variable.type
     if kind in ("Real", "Float64", "Float32"):
@@ -483,7 +484,7 @@ class System:
     def _claim_input(self, target: str, driver: str) -> tuple[_Component, Any]:
         comp, var = self._lookup(target, "target")
         if var.causality != "input":
-            raise WiringError(f"target {target!r}: {comp.where()}: {var.name} is {_article(var.causality)}, not an input")
+            raise WiringError(f"target {target!r}: {comp.where()}: {var.name} is {with_article(var.causality)}, not an input")
         if target in self._drivers:
             raise WiringError(f"input {target!r} is already driven by {self._drivers[target]}; "
                               f"it cannot also be driven by {driver}")
@@ -512,7 +513,7 @@ class System:
         """
         scomp, svar = self._lookup(source, "source")
         if svar.causality != "output":
-            raise WiringError(f"source {source!r}: {scomp.where()}: {svar.name} is {_article(svar.causality)}, "
+            raise WiringError(f"source {source!r}: {scomp.where()}: {svar.name} is {with_article(svar.causality)}, "
                               "not an output")
         tcomp, tvar = self._claim_input(target, f"the connection from {source!r}")
         skind, tkind = scomp.kind(svar, "connected"), tcomp.kind(tvar, "connected")
@@ -786,7 +787,7 @@ class System:
             for comp in self._components.values():
                 for v in comp.md.modelVariables:
                     full = f"{comp.name}.{v.name}"
-                    if (v.causality == "output" and v.type in _KINDS and not v.dimensions) or full in self._externals:
+                    if (v.causality == "output" and v.type in VARIABLE_KINDS and not v.dimensions) or full in self._externals:
                         names.append(full)
             return names
         if isinstance(record, str):

@@ -49,7 +49,7 @@ import zipfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
-from .cosim import _KINDS, WiringError, _article
+from .cosim import VARIABLE_KINDS, WiringError, with_article
 
 if TYPE_CHECKING:
     from .cosim import System
@@ -166,7 +166,7 @@ def export_container(system: System, path: str | os.PathLike[str],
             for full in _as_list(targets, f"container input {name!r}"):
                 comp, var = system._lookup(full, "container input target")
                 if var.causality != "input":
-                    raise WiringError(f"container input {name!r}: {full} is {_article(var.causality)}, not an input")
+                    raise WiringError(f"container input {name!r}: {full} is {with_article(var.causality)}, not an input")
                 if full in connected:
                     raise WiringError(f"container input {name!r}: {full} is already connected inside the system")
                 entries.append(resolve(full, "container input target"))
@@ -188,7 +188,7 @@ def export_container(system: System, path: str | os.PathLike[str],
                 raise WiringError(f"container output {name!r} must map to one 'component.output'")
             comp, var = system._lookup(source, "container output source")
             if var.causality != "output":
-                raise WiringError(f"container output {name!r}: {source} is {_article(var.causality)}, not an output")
+                raise WiringError(f"container output {name!r}: {source} is {with_article(var.causality)}, not an output")
             c, m, kind = resolve(source, "container output source")
             v = new_variable(name, kind, "output", "continuous" if kind == "Real" else "discrete", "calculated",
                              None, f"output {source}")
@@ -207,9 +207,9 @@ def export_container(system: System, path: str | os.PathLike[str],
             for full in targets:
                 comp, var = system._lookup(full, "container parameter target")
                 if var.causality != "parameter" or var.variability not in ("fixed", "tunable"):
-                    raise WiringError(f"container parameter {name!r}: {full} is {_article(var.causality)} "
+                    raise WiringError(f"container parameter {name!r}: {full} is {with_article(var.causality)} "
                                       f"({var.variability}), not a settable parameter")
-                if var.type not in _KINDS:
+                if var.type not in VARIABLE_KINDS:
                     raise WiringError(f"container parameter {name!r}: {full} has type {var.type}; the container "
                                       "carries Real, Integer and Boolean parameters only")
                 entries.append(resolve(full, "container parameter target"))

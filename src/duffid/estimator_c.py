@@ -33,6 +33,7 @@ from .record import Record
 
 __all__ = [
     "CIdentifier",
+    "CConfig",
     "CompilerNotFoundError",
     "CBuildError",
     "build_library",
@@ -64,7 +65,9 @@ class CBuildError(RuntimeError):
     """The C compiler failed on the estimator core."""
 
 
-class _Config(ctypes.Structure):
+class CConfig(ctypes.Structure):
+    """The C core's ``duffid_config`` (duffid_estimator.h), field for field."""
+
     _fields_ = [
         ("model", ctypes.c_int),
         ("method", ctypes.c_int),
@@ -225,7 +228,7 @@ def load_library(path: str | os.PathLike[str] | None = None) -> ctypes.CDLL:
     if lib is not None:
         return lib
     lib = ctypes.CDLL(path)
-    cfg_p, out_p = ctypes.POINTER(_Config), ctypes.POINTER(_Output)
+    cfg_p, out_p = ctypes.POINTER(CConfig), ctypes.POINTER(_Output)
     est_p, dbl_p = ctypes.c_void_p, ctypes.POINTER(ctypes.c_double)
     signatures = {
         "duffid_default_config": (ctypes.c_int, [cfg_p, ctypes.c_int, ctypes.c_int, ctypes.c_double]),
@@ -247,7 +250,7 @@ def load_library(path: str | os.PathLike[str] | None = None) -> ctypes.CDLL:
         fn = getattr(lib, name)
         fn.restype = restype
         fn.argtypes = argtypes
-    if lib.duffid_config_size() != ctypes.sizeof(_Config) or lib.duffid_output_size() != ctypes.sizeof(_Output):
+    if lib.duffid_config_size() != ctypes.sizeof(CConfig) or lib.duffid_output_size() != ctypes.sizeof(_Output):
         raise RuntimeError(f"{path}: the C structures do not match this binding (rebuild the library)")
     _LIBRARIES[path] = lib
     return lib
@@ -298,7 +301,7 @@ class CIdentifier:
         self.method = method
         self.options = check_options(method, options)
         self._lib = load_library(library)
-        cfg = _Config()
+        cfg = CConfig()
         self._lib.duffid_default_config(ctypes.byref(cfg), _MODELS[self.model.name], _METHODS[method], self.dt)
         cfg.offset = int(bool(self.model.offset))
         sizes = prior_sizes(self.model, self.options.get("nominal"))

@@ -89,10 +89,10 @@ def _param_unit(name: str) -> str:
 
 def _defaults(model_name: str) -> dict[str, float]:
     """Option start values: ``duffid_default_config`` (robust) of the C core."""
-    from .estimator_c import _Config, load_library
+    from .estimator_c import CConfig, load_library
 
     lib = load_library()
-    cfg = _Config()
+    cfg = CConfig()
     lib.duffid_default_config(ctypes.byref(cfg), _CODES[model_name], 0, 1e-3)
     values = {name: float(getattr(cfg, name)) for name, _, _ in OPTIONS}
     values["method"] = 0.0

@@ -35,7 +35,7 @@ from .regressors import KernelBank, SlidingMoments, row_exponents
 
 __all__ = ["OnlineIdentifier", "estimate", "check_record", "Identification", "Estimate", "METHODS", "ONLINE_METHODS",
            "STATUSES", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "prior_sizes", "default_options", "check_options", "filtered_cramer", "combine_equations",
-           "auto_window"]
+           "auto_window", "Integrators", "solve_factor", "triangular_factor", "equilibrated_condition"]
 
 #: Online methods (OnlineIdentifier) and the buffered orthogonal-function methods of
 #: section 4 (duffid.buffered); identify() accepts all of them.
@@ -297,18 +297,20 @@ class _QRLeastSquares:
 
     def update(self, A: np.ndarray, D: np.ndarray) -> None:
         stacked = np.vstack([np.sqrt(self.lam) * self.R, np.column_stack([A, D])])
-        self.R = _triangular_factor(stacked, self.n + 1)
+        self.R = triangular_factor(stacked, self.n + 1)
         self.rows = self.lam * self.rows + len(A)
 
 
-def _triangular_factor(M: np.ndarray, size: int) -> np.ndarray:
+def triangular_factor(M: np.ndarray, size: int) -> np.ndarray:
+    """The upper-triangular factor of ``M``'s QR decomposition, padded with zero rows to
+    ``size x size`` (the least-squares state accumulated by the online and buffered methods)."""
     R = np.linalg.qr(M, mode="r")
     out = np.zeros((size, size))
     out[: R.shape[0]] = R[:size]
     return out
 
 
-def _solve_factor(R_aug: np.ndarray, rows: float, overlap: float
+def solve_factor(R_aug: np.ndarray, rows: float, overlap: float
                   ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, float]:
     """Solve the least-squares problem held in the factor ``R_aug`` of ``[A D]``.
 
@@ -345,7 +347,7 @@ def _solve_factor(R_aug: np.ndarray, rows: float, overlap: float
     return theta, cond, rse, share, rhs_share
 
 
-class _Integrators:
+class Integrators:
     """Cascade of ``depth`` integrators per input channel, fixed t0 at the first sample."""
 
     def __init__(self, n_inputs: int, depth: int, dt: float, quadrature: str) -> None:
@@ -737,10 +739,10 @@ class OnlineIdentifier:
         for st, solver, (A, D) in zip(self._states, self._solvers, systems):
             if full:
                 solver.update(A, D)
-                st.theta, st.cond, st.rse, st.share, st.rhs_share = _solve_factor(solver.R, solver.rows, float(L))
+                st.theta, st.cond, st.rse, st.share, st.rhs_share = solve_factor(solver.R, solver.rows, float(L))
             else:
-                R = _triangular_factor(np.column_stack([A, D]), len(st.equation.unknowns) + 1)
-                st.theta, st.cond, st.rse, st.share, st.rhs_share = _solve_factor(R, len(A), 1.0)
+                R = triangular_factor(np.column_stack([A, D]), len(st.equation.unknowns) + 1)
+                st.theta, st.cond, st.rse, st.share, st.rhs_share = solve_factor(R, len(A), 1.0)
 
     def _after_publish(self, L: int) -> None:
         """Fix the auto window once the masses and linear stiffnesses (the natural periods)
@@ -767,8 +769,8 @@ class OnlineIdentifier:
         self._paper = []
         for st in self._states:
             n_rows = len(st.equation.unknowns)
-            regressors = _Integrators(3 * n_ch, n_rows + 1, self.dt, quadrature)
-            determinants = _Integrators(n_rows + 1, 2, self.dt, quadrature)
+            regressors = Integrators(3 * n_ch, n_rows + 1, self.dt, quadrature)
+            determinants = Integrators(n_rows + 1, 2, self.dt, quadrature)
             self._paper.append((regressors, determinants))
 
     def _paper_reset(self) -> None:
@@ -797,7 +799,7 @@ class OnlineIdentifier:
             y = integ.push(u)
             A, D = st.assembly(self._paper_rows(y, n_rows))
             st.theta = filtered_cramer(A, D, det_integ, gamma, tau, self.options["sign_in_numerator"])
-            st.cond = _equilibrated_condition(A)
+            st.cond = equilibrated_condition(A)
         return self.n
 
     # -------------------------------------------------------------- state
@@ -816,7 +818,7 @@ class OnlineIdentifier:
         return result
 
 
-def filtered_cramer(A: np.ndarray, D: np.ndarray, filters: _Integrators, gamma: float, tau: float,
+def filtered_cramer(A: np.ndarray, D: np.ndarray, filters: Integrators, gamma: float, tau: float,
                     sign_in_numerator: bool) -> np.ndarray:
     """Eq. (19) for one sample: Cramer determinants of ``A theta = D``, then the ratio of
     the doubly integrated, exponentially weighted ``|Delta_i|`` and ``|Delta|`` (with the
@@ -841,7 +843,9 @@ def filtered_cramer(A: np.ndarray, D: np.ndarray, filters: _Integrators, gamma: 
     return np.full(m, np.nan)
 
 
-def _equilibrated_condition(A: np.ndarray) -> float:
+def equilibrated_condition(A: np.ndarray) -> float:
+    """Condition number of ``A`` after scaling its rows and columns to unit norm (the
+    condition the online methods compare with ``max_condition``)."""
     col = np.linalg.norm(A, axis=0)
     row = np.linalg.norm(A, axis=1)
     if not (np.all(col > 0) and np.all(row > 0)):

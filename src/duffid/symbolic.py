@@ -46,7 +46,8 @@ import casadi as ca
 import numpy as np
 
 from .buffered import LinearTerm, Regression, identify_buffered, velocity_signs
-from .identification import STATUSES, Identification, _equilibrated_condition, _Integrators, default_options, filtered_cramer
+from .identification import (STATUSES, Identification, Integrators, default_options, equilibrated_condition,
+                             filtered_cramer)
 from .orthogonal import BASES
 from .record import Record
 
@@ -944,8 +945,8 @@ def _identify_paper(record: Record, reg: DerivedRegressor, options: Mapping[str,
     sgn = velocity_signs(record.x, o["deadband"])
     tau = np.arange(n) * dt  # as the online paper method
     U = np.asarray(reg.bank_function.map(n)(record.x.T, record.f.T, record.t[None, :], sgn.T, tau[None, :])).T
-    bank = _Integrators(U.shape[1], reg.depth, dt, o["quadrature"])
-    filters = [_Integrators(len(u) + 1, 2, dt, o["quadrature"]) for u in reg.unknowns]
+    bank = Integrators(U.shape[1], reg.depth, dt, o["quadrature"])
+    filters = [Integrators(len(u) + 1, 2, dt, o["quadrature"]) for u in reg.unknowns]
     names = reg.parameters
     history = {k: np.full(n, np.nan) for k in names}
     condition = np.full(n, np.inf)
@@ -957,7 +958,7 @@ def _identify_paper(record: Record, reg: DerivedRegressor, options: Mapping[str,
         for (A, D), filt, unknowns in zip(reg.rows(Y), filters, reg.unknowns):
             theta = filtered_cramer(A, D, filt, o["gamma"], tau[i], o["sign_in_numerator"])
             values.update(zip(unknowns, theta))
-            cond = max(cond, _equilibrated_condition(A))
+            cond = max(cond, equilibrated_condition(A))
         for k in names:
             history[k][i] = values[k]
         condition[i] = cond

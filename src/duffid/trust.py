@@ -838,9 +838,7 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
             return displacement_offset_values(physical, raw)
 
     def at_half_rate() -> Mapping[str, float]:
-        fine = upsampled(record, factor)
-        return run(Record(fine.t[::2], fine.f[::2], fine.x[::2], source=fine.source,
-                          sampling_rtol=fine.sampling_rtol), opts).estimates
+        return run(_every_second(upsampled(record, factor)), opts).estimates
 
     result.assessment = assess(record, physical, result.estimates, rerun, max_uncertainty=max_uncertainty,
                                upsampled=factor, with_offsets=with_offsets, at_half_rate=at_half_rate,
@@ -971,10 +969,9 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
             uncertainty[k] = max(uncertainty[k], bias / share[k])
     if at_half_rate is not None:
         coarse = at_half_rate()
-        for k in names:  # beyond what the noise explains (half the samples: about one more standard error)
+        for k in names:
             change = abs(float(coarse.get(k, math.nan)) - values[k]) / abs(values[k]) if values[k] else math.inf
-            bias = math.sqrt(max(change**2 - (2.0 * uncertainty[k]) ** 2, 0.0)) if np.isfinite(change) else math.inf
-            uncertainty[k] = math.hypot(uncertainty[k], bias)
+            uncertainty[k] = _with_rate_bias(uncertainty[k], change)
         fit["half_rate_change"] = {k: (float(coarse.get(k, math.nan)) - values[k]) / values[k]
                                    for k in names if values[k]}
     varies = _force_varies(record)
@@ -1036,6 +1033,20 @@ REFINE_SAMPLES_PER_PERIOD = 4.0
 REFINE_STEP = 0.1
 
 
+def _every_second(record: Record) -> Record:
+    """The record at half its sampling rate (every second sample)."""
+    return Record(record.t[::2], record.f[::2], record.x[::2], source=record.source,
+                  sampling_rtol=record.sampling_rtol)
+
+
+def _with_rate_bias(standard_error: float, change: float) -> float:
+    """A relative standard error combined with the bias that a value's relative ``change``
+    at half the sampling rate shows beyond what the noise explains (half the samples: about
+    one more standard error, so changes within 2 standard errors are noise)."""
+    bias = math.sqrt(max(change**2 - (2.0 * standard_error) ** 2, 0.0)) if np.isfinite(change) else math.inf
+    return math.hypot(standard_error, bias)
+
+
 def _refinement(record: Record, model: Chain, values: Mapping[str, float], uncertainty: Mapping[str, float],
                 natural: float, spp: float, notes: list[str], pending: list[str]) -> dict[str, Any] | None:
     """Output-error refinement of ``values`` (:func:`duffid.refine.refine`, multiple
@@ -1060,8 +1071,7 @@ def _refinement(record: Record, model: Chain, values: Mapping[str, float], uncer
     try:
         with np.errstate(all="ignore"):
             full = run(record, length, spp)
-            half = run(Record(record.t[::2], record.f[::2], record.x[::2], source=record.source,
-                              sampling_rtol=record.sampling_rtol), length // 2, spp / 2)
+            half = run(_every_second(record), length // 2, spp / 2)
     except (ValueError, RecordError, ArithmeticError, np.linalg.LinAlgError) as exc:
         notes.append(f"the output-error refinement of {', '.join(pending)} failed ({exc}); "
                      "the algebraic values stand")
@@ -1075,8 +1085,7 @@ def _refinement(record: Record, model: Chain, values: Mapping[str, float], uncer
         v = full.parameters[k]
         sd = max(full.relative_std.get(c, math.inf), UNCERTAINTY_FLOOR)
         change[k] = (half.parameters[k] - v) / abs(v) if v else math.inf
-        bias = math.sqrt(max(change[k]**2 - (2.0 * sd) ** 2, 0.0)) if np.isfinite(change[k]) else math.inf
-        refined[k], stated[k] = v, math.hypot(sd, bias)
+        refined[k], stated[k] = v, _with_rate_bias(sd, change[k])
     apart = {k: (refined[k] - values[k]) / abs(values[k]) for k in canonical_names if values[k]}
     disagree = [k for k, d in apart.items()
                 if not abs(d) <= 3.0 * math.hypot(uncertainty[k], stated[k])]

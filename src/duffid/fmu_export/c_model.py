@@ -14,7 +14,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Collection, Mapping
 
-from .codegen import _c_double
+from .codegen import c_literal
 from .fmi_xml import FmuInfo, build_description, model_description_fmi2, model_description_fmi3
 from .package import COMMON_FILES, build_fmu_archive, token_from
 from .variables import CAUSALITY_CODES, VARIABILITY_CODES, FmuVariable
@@ -46,7 +46,7 @@ def config_header(prefix: str, table: list[FmuVariable], types: Mapping[str, str
             f"#ifndef {upper}_FMU_CONFIG_H\n#define {upper}_FMU_CONFIG_H\n\n"
             + "\n".join(lines) + f"\n#define {upper}_N_VARS {len(table)}\n\n"
             + array("char *const", "names", [f'"{v.name}"' for v in table])
-            + array("double", "start", [_c_double(math.nan if v.start is None else v.start) for v in table])
+            + array("double", "start", [c_literal(math.nan if v.start is None else v.start) for v in table])
             + array("unsigned char", "causality", [str(CAUSALITY_CODES[v.causality]) for v in table])
             + array("unsigned char", "variability", [str(VARIABILITY_CODES[v.variability]) for v in table])
             + array("unsigned char", "settable_start", ["0" for _ in table])

@@ -17,7 +17,7 @@ import casadi as ca
 from .causalize import OdeModel
 from .variables import CAUSALITY_CODES, VARIABILITY_CODES, FmuVariable
 
-__all__ = ["casadi_source", "model_source", "NEWTON_RESIDUAL_TOLERANCE"]
+__all__ = ["casadi_source", "model_source", "c_literal", "NEWTON_RESIDUAL_TOLERANCE"]
 
 #: Largest accepted absolute residual of a torn nonlinear equation after Newton.
 NEWTON_RESIDUAL_TOLERANCE = 1e-6
@@ -38,7 +38,8 @@ def _c_string(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def _c_double(value: float) -> str:
+def c_literal(value: float) -> str:
+    """``value`` as a C double literal (``NAN`` for NaN)."""
     if math.isnan(value):
         return "NAN"
     return repr(float(value))
@@ -78,7 +79,7 @@ def model_source(ode: OdeModel, table: list[FmuVariable], model_identifier: str,
         f"#define NC {nc}\n#define NR {nr}\n#define SZ_ARG {f.sz_arg()}\n#define SZ_RES {f.sz_res()}\n"
         f"#define N_WORK {n_work}\n#define N_IWORK {max(f.sz_iw(), 1)}\n\n",
         _array("char *const", "NAMES", [_c_string(v.name) for v in table], 4),
-        _array("double", "START", [_c_double(v.internal_start) for v in table]),
+        _array("double", "START", [c_literal(v.internal_start) for v in table]),
         _array("unsigned char", "CAUSALITY", [str(CAUSALITY_CODES[v.causality]) for v in table], 16),
         _array("unsigned char", "VARIABILITY", [str(VARIABILITY_CODES[v.variability]) for v in table], 16),
         _array("unsigned char", "SETTABLE_START", ["1" if v.settable_start else "0" for v in table], 16),
