@@ -1,4 +1,4 @@
-"""Benchmark of the co-simulation orchestrator (duffid.cosim): macro steps per second.
+"""Benchmark of the co-simulation orchestrator (duffid.cosim.system): macro steps per second.
 
 Run: python benchmarks/cosim.py [--stop-time 10] [--repeats 5] [--fmus DIR]
 
@@ -6,7 +6,7 @@ The closed loop Oscillator1DOF <-> DuffingEstimator1 <-> AdaptiveController1 (FM
 FMUs, 1 ms communication step, reference r = 5 mm held) is run by
 
   a. the orchestrator, Jacobi and Gauss-Seidel (every output recorded);
-  b. the same graph exported as one container FMU (duffid.cosim_container), run by the
+  b. the same graph exported as one container FMU (duffid.cosim.container), run by the
      orchestrator as a one-component system and by a bare fmpy FMU2Slave loop;
   c. a plain hand-written fmpy loop: FMU2Slave getReal/getBoolean/setReal/setBoolean/
      doStep through fmpy's normal methods (Jacobi, the same values recorded);
@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from duffid.closed_loop import ensure_fmus
-from duffid.cosim import System
+from duffid.control.closed_loop import ensure_fmus
+from duffid.cosim.system import System
 
 H = 1e-3
 R = 0.005

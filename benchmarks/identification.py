@@ -23,10 +23,10 @@ import numpy as np
 from tqdm import tqdm
 
 from duffid import Duffing1, Duffing2, OnlineIdentifier, Step, identify, measure, simulate
-from duffid.identification import estimate
-from duffid.trust import run_estimator
-from duffid.buffered import BufferedIdentifier, velocity_signs
-from duffid.orthogonal import projection_matrix
+from duffid.identification.batch import estimate
+from duffid.identification.buffered import BufferedIdentifier, velocity_signs
+from duffid.identification.orthogonal import projection_matrix
+from duffid.identification.trust import run_estimator
 
 TARGETS_A = {"paper": {"m": 0.3, "b": 1.0, "k": 0.3, "kp": 0.3},
              "robust": {"m": 0.05, "b": 0.15, "k": 0.05, "kp": 0.05}}

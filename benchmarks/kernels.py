@@ -114,7 +114,7 @@ def _histories(engine: str, out: str) -> None:
     import numpy as np
 
     from duffid import OnlineIdentifier
-    from duffid.estimator_c import CIdentifier
+    from duffid.identification.c_core import CIdentifier
 
     cls = CIdentifier if engine == "C" else OnlineIdentifier
     arrays = {}

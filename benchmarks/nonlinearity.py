@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from duffid import Duffing1, Duffing2
-from duffid.nonlinearity import LINEARITY_THRESHOLD, amplitude_sweep
-from duffid.plots import plot_eta_vs_amplitude
+from duffid.analysis.nonlinearity import LINEARITY_THRESHOLD, amplitude_sweep
+from duffid.apps.plots import plot_eta_vs_amplitude
 
 CASES = {
     # name: (plant, f_max [Hz], amplitude range [N])

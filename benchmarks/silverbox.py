@@ -24,12 +24,26 @@ from pathlib import Path
 
 import numpy as np
 
-from duffid.record import Record
-from duffid.refine import OdeSimulator
-from duffid.silverbox import (PARAMETER_NAMES, PUBLISHED_MV, TEST_RECORDS, SilverboxData, best_linear_model,
-                              choose_settings, damping_ratio, identify_algebraic, identify_silverbox,
-                              load_silverbox, natural_frequency, savgol_least_squares, silverbox_model,
-                              errors_on_test_records, to_canonical, to_public)
+from duffid.analysis.silverbox import (
+    PARAMETER_NAMES,
+    PUBLISHED_MV,
+    TEST_RECORDS,
+    SilverboxData,
+    best_linear_model,
+    choose_settings,
+    damping_ratio,
+    errors_on_test_records,
+    identify_algebraic,
+    identify_silverbox,
+    load_silverbox,
+    natural_frequency,
+    savgol_least_squares,
+    silverbox_model,
+    to_canonical,
+    to_public,
+)
+from duffid.data.record import Record
+from duffid.identification.refine import OdeSimulator
 
 TARGETS_MV = {"algebraic": 0.5, "refined": 0.40}  # arrow (full), from the issue
 

@@ -33,9 +33,20 @@ from typing import Any, Callable
 import numpy as np
 from tqdm import tqdm
 
-from duffid import (Chain, Chirp, Duffing1, Duffing2, DuffingCircuit, Multisine, Record, Step, identify,
-                    measure, simulate)
-from duffid.trust import run_estimator
+from duffid import (
+    Chain,
+    Chirp,
+    Duffing1,
+    Duffing2,
+    DuffingCircuit,
+    Multisine,
+    Record,
+    Step,
+    identify,
+    measure,
+    simulate,
+)
+from duffid.identification.trust import run_estimator
 
 
 def hammer(amplitude: float, width: float, t0: float = 0.05) -> Callable[[np.ndarray], np.ndarray]:

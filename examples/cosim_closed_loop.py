@@ -1,4 +1,4 @@
-"""Wire plant, estimator and adaptive controller FMUs by hand with duffid.cosim.
+"""Wire plant, estimator and adaptive controller FMUs by hand with duffid.cosim.system.
 
 The 1-DOF paper plant (Oscillator1DOF.fmu) is driven by AdaptiveController1.fmu, which
 excites it with a 10 N step until DuffingEstimator1.fmu has identified it, then tracks a
@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from duffid.closed_loop import ensure_fmus
-from duffid.control import controller_parameters, design
-from duffid.cosim import CosimError, System
+from duffid.control.adaptive import controller_parameters, design
+from duffid.control.closed_loop import ensure_fmus
+from duffid.cosim.system import CosimError, System
 
 
 def loop(fmus: dict[str, Path], controller: dict) -> System:

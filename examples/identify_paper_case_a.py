@@ -8,7 +8,7 @@ import argparse
 from pathlib import Path
 
 from duffid import Duffing1, Step, identify, measure, simulate
-from duffid.plots import plot_estimates
+from duffid.apps.plots import plot_estimates
 
 
 def main() -> None:

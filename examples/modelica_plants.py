@@ -2,7 +2,7 @@
 
 Every plant of modelica/Duffid/Examples becomes ``<Name>.fmu`` (FMI 2.0) and
 ``<Name>_fmi3.fmu`` (FMI 3.0), each with Model Exchange, Co-Simulation and its C sources.
-The four plants that duffid.models also knows are then co-simulated in fmpy under a 10 N
+The four plants that duffid.models.chain also knows are then co-simulated in fmpy under a 10 N
 (10 V) step and compared with :func:`duffid.simulate`.
 
 Run: python examples/modelica_plants.py [--out build/fmus]
@@ -16,7 +16,7 @@ import numpy as np
 from fmpy import simulate_fmu
 
 from duffid import Chain, Duffing1, Duffing2, DuffingCircuit, Step, simulate
-from duffid.modelica import build_all
+from duffid.modelica.export import build_all
 
 #: plant -> (duffid model with the Modelica defaults, input name, displacement outputs)
 PLANTS = {

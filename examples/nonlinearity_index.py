@@ -13,8 +13,8 @@ import argparse
 from pathlib import Path
 
 from duffid import Duffing1
-from duffid.nonlinearity import amplitude_sweep
-from duffid.plots import plot_eta_vs_amplitude, plot_hilbert
+from duffid.analysis.nonlinearity import amplitude_sweep
+from duffid.apps.plots import plot_eta_vs_amplitude, plot_hilbert
 
 
 def main() -> None:

@@ -16,8 +16,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from duffid.record import RecordError
-from duffid.silverbox import choose_settings, identify_silverbox, load_silverbox, plot_silverbox
+from duffid.analysis.silverbox import choose_settings, identify_silverbox, load_silverbox, plot_silverbox
+from duffid.data.record import RecordError
 
 
 def main() -> None:

@@ -32,7 +32,7 @@ def two_dof_exact():
 
 @pytest.fixture(scope="session")
 def loop_fmus(tmp_path_factory):
-    """The FMUs of the closed loops (duffid.closed_loop.ensure_fmus), built once."""
-    from duffid.closed_loop import ensure_fmus
+    """The FMUs of the closed loops (duffid.control.closed_loop.ensure_fmus), built once."""
+    from duffid.control.closed_loop import ensure_fmus
 
     return ensure_fmus(tmp_path_factory.mktemp("loop_fmus"))

@@ -5,13 +5,19 @@ import json
 
 import numpy as np
 import pytest
+from rounding import assert_close, final_spread
 
 from duffid import Duffing1, Duffing2, Record, RecordError, identify, measure
-from duffid.buffered import (BufferedIdentification, BufferedIdentifier, identify_buffered,
-                             regression_from_model, velocity_signs)
-from duffid.identification import _Channels, estimate
-from duffid.models import Channel
-from rounding import assert_close, final_spread
+from duffid.identification.batch import estimate
+from duffid.identification.buffered import (
+    BufferedIdentification,
+    BufferedIdentifier,
+    identify_buffered,
+    regression_from_model,
+    velocity_signs,
+)
+from duffid.identification.engine import _Channels
+from duffid.models.chain import Channel
 
 
 def _max_error(result, truth):

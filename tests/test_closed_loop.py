@@ -10,19 +10,27 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import replace
-from pathlib import Path
 import subprocess
 import sys
+from dataclasses import replace
+from pathlib import Path
 
 import fmpy
 import numpy as np
 import pytest
 
-from duffid.closed_loop import (CLOSED_LOOP_OUTPUTS, LoopCase, SineReference, build_closed_loop_fmu, closed_loop_case,
-                                ensure_fmus,
-                                loop_cases, loop_system, run_loop)
-from duffid.cosim import System
+from duffid.control.closed_loop import (
+    CLOSED_LOOP_OUTPUTS,
+    LoopCase,
+    SineReference,
+    build_closed_loop_fmu,
+    closed_loop_case,
+    ensure_fmus,
+    loop_cases,
+    loop_system,
+    run_loop,
+)
+from duffid.cosim.system import System
 
 
 @pytest.fixture(scope="session")

@@ -1,4 +1,4 @@
-"""duffid.control: the design with python-control, the Python controller, and closed loops
+"""duffid.control.adaptive: the design with python-control, the Python controller, and closed loops
 (plant + OnlineIdentifier + controller, all in Python)."""
 from __future__ import annotations
 
@@ -11,8 +11,15 @@ import pytest
 control = pytest.importorskip("control")
 
 from duffid import Duffing1, Duffing2, DuffingCircuit, OnlineIdentifier  # noqa: E402
-from duffid.control import (SETTINGS, AdaptiveController, closed_loop, controller_parameters,  # noqa: E402
-                            design, mismatched, run)
+from duffid.control.adaptive import (  # noqa: E402
+    SETTINGS,
+    AdaptiveController,
+    closed_loop,
+    controller_parameters,
+    design,
+    mismatched,
+    run,
+)
 
 H = 1e-3
 
@@ -348,7 +355,7 @@ def test_closed_loop_with_the_paper_encoder():
     """The paper's plant measured by its encoder (2266 pulses/cm) in the loop: the
     estimates of the switch stay within 0.5 % for m, k, kp and identification still pays
     off by more than 5x in tracking (the quantisation floor limits the adaptive run)."""
-    from duffid.simulation import quantize
+    from duffid.models.simulation import quantize
 
     truth = Duffing1().parameters
     reference = sines(4e-3, (3e-3, 1.0), (1e-3, 3.0))

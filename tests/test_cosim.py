@@ -1,4 +1,4 @@
-"""Co-simulation orchestrator (duffid.cosim) and its container export (duffid.cosim_container).
+"""Co-simulation orchestrator (duffid.cosim.system) and its container export (duffid.cosim.container).
 
 The small FMUs (ramp, integrator, gain: tests/cosim_models.mo) are exported once per
 module with duffid's Modelica export; the plant and the C estimator are the project's.
@@ -25,16 +25,24 @@ import pytest
 fmpy = pytest.importorskip("fmpy")
 
 from fmpy.validation import validate_fmu  # noqa: E402
+from rounding import identifier_spread  # noqa: E402
 
 from duffid import Duffing1  # noqa: E402
-from duffid.identification import estimate  # noqa: E402
-from duffid.cosim import CosimError, Connection, Result, System, WiringError  # noqa: E402
-from duffid.cosim import _exact_order, _greedy_order, _order_cost  # noqa: E402
-from duffid.fmu_estimator import build_estimator_fmu  # noqa: E402
-from duffid.modelica import build_all, export_fmu  # noqa: E402
-from duffid.record import Record  # noqa: E402
-from duffid.signals import Step  # noqa: E402
-from rounding import identifier_spread  # noqa: E402
+from duffid.cosim.system import (  # noqa: E402  # noqa: E402
+    Connection,
+    CosimError,
+    Result,
+    System,
+    WiringError,
+    _exact_order,
+    _greedy_order,
+    _order_cost,
+)
+from duffid.data.record import Record  # noqa: E402
+from duffid.data.signals import Step  # noqa: E402
+from duffid.fmu.estimator import build_estimator_fmu  # noqa: E402
+from duffid.identification.batch import estimate  # noqa: E402
+from duffid.modelica.export import build_all, export_fmu  # noqa: E402
 
 if shutil.which("gcc") is None:
     pytest.skip("gcc is needed to build the test FMUs", allow_module_level=True)
@@ -497,7 +505,7 @@ def test_open_loop_estimator_equals_identify(fmus, plant_version, est_version):
 def test_python_fmu_string_parameter_and_its_logged_error(loop_fmus, tmp_path_factory):
     """A pythonfmu component: String parameters are set; its error reaches CosimError when
     its logging is on (and the message says how to turn it on when it is off)."""
-    from duffid.fmu_python import build_python_fmu
+    from duffid.fmu.python_estimator import build_python_fmu
 
     fmu = build_python_fmu("duffing1", tmp_path_factory.mktemp("python_fmu"))
 

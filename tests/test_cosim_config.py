@@ -1,4 +1,4 @@
-"""Co-simulation systems from JSON/TOML files (duffid.cosim_config, ``duffid cosim``)."""
+"""Co-simulation systems from JSON/TOML files (duffid.cosim.config, ``duffid cosim``)."""
 from __future__ import annotations
 
 import csv
@@ -8,9 +8,9 @@ import fmpy
 import numpy as np
 import pytest
 
-from duffid.cli import main
-from duffid.cosim import System, WiringError
-from duffid.cosim_config import ConfigError, load_config
+from duffid.cli.main import main
+from duffid.cosim.config import ConfigError, load_config
+from duffid.cosim.system import System, WiringError
 
 ESTIMATES = ("m_hat", "b_hat", "k_hat", "kp_hat", "identified")
 

@@ -25,9 +25,10 @@ import pytest
 from rounding import identifier_spread, tolerance
 
 from duffid import Chain, Duffing1, Duffing2, DuffingCircuit, OnlineIdentifier, Record, Step, measure
-from duffid.identification import estimate
-from duffid.estimator_c import (CFLAGS, CBuildError, CIdentifier, CompilerNotFoundError, build_library,
-                                find_compiler, source_dir)
+from duffid.cbuild import find_compiler
+from duffid.errors import BuildError, CompilerNotFoundError
+from duffid.identification.batch import estimate
+from duffid.identification.c_core import CFLAGS, CIdentifier, build_library, source_dir
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None,
                                 reason="no C compiler")
@@ -171,7 +172,7 @@ def test_identify_record_matches_identify(case_a):
     assert result.t_identified == expected.t_identified
     assert np.array_equal(result.identified, expected.identified)
     identifier_spread(Duffing1(), case_a).assert_final(result.parameters, expected.parameters)
-    # the solution at the last sample (input of duffid.trust), from one batch call in C
+    # the solution at the last sample (input of duffid.identification.trust), from one batch call in C
     identifier_spread(Duffing1(), case_a).assert_estimates(result.estimates, expected.estimates)
     assert np.all(np.isfinite(list(result.estimates.values())))
     assert result.options == expected.options
@@ -231,7 +232,7 @@ def test_build_errors_carry_the_compiler_output(tmp_path, monkeypatch):
     shutil.copytree(source_dir(), broken)
     (broken / "duffid_linalg.c").write_text("this is not C\n")
     monkeypatch.setenv("DUFFID_C_SOURCES", str(broken))
-    with pytest.raises(CBuildError, match="duffid_linalg.c"):
+    with pytest.raises(BuildError, match="duffid_linalg.c"):
         build_library(tmp_path / "build")
 
 
@@ -321,8 +322,7 @@ def test_the_c_constants_are_pythons():
     """Status codes and the trust and outlier constants: one fact, two languages."""
     import re
 
-    from duffid import identification as ident
-
+    from duffid.identification import engine as ident
     header = (source_dir() / "duffid_estimator.h").read_text()
     defines = dict(re.findall(r"^#define (DUFFID_\w+) (\S+)", header, flags=re.M))
     assert [int(defines[f"DUFFID_STATUS_{name.upper().replace(' ', '_')}"]) for name in ident.STATUSES] == \

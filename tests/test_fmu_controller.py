@@ -1,5 +1,5 @@
-"""The C controller FMUs (duffid.fmu_controller) against the Python reference
-duffid.control.AdaptiveController, through fmpy's low-level API with our own callbacks.
+"""The C controller FMUs (duffid.control.controller_fmu) against the Python reference
+duffid.control.adaptive.AdaptiveController, through fmpy's low-level API with our own callbacks.
 
 Tolerances: the controller is scalar arithmetic in both C (-ffp-contract=off) and
 Python (float operations, no BLAS), so C equals Python to a few ulps of the largest value of
@@ -19,11 +19,11 @@ pytest.importorskip("control")
 
 from fmpy.fmi1 import FMICallException  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
-
 from fmu_helpers import start_fmi2  # noqa: E402
+
 from duffid import Duffing1, Duffing2, Step, simulate  # noqa: E402
-from duffid.control import AdaptiveController, controller_parameters, design, mismatched  # noqa: E402
-from duffid.fmu_controller import TYPES, build_controller_fmu, build_controller_fmus  # noqa: E402
+from duffid.control.adaptive import AdaptiveController, controller_parameters, design, mismatched  # noqa: E402
+from duffid.control.controller_fmu import TYPES, build_controller_fmu, build_controller_fmus  # noqa: E402
 
 if shutil.which("gcc") is None:
     pytest.skip("gcc is needed to build the C FMUs", allow_module_level=True)

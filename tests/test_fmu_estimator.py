@@ -1,4 +1,4 @@
-"""The C estimator FMUs (duffid.fmu_estimator) on the shared FMI glue, through fmpy.
+"""The C estimator FMUs (duffid.fmu.estimator) on the shared FMI glue, through fmpy.
 
 C (FMU) against Python (identify / OnlineIdentifier) is compared at a multiple of the Python
 identifier's one-ulp spread on the same record (tests/rounding.py): ~1e-12 relative for the
@@ -18,13 +18,16 @@ fmpy = pytest.importorskip("fmpy")
 
 from fmpy.fmi1 import FMICallException  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
-
 from fmu_helpers import simulate_record, start_fmi2  # noqa: E402
 from rounding import identifier_spread  # noqa: E402
+
 from duffid import Duffing1, Duffing2, Record, measure  # noqa: E402
-from duffid.identification import STATUSES  # noqa: E402
-from duffid.fmu_estimator import TYPES, build_estimator_fmu, build_estimator_fmus  # noqa: E402
-from duffid.identification import OnlineIdentifier, estimate  # noqa: E402
+from duffid.fmu.estimator import TYPES, build_estimator_fmu, build_estimator_fmus  # noqa: E402
+from duffid.identification.batch import estimate  # noqa: E402
+from duffid.identification.engine import (
+    STATUSES,  # noqa: E402
+    OnlineIdentifier,  # noqa: E402
+)
 
 if shutil.which("gcc") is None:
     pytest.skip("gcc is needed to build the C FMUs", allow_module_level=True)

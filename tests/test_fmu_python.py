@@ -1,4 +1,4 @@
-"""The pythonfmu fallback FMU (duffid.fmu_python) through fmpy.
+"""The pythonfmu fallback FMU (duffid.fmu.python_estimator) through fmpy.
 
 The FMU runs OnlineIdentifier in this process on the very samples identify() sees, so its
 outputs are compared for identity (bit for bit, whatever the CPU or BLAS kernel): any
@@ -17,11 +17,11 @@ pytest.importorskip("pythonfmu")
 from fmpy.fmi1 import FMICallException  # noqa: E402
 from fmpy.fmi2 import fmi2Terminated  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
-
 from fmu_helpers import simulate_record, start_fmi2  # noqa: E402
+
 from duffid import Duffing1, Duffing2  # noqa: E402
-from duffid.identification import estimate  # noqa: E402
-from duffid.fmu_python import FMU_NAMES, build_python_fmu  # noqa: E402
+from duffid.fmu.python_estimator import FMU_NAMES, build_python_fmu  # noqa: E402
+from duffid.identification.batch import estimate  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -3,13 +3,26 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from duffid import (Chirp, Duffing1, Duffing2, DuffingCircuit, Multisine, OnlineIdentifier, Record,
-                    RecordError, Step, identify, measure, simulate)
-from duffid.identification import combine_equations, estimate
-from duffid.models import Chain
-from duffid.regressors import batch_moments
 from rounding import identifier_spread
+
+from duffid import (
+    Chirp,
+    Duffing1,
+    Duffing2,
+    DuffingCircuit,
+    Multisine,
+    OnlineIdentifier,
+    Record,
+    RecordError,
+    Step,
+    identify,
+    measure,
+    simulate,
+)
+from duffid.identification.batch import estimate
+from duffid.identification.engine import combine_equations
+from duffid.identification.regressors import batch_moments
+from duffid.models.chain import Chain
 
 
 def _max_error(result, truth):

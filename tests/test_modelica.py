@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from duffid import modelica
-from duffid.models import PAPER_DUFFING1, PAPER_DUFFING2, Chain, Duffing1, Duffing2, DuffingCircuit
-from duffid.modelica import EXAMPLE_PLANTS, ModelicaExportError, library_path, translate
+from duffid.modelica import export as modelica
+from duffid.modelica.export import EXAMPLE_PLANTS, ModelicaExportError, library_path, translate
+from duffid.models.chain import PAPER_DUFFING1, PAPER_DUFFING2, Chain, Duffing1, Duffing2, DuffingCircuit
 
 LIB = library_path()
 
@@ -52,7 +52,7 @@ def write_model(tmp_path: Path, text: str, name: str = "Test.mo") -> Path:
 
 # ---------------------------------------------------------------------------------- library
 def test_library_has_the_components_of_the_issue():
-    from duffid.fmu_export.source import ModelicaSource
+    from duffid.modelica.source import ModelicaSource
 
     classes = ModelicaSource(LIB).classes
     for name in ["Translational." + c for c in ("Flange", "Fixed", "Mass", "LinearSpring", "PolynomialSpring",

@@ -18,9 +18,9 @@ from fmpy.validation import validate_fmu
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from duffid.modelica import EXAMPLE_PLANTS, add_cli, build_all, run_cli
-from duffid.models import Chain, Duffing1, Duffing2, DuffingCircuit
-from duffid.signals import Chirp
+from duffid.data.signals import Chirp
+from duffid.modelica.export import EXAMPLE_PLANTS, add_cli, build_all, run_cli
+from duffid.models.chain import Chain, Duffing1, Duffing2, DuffingCircuit
 
 T_END, H = 0.5, 1e-3
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from duffid import Chain, Duffing1, Duffing2, DuffingCircuit, SimulationError, Step, measure, model_from_name, simulate
-from duffid.simulation import quantize
+from duffid.models.simulation import quantize
 
 
 def test_duffing2_equations_follow_eqs_20_21():

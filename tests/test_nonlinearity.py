@@ -12,10 +12,19 @@ import numpy as np
 import pytest
 
 from duffid import Duffing1, Duffing2, Record, RecordError, simulate
-from duffid.cli import main
-from duffid.nonlinearity import (FRF, amplitude_sweep, analyse, fit_rational, frf_from_stepped_sines,
-                                 frf_from_sweep, hilbert_distortion, hilbert_transform, nonlinearity_index,
-                                 sweep_record)
+from duffid.analysis.nonlinearity import (
+    FRF,
+    amplitude_sweep,
+    analyse,
+    fit_rational,
+    frf_from_stepped_sines,
+    frf_from_sweep,
+    hilbert_distortion,
+    hilbert_transform,
+    nonlinearity_index,
+    sweep_record,
+)
+from duffid.cli.main import main
 
 
 def _frf_1dof(f, m=2.53, b=12.47, k=1272.1):

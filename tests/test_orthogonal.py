@@ -7,8 +7,7 @@ from numpy.polynomial import Polynomial
 from numpy.polynomial import chebyshev as npcheb
 from numpy.polynomial import legendre as npleg
 
-from duffid.orthogonal import (BASES, BlockPulse, Chebyshev, Haar, Legendre, make_basis,
-                               projection_matrix)
+from duffid.identification.orthogonal import BASES, BlockPulse, Chebyshev, Haar, Legendre, make_basis, projection_matrix
 
 
 def _exact_coefficients(basis, func):

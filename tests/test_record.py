@@ -1,4 +1,4 @@
-"""Tests of duffid.record: Record validation, CSV and MAT files."""
+"""Tests of duffid.data.record: Record validation, CSV and MAT files."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import scipy.io
 
-from duffid.record import Record, RecordError
+from duffid.data.record import Record, RecordError
 
 DT = 0.001
 

@@ -9,8 +9,17 @@ import numpy as np
 import pytest
 
 from duffid import Chain, Duffing1, Duffing2, DuffingCircuit, Multisine, Record, RecordError, Step, simulate
-from duffid.refine import (OdeSimulator, canonical_from_public, correlation_factor, fit_initial_state, refine,
-                           rms_error, simulate_record, stretches, upsample)
+from duffid.identification.refine import (
+    OdeSimulator,
+    canonical_from_public,
+    correlation_factor,
+    fit_initial_state,
+    refine,
+    rms_error,
+    simulate_record,
+    stretches,
+    upsample,
+)
 
 DT_SB = 1.0 / 610.35  # Silverbox sampling: 9 samples per period of the plant below
 SB_PLANT = Chain(masses=(5.376e-6,), damping=(2.2525e-4,), stiffness=({1: 0.99071, 2: -0.0342, 3: 3.916},),

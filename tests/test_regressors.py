@@ -13,7 +13,13 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from duffid.regressors import KernelBank, SlidingMoments, batch_moments, gregory_corrections, row_exponents
+from duffid.identification.regressors import (
+    KernelBank,
+    SlidingMoments,
+    batch_moments,
+    gregory_corrections,
+    row_exponents,
+)
 
 H = 1e-3
 

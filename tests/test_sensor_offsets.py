@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from duffid import Chain, Duffing1, Duffing2, DuffingCircuit, Multisine, Record, identify, measure, simulate
-from duffid.cli import build_parser, main
-from duffid.trust import DISPLACEMENT_OFFSET, OFFSETS, displacement_offset_values, term_shares
+from duffid.cli.main import build_parser, main
+from duffid.identification.trust import DISPLACEMENT_OFFSET, OFFSETS, displacement_offset_values, term_shares
 
 #: A hardening plant of another scale than the paper's (12.6 Hz, 0.4 kg).
 PLANT = Duffing1(m=0.4, b=1.5, k=2.5e3, kp=4e7)

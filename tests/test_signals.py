@@ -1,4 +1,4 @@
-"""Tests of duffid.signals: values, periodicity, peak scaling and spec texts.
+"""Tests of duffid.data.signals: values, periodicity, peak scaling and spec texts.
 
 Tolerances: signal values are closed-form expressions of t (sin, polynomial phase) of
 amplitude up to ~10: compared at 1e-9 absolute (or 1e-9 of the amplitude), well above the
@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from duffid.signals import Chirp, Multisine, Signal, Step, Sum, Zero, from_spec
+from duffid.data.signals import Chirp, Multisine, Signal, Step, Sum, Zero, from_spec
 
 
 # ----------------------------------------------------------------------- Step
@@ -306,7 +306,7 @@ def test_parameter_validation(factory, exc: type[Exception], match: str) -> None
 
 
 def test_gated_signal_switches_off_and_round_trips() -> None:
-    from duffid.signals import Gated
+    from duffid.data.signals import Gated
 
     g = from_spec("sweep:3,2.5,4@4")
     assert isinstance(g, Gated) and g.t_off == 4.0

@@ -16,7 +16,7 @@ import pytest
 import scipy.io
 
 from duffid import Chain, Multisine, Record, RecordError, simulate
-from duffid import silverbox as sb
+from duffid.analysis import silverbox as sb
 
 DATA_DIR = sb.default_data_dir()
 MISSING = f"Silverbox data not found: {DATA_DIR / sb.DATA_FILE} (expected ../shared/data/silverbox/ next to the repository)"

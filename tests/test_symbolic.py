@@ -7,13 +7,15 @@ import subprocess
 import casadi as ca
 import numpy as np
 import pytest
+from rounding import assert_close, final_spread, identifier_spread
 
 from duffid import Duffing1, Duffing2, Record, measure
-from duffid.buffered import velocity_signs
-from duffid.identification import OnlineIdentifier, Integrators, estimate
-from duffid.models import Chain
-from duffid.symbolic import EquationError, derive, identify_equation, parse_equations
-from rounding import assert_close, final_spread, identifier_spread
+from duffid.identification.batch import estimate
+from duffid.identification.buffered import velocity_signs
+from duffid.identification.engine import Integrators, OnlineIdentifier
+from duffid.identification.equation import identify_equation
+from duffid.models.chain import Chain
+from duffid.models.equation import EquationError, derive, parse_equations
 
 DUFFING1 = "m*der(x,2) + b*der(x) + k*x + kp*x^3 = f"
 DUFFING2 = ("m1*der(x1,2) + b1*der(x1) + k1*x1 + kp1*x1^3 + b2*(der(x1)-der(x2)) + k2*(x1-x2) "

@@ -1,4 +1,4 @@
-"""duffid.trust: what a record supports is published, nothing else (plants of other scales,
+"""duffid.identification.trust: what a record supports is published, nothing else (plants of other scales,
 imperfect files), and the CLI's text says what its JSON says."""
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from duffid import Chain, Duffing1, Duffing2, DuffingCircuit, Multisine, Record, Step, identify, measure, simulate
-from duffid.trust import STATUSES, content_frequency, noise_level, term_shares
+from duffid.identification.trust import STATUSES, content_frequency, noise_level, term_shares
 
 
 def _random(model, amplitude, f_max, duration, fs, *, snr_db=None, seed=0):
@@ -73,15 +73,15 @@ def test_the_output_error_refinement_determines_what_the_algebraic_estimate_left
 
 
 def test_a_refinement_that_disagrees_with_the_algebraic_estimate_is_not_used(lab, monkeypatch):
-    import duffid.refine
-    genuine = duffid.refine.refine
+    import duffid.identification.trust
+    genuine = duffid.identification.trust.refine
 
     def shifted(*args, **kwargs):  # a refinement 30 % off in the mass, with a small stated error
         out = genuine(*args, **kwargs)
         out.parameters["m"] *= 1.3
         return out
 
-    monkeypatch.setattr(duffid.refine, "refine", shifted)
+    monkeypatch.setattr(duffid.identification.trust, "refine", shifted)
     result = identify(lab, Duffing1())
     a = result.assessment
     assert a.fit["refinement"]["accepted"] is False
@@ -177,7 +177,7 @@ def test_the_circuit_and_the_two_dof_chain_are_checked_too():
     assert result.assessment.fit["explained"]
     _published_within(result, circuit.parameters, 0.01)
     # the C core runs the circuit as a Duffing1: its results come back in the circuit's words
-    from duffid.trust import run_estimator
+    from duffid.identification.trust import run_estimator
     record = _random(circuit, 5.0, 40.0, 1.0, 2000.0, snr_db=50, seed=5)
     c, python = (run_estimator(record, circuit, engine=engine) for engine in ("c", "python"))
     assert c.status == python.status and set(c.status) == set(circuit.parameters)
@@ -260,7 +260,7 @@ def test_an_isolated_glitch_is_excluded_and_reported(lab, glitch):
 
 
 def test_clean_records_have_no_outliers(lab, case_a, case_b_exact):
-    from duffid.trust import isolated_outliers
+    from duffid.identification.trust import isolated_outliers
 
     assert isolated_outliers(lab.x) == []
     assert isolated_outliers(case_a.x) == []  # quantised by the encoder
@@ -271,7 +271,7 @@ def test_clean_records_have_no_outliers(lab, case_a, case_b_exact):
 def test_without_the_c_sources_identify_falls_back_to_python(monkeypatch, tmp_path, lab):
     monkeypatch.setenv("DUFFID_C_SOURCES", str(tmp_path / "missing"))
     monkeypatch.setenv("DUFFID_BUILD_DIR", str(tmp_path / "build"))
-    from duffid.trust import run_estimator
+    from duffid.identification.trust import run_estimator
 
     python = run_estimator(lab, Duffing1(), engine="python")
     assert run_estimator(lab, Duffing1()).estimates == python.estimates

@@ -1,5 +1,5 @@
 /* duffid adaptive controller: portable C99 core (see duffid_controller.h). Every
- * floating-point expression mirrors duffid.control.AdaptiveController operation for
+ * floating-point expression mirrors duffid.control.adaptive.AdaptiveController operation for
  * operation; keep them in step. */
 #include "duffid_controller.h"
 

@@ -4,7 +4,7 @@
  * switch to certainty-equivalence feedback linearisation of the Duffing oscillator
  * (1 DOF) or of the two-mass chain (2 DOF, force on m1, tracks x1), with a
  * predictor-corrector observer and a triple-pole reference model. The Python reference
- * duffid.control.AdaptiveController performs the same floating-point operations in the
+ * duffid.control.adaptive.AdaptiveController performs the same floating-point operations in the
  * same order.
  *
  * Memory: a duffid_ctrl is a plain struct without pointers, owned by the caller (copy it

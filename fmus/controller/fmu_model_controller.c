@@ -3,7 +3,7 @@
  * FMI 2.0 and 3.0.
  *
  * The variable table and the value references of its groups come from the generated
- * header controller_fmu_config.h (duffid.fmu_controller): CONTROLLER_DOFS, CONTROLLER_VR_*.
+ * header controller_fmu_config.h (duffid.control.controller_fmu): CONTROLLER_DOFS, CONTROLLER_VR_*.
  *
  * Semantics: the outputs at initialisation are the controller's start (the force over
  * [t0, t0 + h)); each doStep(t, h) consumes the inputs set for t and gives the outputs at

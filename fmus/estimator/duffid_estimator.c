@@ -1,5 +1,5 @@
 /*
- * duffid_estimator.c - portable C99 port of duffid.identification.OnlineIdentifier.
+ * duffid_estimator.c - portable C99 port of duffid.identification.engine.OnlineIdentifier.
  *
  * Section names follow the Python modules:
  *   channels        models.Channel / identification._Channels

@@ -1,7 +1,7 @@
 /*
  * duffid_estimator.h - portable C99 core of duffid's online algebraic identifier.
  *
- * A port of duffid.identification.OnlineIdentifier (methods "robust" and "paper") for
+ * A port of duffid.identification.engine.OnlineIdentifier (methods "robust" and "paper") for
  * the models Duffing1 (m x'' + b x' + k x + kp x^3 = f) and Duffing2 (the wall-m1-m2
  * chain of the paper, force on m1), optionally with an unknown constant offset force
  * per degree of freedom. On the same samples it reports the same estimates as the
@@ -57,12 +57,12 @@ extern "C" {
 #define DUFFID_ROBUST 0
 #define DUFFID_PAPER 1
 
-/* Row kernel families of the robust method (duffid.regressors.row_exponents). */
+/* Row kernel families of the robust method (duffid.identification.regressors.row_exponents). */
 #define DUFFID_ROWS_INTEGRALS 0
 #define DUFFID_ROWS_BERNSTEIN 1
 #define DUFFID_ROWS_PAPER 2
 
-/* Status of a parameter (duffid.identification.STATUSES, in this order):
+/* Status of a parameter (duffid.identification.engine.STATUSES, in this order):
  *   UNCERTAIN    not (yet) determined well enough;
  *   PUBLISHED    its relative standard error stayed at most max_uncertainty for settle s:
  *                the value is output;
@@ -82,7 +82,7 @@ extern "C" {
  * at least DUFFID_MIN_SHARE of the force balance is published. */
 #define DUFFID_GROWTH_STEADY 0.25
 
-/* Isolated displacement outliers (duffid.identification.OUTLIER_*): a sample further than
+/* Isolated displacement outliers (duffid.identification.engine.OUTLIER_*): a sample further than
  * DUFFID_OUTLIER_SIGMAS robust standard deviations (never less than the quantisation
  * step nor DUFFID_OUTLIER_RANGE of the range covered) from the quadratic through the three
  * samples before it is held back one sample; if the next sample agrees with the samples
@@ -98,7 +98,7 @@ extern "C" {
 
 /*
  * Configuration. duffid_default_config fills it with the defaults of
- * duffid.identification (_ROBUST_DEFAULTS / _PAPER_DEFAULTS); change fields afterwards.
+ * duffid.identification.engine (_ROBUST_DEFAULTS / _PAPER_DEFAULTS); change fields afterwards.
  * Fields of the other method are ignored.
  */
 typedef struct duffid_config {
@@ -141,7 +141,7 @@ typedef struct duffid_output {
     double current[DUFFID_MAX_PARAMS];     /* public order: the solution at this sample, trusted
                                             * or not (robust: NaN while the window is not
                                             * usable; paper: as parameters). An input to the
-                                            * checks of duffid.trust, never a published value. */
+                                            * checks of duffid.identification.trust, never a published value. */
     int status[DUFFID_MAX_PARAMS];         /* public order: DUFFID_STATUS_* (robust; paper:
                                             * PUBLISHED while identified, else UNCERTAIN) */
     long outliers;                         /* isolated displacement outliers excluded so far */

@@ -3,7 +3,7 @@
  * x2, f1), FMI 2.0 and 3.0.
  *
  * The variable table (names, start values, causality, variability) comes from the
- * generated header estimator_fmu_config.h (duffid.fmu_estimator), which also selects the
+ * generated header estimator_fmu_config.h (duffid.fmu.estimator), which also selects the
  * model (ESTIMATOR_MODEL) and sets ESTIMATOR_IDENTIFIER and ESTIMATOR_TOKEN. Layout, by
  * value reference:
  *

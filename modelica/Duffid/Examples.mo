@@ -101,8 +101,8 @@ package Examples "Example plants with declared inputs and outputs (exported as F
     force.f = f;
     annotation (experiment(StartTime = 0, StopTime = 2, Tolerance = 1e-8, Interval = 1e-3),
       Documentation(info = "<html><p>Element i joins mass i-1 (the wall for i = 1) to mass i
-(<code>duffid.models.Chain</code>, the defaults of its <code>model_from_name(&quot;chain&quot;)</code>).
-The number of masses is structural: <code>duffid.modelica.export_fmu(...,
+(<code>duffid.models.chain.Chain</code>, the defaults of its <code>model_from_name(&quot;chain&quot;)</code>).
+The number of masses is structural: <code>duffid.modelica.export.export_fmu(...,
 structural_parameters={&quot;n&quot;: 5})</code> exports a 5-mass chain.</p></html>"));
   end ChainNDOF;
 

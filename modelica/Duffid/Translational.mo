@@ -86,7 +86,7 @@ package Translational "1-D translational mechanics: flanges, masses, springs, da
     annotation (Documentation(info = "<html>
 <p>The sign function of ideal Coulomb friction is replaced by
 <code>fc*tanh(v/v_smooth)</code> (default <code>v_smooth</code> = 1e-4 m/s, the law of
-<code>duffid.models.Chain</code>): a continuous law without events or stuck phases, so
+<code>duffid.models.chain.Chain</code>): a continuous law without events or stuck phases, so
 that an ODE solver can integrate it (stiff for small <code>v_smooth</code>).</p></html>"));
   end CoulombFriction;
 

@@ -5,7 +5,7 @@ package Duffid "Duffing-type oscillator plants of duffid: translational mechanic
     Documentation(info = "<html>
 <p>Plant models of the <code>duffid</code> Python package (online identification of
 Duffing-type oscillators). The library is self-contained (it needs no Modelica Standard
-Library) and uses only continuous equations, so that <code>duffid.modelica.export_fmu</code>
+Library) and uses only continuous equations, so that <code>duffid.modelica.export.export_fmu</code>
 can translate every example to an FMU; it opens unchanged in OpenModelica or Dymola.</p>
 <ul>
 <li><code>Units</code>: SI types with units and quantities.</li>

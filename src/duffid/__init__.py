@@ -7,18 +7,19 @@ The short public API::
     result = identify(record, Duffing1())          # robust method by default
     result.parameters                              # {'m': ..., 'b': ..., 'k': ..., 'kp': ...}
 
-Co-simulation of FMUs (:class:`System`, :mod:`duffid.cosim`), the adaptive controller
-(:class:`AdaptiveController`, :func:`design`, :mod:`duffid.control`) and the closed loops
-of the main job (:mod:`duffid.closed_loop`, :mod:`duffid.demo`).
+Co-simulation of FMUs (:class:`System`, :mod:`duffid.cosim.system`), the adaptive controller
+(:class:`AdaptiveController`, :func:`design`, :mod:`duffid.control.adaptive`) and the closed loops
+of the main job (:mod:`duffid.control.closed_loop`, :mod:`duffid.apps.demo`).
 """
-from .control import AdaptiveController, design
-from .cosim import CosimError, System
-from .identification import METHODS, Estimate, Identification, OnlineIdentifier
-from .models import Chain, Duffing1, Duffing2, DuffingCircuit, model_from_name
-from .record import Record, RecordError
-from .signals import Chirp, Multisine, Step, from_spec
-from .simulation import SimulationError, measure, simulate
-from .trust import identify
+from .control.adaptive import AdaptiveController, design
+from .cosim.system import System
+from .data.record import Record
+from .data.signals import Chirp, Multisine, Step, from_spec
+from .errors import CosimError, RecordError, SimulationError
+from .identification.engine import METHODS, Estimate, Identification, OnlineIdentifier
+from .identification.trust import identify
+from .models.chain import Chain, Duffing1, Duffing2, DuffingCircuit, model_from_name
+from .models.simulation import measure, simulate
 
 __version__ = "0.1.0"
 

@@ -1,0 +1,226 @@
+"""Plots written to files (matplotlib's object-oriented API: no pyplot state, no global backend change)."""
+from __future__ import annotations
+
+import math
+import os
+from typing import Mapping
+
+import numpy as np  # noqa: E402
+from matplotlib.figure import Figure
+
+from ..data.record import Record  # noqa: E402
+from ..identification.engine import Identification  # noqa: E402
+
+__all__ = ["plot_estimates", "plot_record", "plot_hilbert", "plot_eta_vs_amplitude", "plot_closed_loop"]
+
+
+def plot_estimates(result: Identification, path: str | os.PathLike[str], *,
+                   truth: Mapping[str, float] | None = None,
+                   series: Mapping[str, np.ndarray] | None = None, title: str | None = None) -> None:
+    """Estimates vs time, one panel per parameter (like the paper's Figures 8, 12, 13).
+
+    Parameters
+    ----------
+    result : Identification
+        Result of :func:`duffid.identify`: the estimator's run; with its assessment, each
+        panel's title gives the status and standard error and the published value is drawn.
+    path : path
+        PNG file to write.
+    truth : mapping, optional
+        True values drawn as dashed lines.
+    series : mapping, optional
+        Extra curves to plot instead of ``result.history`` (e.g. ratios ``b2/m2``).
+    title : str, optional
+        Figure title.
+    """
+    curves = dict(series) if series is not None else dict(result.history)
+    assessment = getattr(result, "assessment", None)
+    n = len(curves)
+    cols = 2 if n > 3 else 1
+    rows = int(np.ceil(n / cols))
+    fig = Figure(figsize=(6 * cols, 2.2 * rows))
+    axes = fig.subplots(rows, cols, sharex=True, squeeze=False)
+    for ax, (name, values) in zip(axes.flat, curves.items()):
+        ax.plot(result.t, values, lw=1.2, label="estimator run")
+        if truth is not None and name in truth:
+            ax.axhline(truth[name], color="k", ls="--", lw=0.8, label="truth")
+            finite = values[np.isfinite(values)]
+            if finite.size:  # zoom on the truth: early transients would hide the result
+                span = max(abs(truth[name]) * 0.2, 1e-12)
+                ax.set_ylim(truth[name] - span, truth[name] + span)
+        if assessment is not None and name in assessment.status:  # what the text and JSON say
+            value = result.parameters.get(name, math.nan)
+            if np.isfinite(value):
+                ax.axhline(value, color="C1", lw=1.0, label="published")
+            u = assessment.uncertainty.get(name, math.nan)
+            ax.set_title(f"{name}: {assessment.status[name]}"
+                         + (f", standard error {100 * u:.2g} %" if np.isfinite(u) else ""), fontsize=9)
+        ax.set_ylabel(name)
+        ax.grid(alpha=0.3)
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
+    if result.t_identified is not None:
+        for ax in axes.flat[:n]:
+            ax.axvline(result.t_identified, color="g", lw=0.6, alpha=0.6)
+    for ax in axes[-1]:
+        ax.set_xlabel("t [s]")
+    axes.flat[0].legend(loc="best", fontsize=8)
+    fig.suptitle(title or f"{result.model}, method {result.method}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def plot_record(record: Record, path: str | os.PathLike[str], *, title: str | None = None) -> None:
+    """Forces and displacements of a record vs time."""
+    fig = Figure(figsize=(7, 4.5))
+    ax_f, ax_x = fig.subplots(2, 1, sharex=True)
+    names = record.column_names[1:]
+    for k in range(record.n_forces):
+        ax_f.plot(record.t, record.f[:, k], label=names[k])
+    for k in range(record.n_dof):
+        ax_x.plot(record.t, record.x[:, k] * 1e3, label=names[record.n_forces + k])
+    ax_f.set_ylabel("force [N]")
+    ax_x.set_ylabel("displacement [mm]")
+    ax_x.set_xlabel("t [s]")
+    for ax in (ax_f, ax_x):
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle(title or record.source)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def plot_hilbert(result, path: str | os.PathLike[str], *, title: str | None = None) -> None:
+    """Argand (Nyquist) diagram of F and H{F}, and magnitude and phase, over the band.
+
+    Parameters
+    ----------
+    result : duffid.analysis.nonlinearity.NonlinearityResult
+        Result of :func:`duffid.analysis.nonlinearity.analyse` (holds the FRF and transforms).
+    path : path
+        PNG file to write.
+    """
+    frf = result.frf
+    inside = frf.in_band
+    f, F = frf.frequency[inside], frf.response[inside]
+    curves = {"F": F, "H{F} corrected": result.transform[inside],
+              "H{F} uncorrected": result.transform_uncorrected[inside]}
+    fig = Figure(figsize=(11, 4.5))
+    ax_n = fig.add_subplot(1, 2, 1)
+    ax_m = fig.add_subplot(2, 2, 2)
+    ax_p = fig.add_subplot(2, 2, 4, sharex=ax_m)
+    for (label, values), style in zip(curves.items(), ("-", "--", ":")):
+        ax_n.plot(values.real, values.imag, style, label=label)
+        ax_m.semilogy(f, np.abs(values), style, label=label)
+        ax_p.plot(f, np.degrees(np.angle(values)), style, label=label)
+    ax_n.set_xlabel("Re [m/N]")
+    ax_n.set_ylabel("Im [m/N]")
+    ax_n.set_aspect("equal", adjustable="datalim")
+    ax_n.legend(fontsize=8)
+    ax_m.set_ylabel("|F| [m/N]")
+    ax_p.set_ylabel("phase [deg]")
+    ax_p.set_xlabel("f [Hz]")
+    for ax in (ax_n, ax_m, ax_p):
+        ax.grid(alpha=0.3)
+    fig.suptitle(title or f"{result.source}: eta = {result.eta:.5f} "
+                          f"(uncorrected {result.eta_uncorrected:.5f}), {result.verdict}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def plot_eta_vs_amplitude(series, path: str | os.PathLike[str], *, threshold: float = 0.9,
+                          title: str | None = None) -> None:
+    """``eta`` vs excitation amplitude with the linearity threshold (paper Figures 6 and 11).
+
+    Parameters
+    ----------
+    series : mapping of str to list of NonlinearityResult
+        One curve per label (e.g. per sweep rate).
+    path : path
+        PNG file to write.
+    """
+    fig = Figure(figsize=(6.5, 4))
+    ax = fig.subplots()
+    for label, results in series.items():
+        amps = [r.amplitude for r in results]
+        ax.plot(amps, [r.eta for r in results], "o-", label=f"{label} (corrected)")
+        ax.plot(amps, [r.eta_uncorrected for r in results], "x:", label=f"{label} (uncorrected)")
+    ax.axhline(threshold, color="r", lw=0.8, ls="--", label=f"threshold {threshold}")
+    ax.set_xlabel("excitation amplitude [N]")
+    ax.set_ylabel("eta")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title or "Hilbert-transform nonlinearity index")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def plot_closed_loop(result, path: str | os.PathLike[str], *, title: str | None = None) -> None:
+    """Four panels of a closed loop (:class:`duffid.control.closed_loop.LoopResult`).
+
+    Response (tracked position, reference, reference model, baseline), control force with
+    its limit (the step before the switch is the identification excitation), relative
+    error of the estimates vs time (log scale) and tracking error of both runs.
+
+    Parameters
+    ----------
+    result : LoopResult
+        Outcome of :func:`duffid.control.closed_loop.run_loop`.
+    path : path
+        PNG file to write.
+    title : str, optional
+        Figure title (default: the loop's title).
+    """
+    case = result.case
+    a, b = result.adaptive, result.baseline
+    unit, scale = case.position_unit
+    funit, fscale = case.force_unit
+    t = a.time
+    fig = Figure(figsize=(9, 11))
+    axes = fig.subplots(4, 1, sharex=True)
+    ax = axes[0]
+    ax.plot(t, case.reference(t) * scale, "k--", lw=0.9, label="reference r")
+    ax.plot(t, a["controller.x_ref"] * scale, color="0.6", lw=0.9, label="desired trajectory (controller)")
+    ax.plot(b.time, b[f"plant.{case.tracked}"] * scale, color="tab:red", lw=0.9, alpha=0.8,
+            label=f"baseline ({case.mismatch:.0%} mismatch)")
+    ax.plot(t, a[f"plant.{case.tracked}"] * scale, color="tab:blue", lw=1.1, label="adaptive")
+    ax.set_ylabel(f"{case.tracked} [{unit}]")
+    ax.legend(loc="best", fontsize=8)
+    ax = axes[1]
+    ax.plot(b.time, b["controller.f"] * fscale, color="tab:red", lw=0.8, alpha=0.8, label="baseline")
+    ax.plot(t, a["controller.f"] * fscale, color="tab:blue", lw=1.0, label="adaptive")
+    for sign in (1, -1):
+        ax.axhline(sign * case.force_limit * fscale, color="k", ls=":", lw=0.8)
+    ax.set_ylabel(f"{case.force} [{funit}]")
+    ax.legend(loc="best", fontsize=8)
+    ax = axes[2]
+    for p, true in case.truth.items():
+        estimate = a[f"estimator.{p}_hat"]
+        error = np.full_like(estimate, np.nan)
+        finite = np.isfinite(estimate)
+        error[finite] = np.maximum(np.abs(estimate[finite] - true) / abs(true) * 100.0, 1e-6)
+        ax.semilogy(t, error, lw=1.0, label=case.labels.get(p, p))
+    ax.axhline(0.5, color="k", ls=":", lw=0.8)
+    ax.set_ylabel("|estimate error| [%]")
+    ax.legend(loc="best", fontsize=8, ncol=4)
+    ax = axes[3]
+    for run, color in (("baseline", "tab:red"), ("adaptive", "tab:blue")):
+        time, error = result.tracking_error(run)
+        after = time >= result.switch_time
+        ax.plot(time[after], error[after] * scale, color=color, lw=0.9,
+                label=f"{run}: RMS {result.tracking_rms[run] * scale:.4g} {unit}")
+    t_from = result.switch_time + case.settle_after
+    ax.axvline(t_from, color="0.5", ls=":", lw=0.8)
+    time, error = result.tracking_error("baseline")
+    span = np.max(np.abs(error[time >= t_from])) * scale
+    if np.isfinite(span) and span > 0:  # zoom on the compared interval, not the switch transient
+        ax.set_ylim(-1.5 * span, 1.5 * span)
+    ax.set_ylabel(f"{case.tracked} - r [{unit}]")
+    ax.set_xlabel("t [s]")
+    ax.legend(loc="best", fontsize=8)
+    for ax in axes:
+        ax.axvline(result.switch_time, color="g", lw=0.8, alpha=0.7)
+        ax.grid(alpha=0.3)
+    fig.suptitle(title or f"{case.title}\nswitch to control at {result.switch_time:.3f} s (green)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)

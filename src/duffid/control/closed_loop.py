@@ -1,0 +1,509 @@
+"""The closed loop plant <-> identifier <-> adaptive controller, run as co-simulation.
+
+Three loops are defined (:func:`loop_cases`): the paper's 1-DOF oscillator
+(``Oscillator1DOF``), the 2-DOF chain (``Oscillator2DOF``, force on and tracking of
+mass 1) and the Duffing circuit (``DuffingCircuit``, charge tracked by the source
+voltage). Each is a :class:`duffid.cosim.system.System` of three FMUs::
+
+    plant.x ──> estimator.x, controller.x       controller.f ──> plant.f
+    estimator.{m,b,k,kp}_hat, identified ──> controller
+    controller.f_sample ──> estimator.f         r(t), r'(t), r''(t) ──> controller.r, r_dot, r_ddot
+
+run by the Jacobi master (every FMU reads the others' outputs of the same communication
+point; the controller compensates its one-sample computational delay by prediction, see
+:mod:`duffid.control.adaptive`). The plant holds the force over each step; the estimator gets the
+controller's ``f_sample``, the mean of the forces before and after the sampling instant,
+which stands for that staircase as a sample to O(h^2) (the command itself would lag by
+half a step: 0.3 % on m and 13 % on kp under a 6 N chirp). The controller excites the plant with a force step until the
+estimator reports identified and the estimates have settled, then switches bumplessly to
+the certainty-equivalence law. The baseline is the same law on nominal parameters that
+are wrong by a set fraction (:func:`duffid.control.adaptive.mismatched`), switching at the same
+time, without an estimator.
+
+:func:`run_loop` runs one case both ways and returns a :class:`LoopResult` with the
+estimates the law uses, the tracking RMS of both runs over the same interval and the
+force peak; :func:`build_closed_loop_fmu` writes the 1-DOF loop as one container FMU
+(``ClosedLoop1DOF.fmu``, input ``r``; outputs ``x``, ``f`` and the estimates).
+:func:`ensure_fmus` builds the FMUs of the loops when missing or stale.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from ..assets import asset_path
+from ..cosim.system import Result, System
+from ..errors import InputError
+from .adaptive import controller_parameters, design, mismatched
+
+__all__ = ["SineReference", "LoopCase", "LoopResult", "loop_cases", "ensure_fmus", "loop_system",
+           "run_loop", "summary_lines", "mark_fmus_current", "closed_loop_case",
+           "build_closed_loop_fmu", "CLOSED_LOOP_OUTPUTS", "FMUS"]
+
+
+@dataclass(frozen=True)
+class SineReference:
+    """Reference position ``offset + sum_i a_i sin(2 pi f_i t)``, vectorised.
+
+    Parameters
+    ----------
+    offset : float
+        Constant part.
+    amplitudes, frequencies : tuple of float
+        Amplitude and frequency [Hz] of each sine.
+    """
+
+    offset: float
+    amplitudes: tuple[float, ...] = ()
+    frequencies: tuple[float, ...] = ()
+
+    def __post_init__(self) -> None:
+        if len(self.amplitudes) != len(self.frequencies):
+            raise InputError(f"SineReference: {len(self.amplitudes)} amplitudes but "
+                             f"{len(self.frequencies)} frequencies")
+
+    def __call__(self, t: Any) -> Any:
+        return self.derivative(t, 0)
+
+    def derivative(self, t: Any, order: int) -> Any:
+        """The `order`-th time derivative at `t` (order 0 is the value)."""
+        if order not in (0, 1, 2):
+            raise InputError(f"derivative order must be 0, 1 or 2, got {order!r}")
+        t = np.asarray(t, dtype=float)
+        value = np.full(t.shape, self.offset if order == 0 else 0.0)
+        for a, f in zip(self.amplitudes, self.frequencies):
+            w = 2.0 * np.pi * f
+            phase = w * t + order * np.pi / 2.0   # d/dt sin(wt) = w sin(wt + pi/2)
+            value = value + a * w ** order * np.sin(phase)
+        return float(value) if value.ndim == 0 else value
+
+    @property
+    def peak(self) -> float:
+        """An upper bound of ``|r(t)|``."""
+        return abs(self.offset) + sum(abs(a) for a in self.amplitudes)
+
+
+@dataclass(frozen=True)
+class LoopCase:
+    """One closed loop: the FMUs, how they are wired, the truth and the scenario.
+
+    Parameters
+    ----------
+    name : str
+        Short name (file names, JSON keys).
+    title : str
+        Human-readable description.
+    plant, estimator, controller : str
+        FMU model identifiers (files ``<identifier>.fmu`` in the FMU folder).
+    truth : dict
+        True parameters in the estimator's names (``m, b, k, kp`` or the 2-DOF set).
+    plant_parameters : dict
+        Parameters set on the plant FMU (its own names, e.g. ``L, R, C, a``).
+    estimator_parameters : dict
+        Parameters set on the estimator FMU (e.g. optional prior sizes ``<name>_nominal``).
+    positions : dict
+        Estimator/controller position input -> plant output (``{"x": "q"}``).
+    force : str
+        Plant input driven by the controller's ``f``.
+    estimator_force : str
+        Estimator input that receives ``f``.
+    reference : SineReference
+        Reference of the tracked position.
+    excitation_amplitude, force_limit : float
+        Step amplitude of the identification phase and the controller's force limit.
+    t_end, dt : float
+        Duration and communication step [s].
+    settle_after : float
+        Tracking errors are compared from ``switch_time + settle_after`` on [s].
+    mismatch : float
+        Relative error of the baseline's nominal parameters.
+    position_unit, force_unit : tuple
+        Plot labels and scales, e.g. ``("mm", 1e3)``, ``("N", 1.0)``.
+    controller_options : dict
+        Controller settings (:func:`duffid.control.adaptive.controller_parameters`); by default
+        ``reference_model="derivatives"``: the loop tracks ``r`` itself, fed with its exact
+        derivatives.
+    labels : dict
+        Display names of the parameters (the circuit's ``m`` is ``L``, ...).
+    """
+
+    name: str
+    title: str
+    plant: str
+    estimator: str
+    controller: str
+    truth: dict[str, float]
+    plant_parameters: dict[str, float]
+    estimator_parameters: dict[str, float]
+    positions: dict[str, str]
+    force: str
+    estimator_force: str
+    reference: SineReference
+    excitation_amplitude: float
+    force_limit: float
+    t_end: float = 4.0
+    dt: float = 1e-3
+    settle_after: float = 1.0
+    mismatch: float = 0.3
+    position_unit: tuple[str, float] = ("mm", 1e3)
+    force_unit: tuple[str, float] = ("N", 1.0)
+    controller_options: dict[str, Any] = field(default_factory=lambda: {"reference_model": "derivatives"})
+    labels: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def mechanical(self) -> bool:
+        """Whether the plant is in the estimator's and controller's units (m, N)."""
+        return self.force_unit[0] == "N"
+
+    @property
+    def tracked(self) -> str:
+        """The plant output the controller tracks (the first position)."""
+        return next(iter(self.positions.values()))
+
+
+def loop_cases() -> dict[str, LoopCase]:
+    """The three loops of the main job: 1-DOF oscillator, 2-DOF chain, Duffing circuit."""
+    one = {"m": 2.53, "b": 12.47, "k": 1272.1, "kp": -1.237e6}
+    two = {"m1": 2.53, "b1": 5.0, "k1": 1272.1, "kp1": -1.237e6,
+           "b2": 4.0, "k2": 1570.0, "kp2": -1.35e6, "m2": 2.754}
+    circuit = {"L": 0.1, "R": 2.0, "C": 1e-3, "a": 5e6}
+    return {
+        "oscillator1dof": LoopCase(
+            name="oscillator1dof", title="Oscillator1DOF <-> DuffingEstimator1 <-> AdaptiveController1",
+            plant="Oscillator1DOF", estimator="DuffingEstimator1", controller="AdaptiveController1",
+            truth=one, plant_parameters=dict(one), estimator_parameters={},
+            positions={"x": "x"}, force="f", estimator_force="f",
+            # |x| <= 8 mm: well inside the softening spring's safe range (escape ~18.5 mm)
+            reference=SineReference(4e-3, (3e-3, 1e-3), (1.0, 3.0)),
+            excitation_amplitude=10.0, force_limit=30.0),
+        "oscillator2dof": LoopCase(
+            name="oscillator2dof", title="Oscillator2DOF <-> DuffingEstimator2 <-> AdaptiveController2",
+            plant="Oscillator2DOF", estimator="DuffingEstimator2", controller="AdaptiveController2",
+            truth=two, plant_parameters=dict(two),
+            # the second cubic spring carries ~1e-6 of the force balance in this loop (it deflects
+            # by a fraction of a millimetre): a prior size, an order of magnitude a user knows,
+            # says how small is small enough to publish
+            estimator_parameters={"kp2_nominal": 1e6},
+            positions={"x1": "x1", "x2": "x2"}, force="f1", estimator_force="f1",
+            reference=SineReference(3e-3, (2e-3, 1e-3), (1.0, 2.5)),
+            # 8 N: x1 peaks at 12.7 mm during the step (10 N: 17 mm, close to the well's edge)
+            excitation_amplitude=8.0, force_limit=40.0),
+        "duffing_circuit": LoopCase(
+            name="duffing_circuit", title="DuffingCircuit <-> DuffingEstimator1 <-> AdaptiveController1",
+            plant="DuffingCircuit", estimator="DuffingEstimator1", controller="AdaptiveController1",
+            truth={"m": circuit["L"], "b": circuit["R"], "k": 1.0 / circuit["C"], "kp": circuit["a"]},
+            plant_parameters=circuit,
+            # sizes of the trust test: orders of magnitude a user knows, not the truth
+            estimator_parameters={"m_nominal": 0.1, "b_nominal": 1.0, "k_nominal": 1e3, "kp_nominal": 1e6},
+            positions={"x": "q"}, force="u", estimator_force="f",
+            reference=SineReference(5e-3, (4e-3, 1e-3), (2.0, 5.0)),
+            excitation_amplitude=15.0, force_limit=60.0,
+            position_unit=("mC", 1e3), force_unit=("V", 1.0),
+            labels={"m": "L", "b": "R", "k": "1/C", "kp": "a"}),
+    }
+
+
+#: FMUs the loops need (model identifiers).
+FMUS = ("Oscillator1DOF", "Oscillator2DOF", "DuffingCircuit", "DuffingEstimator1", "DuffingEstimator2",
+        "AdaptiveController1", "AdaptiveController2")
+
+
+def _sources_digest() -> str:
+    """Hash of every source an FMU of :data:`FMUS` is built from."""
+    package = Path(__file__).resolve().parents[1]  # duffid
+    named = [(f"assets/{path.relative_to(folder).as_posix()}", path)
+             for folder in (asset_path("fmus"), asset_path("modelica"))
+             for path in folder.rglob("*") if path.suffix in (".mo", ".c", ".h")]
+    named += [(path.relative_to(package).as_posix(), path)
+              for path in [*(package / "modelica").glob("*.py"), *(package / "fmu").glob("*.py"),
+                           package / "cbuild.py", package / "control" / "controller_fmu.py",
+                           package / "control" / "adaptive.py"]]
+    digest = hashlib.sha256()
+    for name, path in sorted(named):
+        digest.update(name.encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def _stamp(folder: Path) -> Path:
+    return folder / ".duffid-loop-sources"
+
+
+def mark_fmus_current(folder: str | Path) -> None:
+    """Record that the FMUs of :data:`FMUS` in `folder` were built from the current sources."""
+    _stamp(Path(folder)).write_text(_sources_digest() + "\n")
+
+
+def ensure_fmus(folder: str | Path, *, rebuild: bool = False, log: Callable[[str], None] | None = None
+                ) -> dict[str, Path]:
+    """Build the FMUs of the loops into `folder` unless they are there and up to date.
+
+    A stamp file records a hash of the Modelica, C and generator sources; FMUs built from
+    other sources are rebuilt.
+
+    Parameters
+    ----------
+    folder : path
+        FMU folder (created).
+    rebuild : bool
+        Build even if the FMUs are up to date.
+    log : callable, optional
+        Receives one line per FMU built.
+
+    Returns
+    -------
+    dict
+        Model identifier -> FMU path.
+    """
+    from ..fmu.estimator import build_estimator_fmu
+    from ..modelica.export import export_fmu, library_path
+    from .controller_fmu import build_controller_fmu
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = {name: folder / f"{name}.fmu" for name in FMUS}
+    stamp = _stamp(folder)
+    digest = _sources_digest()
+    current = stamp.exists() and stamp.read_text().strip() == digest
+    if not rebuild and current and all(p.exists() for p in paths.values()):
+        return paths
+    stamp.unlink(missing_ok=True)
+    for name, path in paths.items():
+        if name.startswith("DuffingEstimator"):
+            build_estimator_fmu(f"duffing{name[-1]}", folder, 2)
+        elif name.startswith("AdaptiveController"):
+            build_controller_fmu(int(name[-1]), folder, 2)
+        else:
+            export_fmu(library_path(), f"Duffid.Examples.{name}", path)
+        if log is not None:
+            log(f"built {path}")
+    stamp.write_text(digest + "\n")
+    return paths
+
+
+def _controller_parameters(case: LoopCase, **settings: Any) -> dict[str, Any]:
+    return controller_parameters(design(case.dt), dofs=len(case.positions),
+                                 excitation_amplitude=case.excitation_amplitude, force_limit=case.force_limit,
+                                 **{**case.controller_options, **settings})
+
+
+def loop_system(case: LoopCase, fmus: Mapping[str, Path], *, baseline: bool = False,
+                switch_time: float | None = None) -> System:
+    """The co-simulation system of one loop.
+
+    Parameters
+    ----------
+    case : LoopCase
+        The loop.
+    fmus : mapping
+        Model identifier -> FMU path (:func:`ensure_fmus`).
+    baseline : bool
+        False: plant, estimator and adaptive controller. True: plant and the controller in
+        its fixed mode on parameters wrong by ``case.mismatch``, switching at `switch_time`
+        (no estimator).
+    switch_time : float, optional
+        Switch time of the baseline [s] (required with ``baseline=True``).
+    """
+    system = System()
+    system.add("plant", fmus[case.plant], parameters=case.plant_parameters)
+    if baseline:
+        if switch_time is None:
+            raise InputError("the baseline needs the switch time of the adaptive run")
+        params = _controller_parameters(case, mode="fixed", switch_time=float(switch_time),
+                                        nominal=mismatched(case.truth, case.mismatch))
+    else:
+        params = _controller_parameters(case)
+        system.add("estimator", fmus[case.estimator], parameters=case.estimator_parameters)
+    system.add("controller", fmus[case.controller], parameters=params)
+    # the 1-DOF estimator and controller are declared in m and N; the circuit feeds C and V
+    generic = {"check_units": case.mechanical}
+    for port, output in case.positions.items():
+        system.connect(f"plant.{output}", f"controller.{port}", **generic)
+        if not baseline:
+            system.connect(f"plant.{output}", f"estimator.{port}", **generic)
+    system.connect("controller.f", f"plant.{case.force}", **generic)
+    if not baseline:
+        # the plant holds f over each step; f_sample is that staircase as a sample at t_k
+        system.connect("controller.f_sample", f"estimator.{case.estimator_force}", **generic)
+        for p in case.truth:
+            system.connect(f"estimator.{p}_hat", f"controller.{p}_hat")
+        system.connect("estimator.identified", "controller.identified")
+    system.set_input("controller.r", case.reference)
+    if params["reference_model"] == 1:  # track r itself: feed its derivatives
+        system.set_input("controller.r_dot", lambda t: case.reference.derivative(t, 1))
+        system.set_input("controller.r_ddot", lambda t: case.reference.derivative(t, 2))
+    return system
+
+
+@dataclass
+class LoopResult:
+    """Outcome of one loop: adaptive and baseline runs and their figures of merit.
+
+    Attributes
+    ----------
+    case : LoopCase
+        The loop.
+    adaptive, baseline : Result
+        The co-simulation results (every output on the communication grid).
+    switch_time : float
+        When the adaptive controller switched to control [s].
+    identified : dict
+        The estimates the law uses (those of the switch).
+    final_estimates : dict
+        The estimator's outputs at the end of the run.
+    tracking_rms : dict
+        ``{"adaptive": ..., "baseline": ...}``: RMS of ``x - r`` from
+        ``switch_time + settle_after`` to the end, same interval in both runs.
+    force_peak : dict
+        Largest ``|f|`` of each run.
+    saturated_samples : dict
+        Communication points at which each run's command was limited.
+    """
+
+    case: LoopCase
+    adaptive: Result
+    baseline: Result
+    switch_time: float
+    identified: dict[str, float]
+    final_estimates: dict[str, float]
+    tracking_rms: dict[str, float]
+    force_peak: dict[str, float]
+    saturated_samples: dict[str, int]
+
+    @property
+    def errors_percent(self) -> dict[str, float]:
+        """Relative error of each identified parameter [%]."""
+        return {p: 100.0 * (v - self.case.truth[p]) / self.case.truth[p] for p, v in self.identified.items()}
+
+    @property
+    def improvement(self) -> float:
+        """Baseline tracking RMS divided by the adaptive one."""
+        return self.tracking_rms["baseline"] / self.tracking_rms["adaptive"]
+
+    def tracking_error(self, run: str) -> tuple[np.ndarray, np.ndarray]:
+        """Time and tracking error ``x - r`` of ``"adaptive"`` or ``"baseline"``."""
+        result = self.adaptive if run == "adaptive" else self.baseline
+        return result.time, result[f"plant.{self.case.tracked}"] - self.case.reference(result.time)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary."""
+        return {"identified": self.identified, "truth": dict(self.case.truth),
+                "errors_percent": self.errors_percent, "final_estimates": self.final_estimates,
+                "tracking_rms": self.tracking_rms, "improvement": self.improvement,
+                "switch_time": self.switch_time, "tracking_from": self.switch_time + self.case.settle_after,
+                "force_peak": self.force_peak, "force_limit": self.case.force_limit,
+                "saturated_samples": self.saturated_samples, "mismatch": self.case.mismatch,
+                "t_end": self.case.t_end, "dt": self.case.dt}
+
+
+def _rms_after(result: Result, case: LoopCase, t_from: float) -> float:
+    t = result.time
+    error = result[f"plant.{case.tracked}"] - case.reference(t)
+    mask = t >= t_from - 1e-12
+    if not mask.any():
+        raise InputError(f"{case.name}: no samples after t = {t_from:g} s (t_end {case.t_end:g} s)")
+    return float(np.sqrt(np.mean(error[mask] ** 2)))
+
+
+def run_loop(case: LoopCase, fmus: Mapping[str, Path], *, progress: bool = False) -> LoopResult:
+    """Run one loop adaptively and with the mismatched baseline.
+
+    Raises
+    ------
+    RuntimeError
+        If the adaptive controller never switched (the estimator never identified the
+        plant within ``case.t_end``).
+    """
+    adaptive = loop_system(case, fmus).run(case.t_end, case.dt, progress=progress)
+    switch = adaptive["controller.switch_time"][-1]
+    if not math.isfinite(switch):
+        raise RuntimeError(f"{case.name}: the controller never switched to control within "
+                           f"{case.t_end:g} s (the estimator did not identify the plant)")
+    baseline = loop_system(case, fmus, baseline=True, switch_time=switch).run(case.t_end, case.dt,
+                                                                                 progress=progress)
+    t_from = switch + case.settle_after
+    identified = {p: float(adaptive[f"controller.{p}_used"][-1]) for p in case.truth}
+    final = {p: float(adaptive[f"estimator.{p}_hat"][-1]) for p in case.truth}
+    runs = {"adaptive": adaptive, "baseline": baseline}
+    return LoopResult(
+        case=case, adaptive=adaptive, baseline=baseline, switch_time=float(switch),
+        identified=identified, final_estimates=final,
+        tracking_rms={name: _rms_after(r, case, t_from) for name, r in runs.items()},
+        force_peak={name: float(np.max(np.abs(r["controller.f"]))) for name, r in runs.items()},
+        saturated_samples={name: int(np.sum(r["controller.saturated"] != 0)) for name, r in runs.items()})
+
+
+#: Outputs of ``ClosedLoop1DOF.fmu`` -> the component variable they expose.
+CLOSED_LOOP_OUTPUTS = {"x": "plant.x", "f": "controller.f", "m_hat": "estimator.m_hat",
+                       "b_hat": "estimator.b_hat", "k_hat": "estimator.k_hat", "kp_hat": "estimator.kp_hat",
+                       "identified": "estimator.identified", "phase": "controller.phase",
+                       "x_ref": "controller.x_ref"}
+
+
+def closed_loop_case() -> LoopCase:
+    """The loop inside ``ClosedLoop1DOF.fmu``: the 1-DOF case with the reference filter.
+
+    A block with only ``r`` connected must not need its derivatives, so the controller's
+    ``reference_model`` is ``"filter"`` (the triple-pole model smooths ``r``, whatever its
+    shape); set the container parameter ``controller.reference_model`` to 1 and feed
+    ``r_dot`` and ``r_ddot`` to track ``r`` itself.
+    """
+    return replace(loop_cases()["oscillator1dof"], controller_options={"reference_model": "filter"})
+
+
+def build_closed_loop_fmu(out_dir: str | Path, fmus: Mapping[str, Path] | None = None,
+                          case: LoopCase | None = None) -> Path:
+    """Write the 1-DOF loop as one container FMU ``ClosedLoop1DOF.fmu``.
+
+    Inputs ``r`` (reference position [m]) and ``r_dot``, ``r_ddot`` (its derivatives,
+    used only with ``controller.reference_model`` = 1); outputs
+    :data:`CLOSED_LOOP_OUTPUTS`; parameters ``plant.*``, ``estimator.*`` and
+    ``controller.*`` (every value set on a component); the container's Jacobi master
+    steps at ``case.dt`` (1 ms).
+
+    Parameters
+    ----------
+    out_dir : path
+        Output folder.
+    fmus : mapping, optional
+        Component FMUs (default: :func:`ensure_fmus` in `out_dir`).
+    case : LoopCase, optional
+        Default: :func:`closed_loop_case`.
+    """
+    out_dir = Path(out_dir)
+    case = case or closed_loop_case()
+    if fmus is None:
+        fmus = ensure_fmus(out_dir)
+    system = loop_system(case, fmus)
+    inputs = {name: [f"controller.{name}"] for name in ("r", "r_dot", "r_ddot")}
+    return system.export_container(out_dir / "ClosedLoop1DOF.fmu", inputs=inputs,
+                                   outputs=CLOSED_LOOP_OUTPUTS, step=case.dt)
+
+
+def summary_lines(result: LoopResult) -> Sequence[str]:
+    """Printable summary of one loop."""
+    case = result.case
+    lines = [f"== {case.name}: {case.title} ==",
+             f"identification: {case.excitation_amplitude:g} {case.force_unit[0]} step until identified "
+             f"and settled; switched to control at {result.switch_time:.3f} s",
+             f"{'parameter':>10} {'truth':>13} {'used by law':>13} {'err %':>8} {'estimate at end':>16} "
+             f"{'err %':>8}"]
+    for p, true in case.truth.items():
+        final = result.final_estimates[p]
+        lines.append(f"{case.labels.get(p, p):>10} {true:>13.6g} {result.identified[p]:>13.6g} "
+                     f"{result.errors_percent[p]:>8.3f} {final:>16.6g} {100.0 * (final - true) / true:>8.3f}")
+    unit, scale = case.position_unit
+    lines.append(f"tracking RMS of {case.tracked} - r from {result.switch_time + case.settle_after:.3f} s "
+                 f"to {case.t_end:g} s: adaptive {result.tracking_rms['adaptive'] * scale:.4g} {unit}, "
+                 f"baseline ({case.mismatch:.0%} mismatch) {result.tracking_rms['baseline'] * scale:.4g} {unit}"
+                 f" -> {result.improvement:.1f}x better")
+    lines.append(f"force peak: adaptive {result.force_peak['adaptive']:.2f}, baseline "
+                 f"{result.force_peak['baseline']:.2f} (limit {case.force_limit:g} {case.force_unit[0]}); "
+                 f"limited samples: adaptive {result.saturated_samples['adaptive']}, "
+                 f"baseline {result.saturated_samples['baseline']}")
+    return lines

@@ -1,0 +1,243 @@
+"""Co-simulation systems described in a JSON or TOML file (``duffid cosim``).
+
+A configuration file lets a user wire and run FMUs without writing Python::
+
+    {
+      "components": {
+        "plant":      {"fmu": "build/fmus/Oscillator1DOF.fmu", "parameters": {"m": 2.6}},
+        "estimator":  {"fmu": "build/fmus/DuffingEstimator1.fmu"},
+        "controller": {"fmu": "build/fmus/AdaptiveController1.fmu"}
+      },
+      "connections": [["plant.x", "estimator.x"], ["plant.x", "controller.x"],
+                      ["controller.f", "plant.f"], ["controller.f_sample", "estimator.f"],
+                      ["estimator.m_hat", "controller.m_hat"], ...],
+      "inputs": {"controller.r": 0.005},
+      "input_csv": {"file": "reference.csv", "columns": {"r": "controller.r"}},
+      "run": {"stop_time": 4.0, "step": 0.001, "start_time": 0.0, "ordering": "jacobi",
+              "record": ["plant.x", "controller.f"]},
+      "container": {"inputs": {"r": ["controller.r"]}, "outputs": {"x": "plant.x"}}
+    }
+
+Relative paths (FMUs, CSV) are taken from the configuration file's folder. ``inputs`` are
+constants; time-varying inputs come from ``input_csv`` (linear interpolation, time column
+``t`` or ``time``). ``container`` describes the container FMU that ``duffid cosim
+--export-container`` writes (its step is ``run.step``). Connections may carry a third
+element ``{"check_units": false}``. Every error names the file and the entry that is
+wrong (:class:`ConfigError`); wiring errors are those of :class:`duffid.cosim.system.System`.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..errors import ConfigError, CosimError, WiringError
+from .system import ORDERINGS, Result, System
+
+__all__ = ["ConfigError", "CosimConfig", "load_config", "add_cli", "run_cli"]
+
+_TOP = {"components", "connections", "inputs", "input_csv", "run", "container"}
+_RUN = {"stop_time", "step", "start_time", "ordering", "order", "record"}
+_COMPONENT = {"fmu", "parameters"}
+_CONTAINER = {"inputs", "outputs", "parameters"}
+
+
+
+
+@dataclass
+class CosimConfig:
+    """A parsed configuration: the system and how to run it.
+
+    Attributes
+    ----------
+    path : Path
+        The configuration file.
+    system : System
+        Components, connections and inputs.
+    stop_time, step, start_time : float
+        The run's time grid.
+    ordering : str
+        ``"jacobi"`` or ``"gauss-seidel"``.
+    order : list of str or None
+        Gauss-Seidel order given in the file.
+    record : list of str or None
+        Variables to record (None: every output).
+    container : dict
+        The ``container`` section (inputs, outputs, parameters of an exported container).
+    """
+
+    path: Path
+    system: System
+    stop_time: float
+    step: float
+    start_time: float = 0.0
+    ordering: str = "jacobi"
+    order: list[str] | None = None
+    record: list[str] | None = None
+    container: dict[str, Any] = field(default_factory=dict)
+
+    def run(self, *, progress: bool = False, ordering: str | None = None) -> Result:
+        """Run the system as configured (``ordering`` overrides the file's)."""
+        ordering = ordering or self.ordering
+        return self.system.run(self.stop_time, self.step, start_time=self.start_time, ordering=ordering,
+                               order=self.order if ordering == "gauss-seidel" else None, record=self.record,
+                               progress=progress)
+
+    def export_container(self, path: str | os.PathLike[str]) -> Path:
+        """Write the system as one container FMU described by the ``container`` section."""
+        return self.system.export_container(path, inputs=self.container.get("inputs"),
+                                            outputs=self.container.get("outputs"), step=self.step,
+                                            parameters=self.container.get("parameters"))
+
+
+def _read(path: Path) -> dict[str, Any]:
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such file")
+    try:
+        if path.suffix.lower() == ".toml":
+            with path.open("rb") as handle:
+                data = tomllib.load(handle)
+        else:
+            data = json.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"{path}:{exc.lineno}:{exc.colno}: not valid JSON: {exc.msg}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: the top level must be an object (a table)")
+    return data
+
+
+def _mapping(path: Path, where: str, value: Any, allowed: set[str] | None = None) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise ConfigError(f"{path}: {where} must be an object, got {type(value).__name__}")
+    if allowed is not None:
+        unknown = sorted(set(value) - allowed)
+        if unknown:
+            raise ConfigError(f"{path}: {where}: unknown key(s) {unknown}; allowed: {sorted(allowed)}")
+    return value
+
+
+def _number(path: Path, where: str, value: Any, positive: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ConfigError(f"{path}: {where} must be a finite number, got {value!r}")
+    if positive and value <= 0:
+        raise ConfigError(f"{path}: {where} must be > 0, got {value!r}")
+    return float(value)
+
+
+def load_config(path: str | os.PathLike[str]) -> CosimConfig:
+    """Read a JSON (``.json``) or TOML (``.toml``) configuration and build its system.
+
+    Raises
+    ------
+    ConfigError
+        Unreadable file, unknown or missing entries, wrong types (the message names the
+        file and the entry).
+    WiringError
+        Wiring the system failed (unknown FMU variable, type mismatch, ...): the message
+        is prefixed with the file and the entry.
+    """
+    path = Path(path)
+    data = _read(path)
+    _mapping(path, "the top level", data, _TOP)
+    base = path.parent
+    system = System()
+
+    def wired(where: str, call: Any, *args: Any, **kwargs: Any) -> None:
+        try:
+            call(*args, **kwargs)
+        except WiringError as exc:
+            raise WiringError(f"{path}: {where}: {exc}") from None
+
+    components = _mapping(path, "components", data.get("components"))
+    if not components:
+        raise ConfigError(f"{path}: components: at least one component is needed")
+    for name, spec in components.items():
+        spec = _mapping(path, f"components.{name}", spec, _COMPONENT)
+        if not isinstance(spec.get("fmu"), str):
+            raise ConfigError(f"{path}: components.{name}.fmu must be the FMU's file name")
+        parameters = _mapping(path, f"components.{name}.parameters", spec.get("parameters", {}))
+        wired(f"components.{name}", system.add, name, base / spec["fmu"], parameters=parameters)
+    connections = data.get("connections", [])
+    if not isinstance(connections, list):
+        raise ConfigError(f"{path}: connections must be a list of [source, target] pairs")
+    for i, item in enumerate(connections):
+        where = f"connections[{i}]"
+        if not (isinstance(item, list) and len(item) in (2, 3) and all(isinstance(s, str) for s in item[:2])):
+            raise ConfigError(f"{path}: {where} must be [\"comp.output\", \"comp.input\"] with optional "
+                              f"options, got {item!r}")
+        options = _mapping(path, f"{where} options", item[2], {"check_units"}) if len(item) == 3 else {}
+        wired(where, system.connect, item[0], item[1], **options)
+    for target, value in _mapping(path, "inputs", data.get("inputs", {})).items():
+        wired(f"inputs.{target}", system.set_input, target, _number(path, f"inputs.{target}", value))
+    if "input_csv" in data:
+        csv_spec = _mapping(path, "input_csv", data["input_csv"], {"file", "columns"})
+        if not isinstance(csv_spec.get("file"), str):
+            raise ConfigError(f"{path}: input_csv.file must be the CSV file's name")
+        columns = _mapping(path, "input_csv.columns", csv_spec.get("columns"))
+        wired("input_csv", system.inputs_from_csv, base / csv_spec["file"], columns)
+    run = _mapping(path, "run", data.get("run"), _RUN)
+    for key in ("stop_time", "step"):
+        if key not in run:
+            raise ConfigError(f"{path}: run.{key} is missing")
+    ordering = run.get("ordering", "jacobi")
+    if ordering not in ORDERINGS:
+        raise ConfigError(f"{path}: run.ordering must be one of {list(ORDERINGS)}, got {ordering!r}")
+    for key in ("order", "record"):
+        if key in run and not (isinstance(run[key], list) and all(isinstance(s, str) for s in run[key])):
+            raise ConfigError(f"{path}: run.{key} must be a list of names")
+    container = _mapping(path, "container", data.get("container", {}), _CONTAINER)
+    return CosimConfig(path=path, system=system, stop_time=_number(path, "run.stop_time", run["stop_time"]),
+                       step=_number(path, "run.step", run["step"], positive=True),
+                       start_time=_number(path, "run.start_time", run.get("start_time", 0.0)),
+                       ordering=ordering, order=run.get("order"), record=run.get("record"),
+                       container=container)
+
+
+def add_cli(subparsers: Any) -> argparse.ArgumentParser:
+    """Add the ``cosim`` subcommand to the ``duffid`` parser's subparsers."""
+    p = subparsers.add_parser("cosim", help="run a system of FMUs described in a JSON or TOML file",
+                              description=__doc__.split("\n\n")[1] if __doc__ else None)
+    p.add_argument("config", type=Path, help="configuration file (.json or .toml)")
+    p.add_argument("-o", "--output", type=Path, default=None, help="write the recorded outputs to this CSV")
+    p.add_argument("--ordering", choices=ORDERINGS, default=None, help="override the file's run.ordering")
+    p.add_argument("--progress", action="store_true", help="show a progress bar")
+    p.add_argument("--export-container", type=Path, default=None, metavar="FMU",
+                   help="write the system as one container FMU (see the file's container section) and exit")
+    return p
+
+
+def run_cli(args: argparse.Namespace) -> int:
+    """Run the ``cosim`` subcommand; returns the exit status (2: bad file, 1: failed run)."""
+    try:
+        config = load_config(args.config)
+        if args.export_container is not None:
+            print(config.export_container(args.export_container))
+            return 0
+        result = config.run(progress=args.progress, ordering=args.ordering)
+    except (ConfigError, WiringError) as exc:
+        print(f"duffid cosim: error: {exc}", file=sys.stderr)
+        return 2
+    except CosimError as exc:
+        print(f"duffid cosim: the run failed: {exc}", file=sys.stderr)
+        if args.output is not None and exc.result is not None:
+            exc.result.to_csv(args.output)
+            print(f"duffid cosim: the {len(exc.result)} rows before the failure are in {args.output}",
+                  file=sys.stderr)
+        return 1
+    if args.output is not None:
+        result.to_csv(args.output)
+    print(f"{len(result)} communication points from {result.time[0]:g} to {result.time[-1]:g} s "
+          f"({config.ordering if args.ordering is None else args.ordering}, order {', '.join(result.order)})"
+          + (f"; wrote {args.output}" if args.output is not None else ""))
+    for name in result.names:
+        values = result[name]
+        print(f"  {name:<32} final {values[-1]:.6g}")
+    return 0

@@ -1,0 +1,277 @@
+"""The elements of a co-simulated system: components (FMUs) and their variables,
+connections, external inputs, and what a run returns (results, failures, errors)."""
+from __future__ import annotations
+
+import csv
+import difflib
+import numbers
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable, Union
+
+import numpy as np
+
+from ..errors import CosimError, InputError, WiringError
+
+__all__ = ["InputSource", "VARIABLE_KINDS", "STATUS_NAMES", "NAME_RE", "N_MESSAGES", "N_REPORTED", "DTYPES",
+           "WiringError", "Connection", "Failure", "CosimError", "Result", "with_article", "suggest", "unit_of",
+           "Component", "typed_parameter", "External", "check_external_value", "sampled_on_grid"]
+
+#: Source of an external input: a constant, a function of time, or samples ``(t, values)``.
+InputSource = Union[float, Callable[[float], float], tuple]
+
+#: FMI 2 and FMI 3 variable types -> the kind duffid exchanges them as.
+VARIABLE_KINDS = {"Real": "Real", "Float64": "Real", "Integer": "Integer", "Int32": "Integer", "Boolean": "Boolean"}
+STATUS_NAMES = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
+NAME_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+N_MESSAGES = 200      # log messages kept per component
+N_REPORTED = 8        # log messages quoted in a CosimError
+DTYPES = {"Real": np.float64, "Integer": np.int32, "Boolean": np.int32}
+
+
+
+
+@dataclass(frozen=True)
+class Connection:
+    """A connection from ``source`` (an output, ``"component.variable"``) to ``target``
+    (an input)."""
+
+    source: str
+    target: str
+
+    def __str__(self) -> str:
+        return f"{self.source} -> {self.target}"
+
+
+@dataclass(frozen=True)
+class Failure:
+    """Why a run stopped.
+
+    Attributes
+    ----------
+    component : str or None
+        Component name (None for an interruption outside any component).
+    fmu : Path or None
+        Its FMU file.
+    time : float
+        Communication point at which the failing call was made (``t_k`` for a ``doStep``
+        from ``t_k``), or the time an input function was evaluated at.
+    function : str
+        The FMI function (``"fmi2DoStep"``, ``"fmi3SetFloat64"``, ...), or
+        ``"input function of plant.f"`` / ``"run"`` for Python exceptions.
+    status : str
+        ``"Discard"``, ``"Error"``, ``"Fatal"``, ``"Pending"``, ``"terminateSimulation"``,
+        or the Python exception (``"ZeroDivisionError: ..."``).
+    messages : tuple of str
+        The component's last logged messages (``"[Error] category: text"``).
+    """
+
+    component: str | None
+    fmu: Path | None
+    time: float
+    function: str
+    status: str
+    messages: tuple[str, ...] = ()
+
+    def __str__(self) -> str:
+        where = f"component {self.component!r} ({self.fmu})" if self.component else "the run"
+        text = f"{where}: {self.function} returned {self.status} at t = {self.time!r}" if \
+            self.function.startswith("fmi") else f"{where}: {self.function} failed at t = {self.time!r}: {self.status}"
+        if self.messages:
+            text += "\n  last logged messages:\n" + "\n".join(f"    {m}" for m in self.messages)
+        else:
+            text += (" (nothing was logged; some FMUs, e.g. pythonfmu ones, log only with logging on: "
+                     "System.add(..., logging=True))")
+        return text
+
+
+
+
+@dataclass
+class Result:
+    """Values recorded on the communication grid.
+
+    Attributes
+    ----------
+    time : numpy.ndarray
+        ``t_0 .. t_m`` (``m = n`` for a complete run).
+    names : list of str
+        Recorded variables, ``"component.variable"``.
+    order : list of str
+        Components in stepping order (insertion order under Jacobi).
+    delayed : list of Connection
+        Connections that deliver the source's value at ``t_k`` to a step from ``t_k``
+        (all of them under Jacobi; the feedback connections under Gauss-Seidel).
+    ordering : str
+        ``"jacobi"`` or ``"gauss-seidel"``.
+    step : float
+        Communication step [s].
+    failure : Failure or None
+        Why the run stopped early (None for a complete run).
+    """
+
+    time: np.ndarray
+    names: list[str]
+    _columns: dict[str, np.ndarray] = field(repr=False)
+    order: list[str] = field(default_factory=list)
+    delayed: list[Connection] = field(default_factory=list)
+    ordering: str = "jacobi"
+    step: float = 0.0
+    failure: Failure | None = None
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """The column of ``"component.variable"`` (float64; int32 for Integer, bool for
+        Boolean variables)."""
+        try:
+            return self._columns[name]
+        except KeyError:
+            raise KeyError(f"{name!r} was not recorded{suggest(name, self.names)}") from None
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._columns
+
+    def __len__(self) -> int:
+        return len(self.time)
+
+    def to_csv(self, path: str | os.PathLike[str]) -> None:
+        """Write one header line (``time`` and :attr:`names`) and one row per
+        communication point; floats in full precision (``repr``), Integer and Boolean
+        variables as integers (Booleans as 0/1)."""
+        columns = [self.time] + [self._columns[n] for n in self.names]
+        with open(os.fspath(path), "w", newline="", encoding="utf-8") as fh:
+            writer = csv.writer(fh, lineterminator="\n")
+            writer.writerow(["time"] + self.names)
+            lists = [c.astype(np.int64).tolist() if c.dtype.kind in "bi" else c.tolist() for c in columns]
+            writer.writerows(zip(*[[repr(v) for v in col] for col in lists]))
+
+
+# --------------------------------------------------------------------------------- model info
+def with_article(word: str) -> str:
+    """``"an output"``, ``"a parameter"``."""
+    return f"{'an' if word[:1] in 'aeiou' else 'a'} {word}"
+
+
+def suggest(name: str, candidates: Iterable[str]) -> str:
+    """"; did you mean ...?" with the candidates close to ``name`` (empty when none is)."""
+    close = difflib.get_close_matches(name, list(candidates), n=3, cutoff=0.6)
+    return f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+
+
+def unit_of(variable: Any) -> str | None:
+    """The unit of an fmpy model variable, its declared type's when it has none of its own."""
+    unit = getattr(variable, "unit", None)
+    if unit is None and getattr(variable, "declaredType", None) is not None:
+        unit = variable.declaredType.unit
+    return unit or None
+
+
+class Component:
+    """A component of a system: FMU file, model description, parameter values."""
+
+    def __init__(self, name: str, path: Path, logging: bool) -> None:
+        import fmpy
+
+        self.name, self.path, self.logging = name, path, logging
+        if not path.is_file():
+            raise WiringError(f"component {name!r}: FMU file {path} does not exist")
+        try:
+            self.md = fmpy.read_model_description(str(path))
+        except Exception as exc:  # fmpy raises plain Exceptions for bad archives / XML
+            raise WiringError(f"component {name!r}: cannot read {path}: {exc}") from None
+        if self.md.coSimulation is None:
+            raise WiringError(f"component {name!r}: {path.name} has no Co-Simulation interface")
+        self.version = self.md.fmiMajorVersion
+        if self.version not in (2, 3):
+            raise WiringError(f"component {name!r}: {path.name} is FMI {self.md.fmiVersion}; "
+                              "only FMI 2.0 and 3.0 are supported")
+        self.variables = {v.name: v for v in self.md.modelVariables}
+        self.parameters: dict[str, Any] = {}
+
+    def where(self) -> str:
+        return f"component {self.name!r} ({self.path.name})"
+
+    def variable(self, var: str) -> Any:
+        try:
+            return self.variables[var]
+        except KeyError:
+            raise WiringError(f"{self.where()} has no variable {var!r}{suggest(var, self.variables)}") from None
+
+    def kind(self, variable: Any, purpose: str) -> str:
+        """Real, Integer or Boolean; other types cannot be connected, driven or recorded."""
+        kind = VARIABLE_KINDS.get(variable.type)
+        if kind is None or variable.shape or variable.dimensions:
+            raise WiringError(f"{self.where()}: {variable.name} has type {variable.type}"
+                              f"{' (array)' if variable.dimensions else ''}; only scalar Real/Float64, "
+                              f"Integer/Int32 and Boolean variables can be {purpose}")
+        return kind
+
+    def outputs(self) -> list[Any]:
+        return [v for v in self.md.modelVariables if v.causality == "output" and v.type in VARIABLE_KINDS
+                and not v.dimensions]
+
+
+def typed_parameter(comp: Component, variable: Any, value: Any) -> Any:
+    """Check and convert a parameter value for ``variable``."""
+    where = f"{comp.where()}: parameter {variable.name}"
+    if variable.causality == "input":
+        raise WiringError(f"{where} is an input; drive it with set_input or connect")
+    if variable.causality != "parameter" or variable.variability not in ("fixed", "tunable") \
+            or variable.initial == "calculated":
+        raise WiringError(f"{where} is {with_article(variable.causality)} ({variable.variability}) variable, "
+                          "not a settable parameter")
+    kind = variable.type
+    if kind in ("Real", "Float64", "Float32"):
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            raise WiringError(f"{where} is {kind}; got {value!r}")
+        return float(value)
+    if kind in ("Integer", "Enumeration") or kind.startswith(("Int", "UInt")):
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) or value != int(value):
+            raise WiringError(f"{where} is {kind}; got {value!r} (not an integer)")
+        return int(value)
+    if kind == "Boolean":
+        if isinstance(value, (bool, np.bool_)) or (isinstance(value, numbers.Integral) and value in (0, 1)):
+            return bool(value)
+        raise WiringError(f"{where} is Boolean; got {value!r}")
+    if kind == "String":
+        if not isinstance(value, str):
+            raise WiringError(f"{where} is String; got {value!r}")
+        return value
+    raise WiringError(f"{where} has type {kind}, which cannot be set")
+
+
+# --------------------------------------------------------------------------------- ordering
+@dataclass
+class External:
+    target: str
+    kind: str           # Real / Integer / Boolean
+    mode: str           # "constant", "function", "sampled"
+    value: Any          # float, callable, or (t, values) arrays
+    origin: str         # for messages
+
+
+def check_external_value(ext: External, v: Any, t: float) -> float:
+    """The value ``v`` of the external input ``ext`` at time ``t``, checked against the input's kind."""
+    if ext.kind == "Real":
+        return float(v)
+    number = float(v)
+    if number != int(number) or (ext.kind == "Boolean" and number not in (0.0, 1.0)):
+        raise InputError(f"{ext.target} is {ext.kind}; the input gave {v!r} at t = {t!r}")
+    return number
+
+
+def sampled_on_grid(ext: External, grid: np.ndarray) -> np.ndarray:
+    """The samples of a sampled external input at the communication points ``grid``."""
+    ts, values = ext.value
+    lo, hi = float(grid[0]), float(grid[-1])
+    if lo < ts[0] or hi > ts[-1]:
+        bad = lo if lo < ts[0] else hi
+        raise WiringError(f"input {ext.target} ({ext.origin}): the communication point t = {bad!r} lies "
+                          f"outside the sampled range [{float(ts[0])!r}, {float(ts[-1])!r}] (never extrapolated)")
+    if ext.kind == "Real":
+        return np.interp(grid, ts, values)
+    return values[np.searchsorted(ts, grid, side="right") - 1]  # previous sample (held)
+
+
+# --------------------------------------------------------------------------------- system

@@ -1,0 +1,564 @@
+"""Co-simulation of FMUs (FMI 2.0 and 3.0 Co-Simulation) connected by variable name.
+
+A :class:`System` holds named components (FMUs), connections from outputs to inputs and
+external input signals; :meth:`System.run` steps it at a fixed communication step and
+returns a :class:`Result`::
+
+    from duffid.cosim.system import System
+    from duffid.data.signals import Step
+
+    system = (System()
+              .add("plant", "build/fmus/Oscillator1DOF.fmu", parameters={"m": 2.5})
+              .add("estimator", "build/fmus/DuffingEstimator1.fmu")
+              .connect("plant.x", "estimator.x")
+              .set_input("plant.f", Step(10.0))
+              .set_input("estimator.f", Step(10.0)))
+    result = system.run(stop_time=1.0, step=1e-3)                # Jacobi
+    result = system.run(1.0, 1e-3, ordering="gauss-seidel")      # Gauss-Seidel
+    result.time, result["estimator.k_hat"], result.to_csv("run.csv")
+
+Semantics
+---------
+Communication points are ``t_k = start_time + k * step`` (``k = 0 .. n``), computed from
+``k``, never by accumulating the step. Every component is instantiated, set up and
+initialised at ``t_0`` (parameters are set before initialisation, external inputs at
+``t_0`` during it); row 0 of the result holds the values after initialisation. Inputs
+that are neither connected nor driven by :meth:`System.set_input` keep their start
+values for the whole run; connected inputs keep them during initialisation and get
+their first value before the first ``doStep``.
+
+Step ``k`` (from ``t_k`` to ``t_{k+1}``):
+
+* ``ordering="jacobi"``: every connected input is set from its source's output at
+  ``t_k`` and every external input to its value at ``t_k``; then every component does
+  ``doStep(t_k, step)``, then every output is read (values at ``t_{k+1}``).
+* ``ordering="gauss-seidel"``: the components are stepped one after another in an
+  order derived from the connection graph (:meth:`System.gauss_seidel_order`). Before a
+  component steps, its inputs are set: a connection from a component *earlier* in the
+  order delivers the source's output at ``t_{k+1}`` (that component has already
+  stepped), a connection from a *later* component (or from itself) delivers the output
+  at ``t_k``, a one-step delay. These are the *delayed* connections. External inputs
+  always deliver their value at ``t_k``. The order minimises the number of delayed
+  connections; ties are broken by the order in which components were added.
+
+Under Jacobi every connection delivers the value at ``t_k``, so
+:attr:`Result.delayed` lists every connection.
+
+Failures
+--------
+A status worse than Warning (Discard, Error, Fatal; FMI 2 Pending) from any FMI call,
+an FMI 3 ``terminateSimulation`` request, or a Python exception (an error in an input
+function, ``KeyboardInterrupt``) stops the run. Every instance is released
+(``terminate`` where the state allows it, then ``freeInstance``; an instance that
+returned Fatal is not called again), every extracted directory is deleted, and
+:class:`CosimError` is raised; it names the component, its FMU file, the FMI function,
+the status, the time and the component's last logged messages, and carries the partial
+:class:`Result` (rows up to the last complete communication point) and the
+:class:`Failure`.
+
+Log messages of each FMU go to callbacks owned by the run (kept alive as long as the
+instance); they are never routed through fmpy's native logger proxy.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import numbers
+import os
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+__all__ = ["System", "Result", "Connection", "Failure", "CosimError", "WiringError", "ORDERINGS",
+           "EXACT_ORDER_LIMIT", "VARIABLE_KINDS", "with_article"]
+
+#: Accepted values of ``run(ordering=...)``.
+ORDERINGS = ("jacobi", "gauss-seidel")
+#: Up to this many components the Gauss-Seidel order is exact (every permutation is
+#: considered, by dynamic programming over subsets); beyond, a greedy heuristic.
+EXACT_ORDER_LIMIT = 12
+
+from ..errors import CosimError, WiringError
+from .container import export_container
+from .elements import (
+    NAME_RE,
+    VARIABLE_KINDS,
+    Component,
+    Connection,
+    External,
+    Failure,
+    InputSource,
+    Result,
+    check_external_value,
+    sampled_on_grid,
+    suggest,
+    typed_parameter,
+    unit_of,
+    with_article,
+)
+from .runner import Runner
+
+
+def _order_cost(order: Sequence[int], edges: Sequence[tuple[int, int]]) -> int:
+    pos = {c: i for i, c in enumerate(order)}
+    return sum(1 for s, d in edges if pos[s] >= pos[d])
+
+
+def _exact_order(n: int, edges: Sequence[tuple[int, int]]) -> list[int]:
+    """The permutation with the fewest delayed edges, lexicographically smallest among
+    those (dynamic programming over subsets, equivalent to trying every permutation)."""
+    self_loops = [0] * n
+    out: list[dict[int, int]] = [dict() for _ in range(n)]
+    for s, d in edges:
+        if s == d:
+            self_loops[s] += 1
+        else:
+            out[s][d] = out[s].get(d, 0) + 1
+    out_items = [list(o.items()) for o in out]
+    full = (1 << n) - 1
+
+    def cost(prefix: int, v: int) -> int:  # edges from v to components already placed
+        return self_loops[v] + sum(w for u, w in out_items[v] if prefix >> u & 1)
+
+    rest = [0] * (1 << n)  # rest[S]: fewest delayed edges when the prefix is the set S
+    for subset in range(full - 1, -1, -1):
+        rest[subset] = min(cost(subset, v) + rest[subset | 1 << v] for v in range(n) if not subset >> v & 1)
+    order, prefix = [], 0
+    for _ in range(n):
+        for v in range(n):
+            if not prefix >> v & 1 and cost(prefix, v) + rest[prefix | 1 << v] == rest[prefix]:
+                order.append(v)
+                prefix |= 1 << v
+                break
+    return order
+
+
+def _greedy_order(n: int, edges: Sequence[tuple[int, int]]) -> list[int]:
+    """Eades-Lin-Smyth heuristic: sinks go to the back and sources to the front (each
+    batch in insertion order); otherwise the component with the largest (outgoing -
+    incoming) connection count goes next (lowest insertion index on ties)."""
+    remaining = list(range(n))
+    front: list[int] = []
+    back: list[int] = []
+    while remaining:
+        live = set(remaining)
+        outd = {v: 0 for v in remaining}
+        ind = {v: 0 for v in remaining}
+        for s, d in edges:
+            if s != d and s in live and d in live:
+                outd[s] += 1
+                ind[d] += 1
+        sinks = [v for v in remaining if outd[v] == 0]
+        if sinks:
+            back = sinks + back
+            remaining = [v for v in remaining if v not in sinks]
+            continue
+        sources = [v for v in remaining if ind[v] == 0]
+        if sources:
+            front += sources
+            remaining = [v for v in remaining if v not in sources]
+            continue
+        best = max(remaining, key=lambda v: (outd[v] - ind[v], -v))
+        front.append(best)
+        remaining.remove(best)
+    return front + back
+
+
+# --------------------------------------------------------------------------------- inputs
+class System:
+    """A set of co-simulation FMUs connected by variable name.
+
+    Build it with the chainable :meth:`add`, :meth:`connect`, :meth:`set_input` and
+    :meth:`inputs_from_csv`; run it with :meth:`run`; export it as one container FMU
+    with :meth:`export_container`. See the module documentation for the exact
+    semantics of a step.
+    """
+
+    def __init__(self) -> None:
+        self._components: dict[str, Component] = {}
+        self._connections: list[Connection] = []
+        self._externals: dict[str, External] = {}
+        self._drivers: dict[str, str] = {}   # input -> what drives it (for messages)
+
+    # ---------------------------------------------------------------- building
+    def add(self, name: str, path: str | os.PathLike[str], parameters: Mapping[str, Any] | None = None, *,
+            logging: bool = False) -> System:
+        """Add a component.
+
+        Parameters
+        ----------
+        name : str
+            Component name, an identifier (letters, digits, ``_``), unique in the system.
+        path : str or os.PathLike
+            FMU file with a Co-Simulation interface (FMI 2.0 or 3.0).
+        parameters : mapping, optional
+            Parameter values set before initialisation: Real as float, Integer as int,
+            Boolean as bool, String as str. Unknown names and wrong types are rejected.
+        logging : bool
+            Instantiate with ``loggingOn`` (debug messages). Errors are logged anyway by
+            FMUs that follow the standard.
+
+        Returns
+        -------
+        System
+            self.
+
+        Raises
+        ------
+        WiringError
+            Bad name, missing or unreadable FMU, unknown parameter, bad value.
+        """
+        if not isinstance(name, str) or not NAME_RE.match(name):
+            raise WiringError(f"component name {name!r} must be an identifier (letters, digits, _)")
+        if name in self._components:
+            raise WiringError(f"component {name!r} is already in the system")
+        comp = Component(name, Path(path), logging)
+        for pname, value in (parameters or {}).items():
+            comp.parameters[pname] = typed_parameter(comp, comp.variable(pname), value)
+        self._components[name] = comp
+        return self
+
+    def _lookup(self, full: str, role: str) -> tuple[Component, Any]:
+        if not isinstance(full, str) or "." not in full:
+            raise WiringError(f"{role} {full!r} must be 'component.variable'")
+        cname, var = full.split(".", 1)
+        comp = self._components.get(cname)
+        if comp is None:
+            raise WiringError(f"{role} {full!r}: no component {cname!r} in the system"
+                              f"{suggest(cname, self._components)}")
+        return comp, comp.variable(var)
+
+    def _claim_input(self, target: str, driver: str) -> tuple[Component, Any]:
+        comp, var = self._lookup(target, "target")
+        if var.causality != "input":
+            raise WiringError(f"target {target!r}: {comp.where()}: {var.name} is {with_article(var.causality)}, not an input")
+        if target in self._drivers:
+            raise WiringError(f"input {target!r} is already driven by {self._drivers[target]}; "
+                              f"it cannot also be driven by {driver}")
+        return comp, var
+
+    def connect(self, source: str, target: str, *, check_units: bool = True) -> System:
+        """Connect an output to an input (``"plant.x"``, ``"estimator.x"``).
+
+        Checks that both exist, that the source is an output and the target an input,
+        that the types match (Real/Float64, Integer/Int32, Boolean), that the target has
+        no other driver, and that the units agree when both declare one.
+
+        Parameters
+        ----------
+        source, target : str
+            ``"component.output"`` and ``"component.input"``.
+        check_units : bool
+            False connects variables whose declared units differ: a generic FMU used in
+            another domain (the 1-DOF estimator and controller, declared in m and N, on
+            the Duffing circuit's charge [C] and voltage [V]). Types are still checked.
+
+        Returns
+        -------
+        System
+            self.
+        """
+        scomp, svar = self._lookup(source, "source")
+        if svar.causality != "output":
+            raise WiringError(f"source {source!r}: {scomp.where()}: {svar.name} is {with_article(svar.causality)}, "
+                              "not an output")
+        tcomp, tvar = self._claim_input(target, f"the connection from {source!r}")
+        skind, tkind = scomp.kind(svar, "connected"), tcomp.kind(tvar, "connected")
+        if skind != tkind:
+            raise WiringError(f"cannot connect {source!r} ({svar.type}) to {target!r} ({tvar.type}): "
+                              "types differ")
+        sunit, tunit = unit_of(svar), unit_of(tvar)
+        if check_units and sunit and tunit and sunit != tunit:
+            raise WiringError(f"cannot connect {source!r} [{sunit}] to {target!r} [{tunit}]: units differ "
+                              "(connect(..., check_units=False) for a unit-generic FMU)")
+        self._connections.append(Connection(source, target))
+        self._drivers[target] = f"the connection from {source!r}"
+        return self
+
+    def set_input(self, target: str, source: InputSource) -> System:
+        """Drive an input from outside the system.
+
+        Parameters
+        ----------
+        target : str
+            ``"component.input"``.
+        source : float, callable or (t, values)
+            A constant; a function ``t -> value`` evaluated at every communication
+            point (e.g. a :class:`duffid.data.signals.Signal`); or samples ``(t, values)``
+            (strictly increasing finite ``t``): Real inputs are interpolated linearly,
+            Integer and Boolean inputs hold the previous sample. Every communication
+            point ``t_0 .. t_n`` must lie within ``[t[0], t[-1]]``; nothing is
+            extrapolated or clipped (:meth:`run` raises otherwise).
+
+        Returns
+        -------
+        System
+            self.
+        """
+        return self._set_input(target, source, "set_input")
+
+    def _set_input(self, target: str, source: Any, origin: str) -> System:
+        comp, var = self._claim_input(target, origin)
+        kind = comp.kind(var, "driven")
+        if isinstance(source, tuple) or isinstance(source, list):
+            if len(source) != 2:
+                raise WiringError(f"input {target!r}: samples must be a pair (t, values)")
+            ts = np.asarray(source[0], dtype=np.float64)
+            values = np.asarray(source[1], dtype=np.float64)
+            if ts.ndim != 1 or values.shape != ts.shape or len(ts) < 2:
+                raise WiringError(f"input {target!r}: t and values must be 1-D of the same length >= 2, "
+                                  f"got shapes {ts.shape} and {values.shape}")
+            if not np.all(np.isfinite(ts)) or not np.all(np.diff(ts) > 0):
+                raise WiringError(f"input {target!r}: t must be finite and strictly increasing")
+            if kind != "Real" and not np.all(values == np.round(values)):
+                raise WiringError(f"input {target!r} is {var.type}; the samples must be integers")
+            ext = External(target, kind, "sampled", (ts, values), origin)
+        elif callable(source):
+            ext = External(target, kind, "function", source, origin)
+        elif isinstance(source, numbers.Real):
+            ext = External(target, kind, "constant", float(source), origin)
+            try:
+                check_external_value(ext, source, 0.0)
+            except ValueError as exc:
+                raise WiringError(str(exc)) from None
+        else:
+            raise WiringError(f"input {target!r}: the source must be a number, a function of t or "
+                              f"(t, values); got {type(source).__name__}")
+        self._externals[target] = ext
+        self._drivers[target] = origin
+        return self
+
+    def inputs_from_csv(self, path: str | os.PathLike[str], columns: Mapping[str, str]) -> System:
+        """Drive inputs from the columns of a CSV file (linear interpolation in time).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            CSV file: one header line with a time column ``t`` or ``time`` and named
+            columns, then one row of numbers per sample (strictly increasing time).
+        columns : mapping
+            CSV column -> ``"component.input"``.
+
+        Returns
+        -------
+        System
+            self.
+
+        Raises
+        ------
+        WiringError
+            The message names the file, the line and the column: missing file, missing
+            or duplicate column, a field that is not a finite number, non-increasing
+            time, fewer than 2 rows; and the usual wiring errors for the targets.
+        """
+        source = os.fspath(path)
+        try:
+            with open(source, newline="", encoding="utf-8-sig") as fh:
+                rows = list(csv.reader(fh))
+        except (OSError, UnicodeDecodeError) as exc:
+            raise WiringError(f"{source}: cannot read: {exc}") from None
+        if not rows:
+            raise WiringError(f"{source}: empty file (expected a header line)")
+        header = [h.strip() for h in rows[0]]
+        if len(set(header)) != len(header):
+            dup = next(h for h in header if header.count(h) > 1)
+            raise WiringError(f"{source}, line 1: duplicate column {dup!r}")
+        time_cols = [h for h in ("t", "time") if h in header]
+        if not time_cols:
+            raise WiringError(f"{source}, line 1: no time column 't' or 'time' (columns: {', '.join(header)})")
+        for column in columns:
+            if column not in header:
+                raise WiringError(f"{source}, line 1: no column {column!r}{suggest(column, header)}")
+        wanted = [time_cols[0]] + list(columns)
+        index = [header.index(c) for c in wanted]
+        data = np.empty((len(rows) - 1, len(wanted)))
+        for i, row in enumerate(rows[1:]):
+            line = i + 2
+            if len(row) != len(header):
+                raise WiringError(f"{source}, line {line}: {len(row)} fields, the header has {len(header)}")
+            for j, (col, k) in enumerate(zip(wanted, index)):
+                text = row[k].strip()
+                try:
+                    value = float(text)
+                except ValueError:
+                    raise WiringError(f"{source}, line {line}, column {col!r}: {text!r} is not a number") from None
+                if not math.isfinite(value):
+                    raise WiringError(f"{source}, line {line}, column {col!r}: {text!r} is not finite")
+                data[i, j] = value
+        if len(data) < 2:
+            raise WiringError(f"{source}: needs at least 2 rows of samples, found {len(data)}")
+        bad = np.nonzero(np.diff(data[:, 0]) <= 0)[0]
+        if len(bad):
+            raise WiringError(f"{source}, line {bad[0] + 3}, column {wanted[0]!r}: time "
+                              f"{float(data[bad[0] + 1, 0])!r} does not increase (previous {float(data[bad[0], 0])!r})")
+        for j, (column, target) in enumerate(columns.items(), start=1):
+            self._set_input(target, (data[:, 0], data[:, j]), f"column {column!r} of {source}")
+        return self
+
+    # ---------------------------------------------------------------- inspection
+    @property
+    def components(self) -> list[str]:
+        """Component names in insertion order."""
+        return list(self._components)
+
+    @property
+    def connections(self) -> list[Connection]:
+        """Connections in the order they were made."""
+        return list(self._connections)
+
+    def gauss_seidel_order(self) -> tuple[list[str], list[Connection]]:
+        """The Gauss-Seidel stepping order and its delayed connections.
+
+        The order minimises the number of delayed connections (a connection is delayed
+        when its source steps after its target, or is the target itself). Up to
+        :data:`EXACT_ORDER_LIMIT` components the minimum is exact (all permutations,
+        by dynamic programming over subsets), and among equally good orders the one
+        closest to insertion order (lexicographically smallest) is chosen. Beyond, a
+        greedy heuristic (Eades, Lin and Smyth 1993): repeatedly move every component
+        without outgoing connections to the back and every one without incoming
+        connections to the front (each batch in insertion order), else the component
+        with the largest outgoing-minus-incoming count to the front.
+
+        Returns
+        -------
+        order : list of str
+        delayed : list of Connection
+        """
+        order = self._derive_order()
+        return order, self._delayed(order)
+
+    def _edges(self) -> list[tuple[int, int]]:
+        index = {n: i for i, n in enumerate(self._components)}
+        return [(index[c.source.split(".", 1)[0]], index[c.target.split(".", 1)[0]]) for c in self._connections]
+
+    def _derive_order(self) -> list[str]:
+        names = list(self._components)
+        n = len(names)
+        if n == 0:
+            return []
+        edges = self._edges()
+        perm = _exact_order(n, edges) if n <= EXACT_ORDER_LIMIT else _greedy_order(n, edges)
+        return [names[i] for i in perm]
+
+    def _delayed(self, order: Sequence[str]) -> list[Connection]:
+        pos = {c: i for i, c in enumerate(order)}
+        return [c for c in self._connections
+                if pos[c.source.split(".", 1)[0]] >= pos[c.target.split(".", 1)[0]]]
+
+    # ---------------------------------------------------------------- running
+    def run(self, stop_time: float, step: float, start_time: float = 0.0, ordering: str = "jacobi",
+            order: Sequence[str] | None = None, record: Sequence[str] | None = None,
+            progress: bool = False) -> Result:
+        """Co-simulate from ``start_time`` to ``stop_time`` at a fixed communication step.
+
+        Parameters
+        ----------
+        stop_time : float
+            End time; ``stop_time - start_time`` must be an integer multiple of ``step``
+            (within 1e-9 relative).
+        step : float
+            Communication step ``h`` [s]; the grid is ``t_k = start_time + k h``.
+        start_time : float
+            Start time ``t_0``.
+        ordering : {"jacobi", "gauss-seidel"}
+            Master algorithm (see the module documentation).
+        order : sequence of str, optional
+            Gauss-Seidel only: the stepping order (every component exactly once),
+            instead of the derived one.
+        record : sequence of str, optional
+            Variables to record (``"component.variable"``): outputs, local variables and
+            externally driven inputs (connected inputs: record their source). Default:
+            every output of every component (Real, Integer, Boolean) and every
+            externally driven input.
+        progress : bool
+            Show a tqdm progress bar (updated in chunks of steps).
+
+        Returns
+        -------
+        Result
+            ``n + 1`` rows, ``t_0 .. t_n``.
+
+        Raises
+        ------
+        WiringError
+            Bad arguments, unknown recorded variables, sampled inputs that do not cover
+            the grid (before anything is instantiated).
+        CosimError
+            A failure during the run (see the module documentation); carries the partial
+            result.
+        """
+
+        if ordering not in ORDERINGS:
+            raise WiringError(f"ordering must be one of {ORDERINGS}, got {ordering!r}")
+        if not self._components:
+            raise WiringError("the system has no components")
+        for value, label in ((stop_time, "stop_time"), (step, "step"), (start_time, "start_time")):
+            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+                raise WiringError(f"{label} must be a finite number, got {value!r}")
+        if not step > 0:
+            raise WiringError(f"step must be positive, got {step!r}")
+        span = float(stop_time) - float(start_time)
+        n = round(span / step)
+        if n < 1 or abs(n * step - span) > 1e-9 * max(abs(span), abs(step)):
+            raise WiringError(f"stop_time - start_time = {span!r} is not a positive integer multiple of "
+                              f"step = {step!r}")
+        if ordering == "jacobi":
+            if order is not None:
+                raise WiringError("order= applies to ordering='gauss-seidel' only")
+            sequence = list(self._components)
+            delayed = list(self._connections)
+        else:
+            if order is None:
+                sequence = self._derive_order()
+            else:
+                sequence = list(order)
+                unknown = [c for c in sequence if c not in self._components]
+                if unknown:
+                    raise WiringError(f"order: unknown component {unknown[0]!r}"
+                                      f"{suggest(unknown[0], self._components)}")
+                if sorted(sequence) != sorted(self._components):
+                    missing = [c for c in self._components if c not in sequence]
+                    raise WiringError(f"order must name every component exactly once; "
+                                      f"missing {missing}, given {sequence}")
+            delayed = self._delayed(sequence)
+        names = self._record_names(record)
+        grid = float(start_time) + np.arange(n + 1) * float(step)
+        sampled = {t: sampled_on_grid(e, grid) for t, e in self._externals.items() if e.mode == "sampled"}
+        runner = Runner(self, grid, float(step), ordering, sequence, delayed, names, sampled, progress)
+        return runner.execute()
+
+    def _record_names(self, record: Sequence[str] | None) -> list[str]:
+        if record is None:
+            names = []
+            for comp in self._components.values():
+                for v in comp.md.modelVariables:
+                    full = f"{comp.name}.{v.name}"
+                    if (v.causality == "output" and v.type in VARIABLE_KINDS and not v.dimensions) or full in self._externals:
+                        names.append(full)
+            return names
+        if isinstance(record, str):
+            raise WiringError("record must be a sequence of names, not a string")
+        names = []
+        for full in record:
+            comp, var = self._lookup(full, "recorded variable")
+            comp.kind(var, "recorded")
+            if var.causality == "input" and full not in self._externals:
+                hint = next((f"; record its source {c.source!r}" for c in self._connections if c.target == full), "")
+                raise WiringError(f"recorded variable {full!r} is an input that no external source drives{hint}")
+            if full in names:
+                raise WiringError(f"recorded variable {full!r} is listed twice")
+            names.append(full)
+        return names
+
+    # ---------------------------------------------------------------- container
+    def export_container(self, path: str | os.PathLike[str], inputs: Mapping[str, str | Sequence[str]] | None = None,
+                         outputs: Mapping[str, str] | None = None, step: float = 1e-3,
+                         parameters: Mapping[str, str | Sequence[str]] | None = None) -> Path:
+        """Write the system as one FMI 2.0 co-simulation container FMU (fmpy's container).
+
+        See :func:`duffid.cosim.container.export_container` for the parameters and
+        limits.
+        """
+
+        return export_container(self, path, inputs=inputs, outputs=outputs, step=step, parameters=parameters)

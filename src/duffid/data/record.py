@@ -1,0 +1,1053 @@
+"""Measured or simulated input/output records and their files.
+
+A :class:`Record` holds evenly sampled time ``t``, forces (inputs) ``f`` and
+displacements (outputs) ``x``.  It validates its data on construction and
+reads and writes two file formats:
+
+* CSV with a header line, ``t,f,x`` for one degree of freedom or
+  ``t,f1..f<nf>,x1..x<nx>`` otherwise (see :meth:`Record.read_csv`);
+* MATLAB ``.mat`` files up to version 7 (see :meth:`Record.read_mat`).
+
+duffid never silently drops, clips, interpolates or resamples data: every
+problem in a file is reported as a :class:`RecordError` whose message names
+the file, the line (or row) and the column (or variable) concerned.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import re
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+import scipy.io
+from scipy.io.matlab import MatReadError
+
+from ..errors import InputError, OptionError, RecordError
+
+__all__ = ["Record", "RecordError"]
+
+ARRAY_SOURCE = "array input"
+
+_NUMBER_RE = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
+_NONFINITE_RE = re.compile(r"[+-]?(?:nan|inf|infinity)", re.ASCII | re.IGNORECASE)
+_NUMBERED_RE = re.compile(r"([fx])([1-9][0-9]*)", re.ASCII)
+_MATLAB_NAME_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,62}", re.ASCII)
+_CSV_LAYOUTS = "t,f,x (one DOF) or t,f1..f<nf>,x1..x<nx> with nf <= nx"
+_MAT_HEADER_KEYS = ("__header__", "__version__", "__globals__")
+
+
+
+
+def _fmt_pair(a: float, b: float) -> tuple[str, str]:
+    """Format two floats compactly, with full precision if they would look equal."""
+    sa, sb = f"{a:.12g}", f"{b:.12g}"
+    if sa == sb:
+        sa, sb = repr(float(a)), repr(float(b))
+    return sa, sb
+
+
+def _check_samples(
+    t: np.ndarray,
+    columns: Sequence[tuple[str, np.ndarray]],
+    *,
+    source: str,
+    sampling_rtol: float,
+    where: Callable[[int], str],
+    t_desc: str | None,
+) -> float:
+    """Check finiteness, monotonic time and even sampling; return the median step.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Time stamps, shape ``(N,)``, float64.
+    columns : sequence of (str, numpy.ndarray)
+        Description (for messages, e.g. ``"column 'x2'"``) and data of every
+        signal column, each of shape ``(N,)``; the time column comes first.
+    source : str
+        Name of the data source for messages.
+    sampling_rtol : float
+        Allowed relative deviation of every step from the median step.
+    where : callable
+        Maps a 0-based sample index to a place description such as
+        ``"line 12"``.
+    t_desc : str or None
+        Description of the time column added to time messages, if any.
+
+    Returns
+    -------
+    float
+        The median time step.
+
+    Raises
+    ------
+    RecordError
+        On the first problem found.
+    """
+    n = t.shape[0]
+    if n < 2:
+        raise RecordError(f"{source}: a record needs at least 2 samples, found {n}")
+    for desc, values in columns:
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            i = int(bad[0])
+            raise RecordError(
+                f"{source}, {where(i)}, {desc}: value '{float(values[i])!r}' is not finite"
+            )
+    tplace = "" if t_desc is None else f", {t_desc}"
+    steps = np.diff(t)
+    bad = np.flatnonzero(~(steps > 0.0))
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise RecordError(
+            f"{source}, {where(i)}{tplace}: time {float(t[i])!r} does not increase "
+            f"(previous {float(t[i - 1])!r})"
+        )
+    dt = float(np.median(steps))
+    bad = np.flatnonzero(np.abs(steps - dt) > sampling_rtol * dt)
+    if bad.size:
+        i = int(bad[0]) + 1
+        step_s, dt_s = _fmt_pair(float(steps[i - 1]), dt)
+        raise RecordError(
+            f"{source}, {where(i)}{tplace}: uneven sampling, step {step_s} differs "
+            f"from dt {dt_s} by more than the tolerance (rtol {sampling_rtol:g}); "
+            "duffid never resamples: resample before identification"
+        )
+    return dt
+
+
+def _check_rtol(sampling_rtol: Any) -> float:
+    """Validate a sampling tolerance and return it as float."""
+    if isinstance(sampling_rtol, bool) or not isinstance(
+        sampling_rtol, (int, float, np.integer, np.floating)
+    ):
+        raise OptionError(f"sampling_rtol must be a real number, got {sampling_rtol!r}")
+    value = float(sampling_rtol)
+    if not math.isfinite(value) or value < 0.0:
+        raise InputError(f"sampling_rtol must be finite and >= 0, got {value!r}")
+    return value
+
+
+def _numeric_array(value: Any, name: str, source: str) -> np.ndarray:
+    """Return a float64 copy of a real numeric array-like, or raise RecordError."""
+    arr = np.asarray(value)
+    if arr.dtype == np.bool_ or not (
+        np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)
+    ):
+        raise RecordError(
+            f"{source}: {name} must be a real numeric array, got dtype {arr.dtype}"
+        )
+    return np.array(arr, dtype=np.float64, copy=True)
+
+
+def _names_list(names: str | Sequence[str], param: str) -> list[str] | None:
+    """Return None for a single name, or the list of names of a sequence."""
+    if isinstance(names, str):
+        if not names:
+            raise InputError(f"{param}: variable name must not be empty")
+        return None
+    try:
+        out = list(names)
+    except TypeError:
+        raise OptionError(
+            f"{param} must be a variable name or a sequence of names, got {names!r}"
+        ) from None
+    if not out or not all(isinstance(n, str) and n for n in out):
+        raise InputError(
+            f"{param} must be a variable name or a non-empty sequence of names, got {names!r}"
+        )
+    return out
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class Record:
+    """Evenly sampled input/output record of an oscillator.
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Strictly increasing, evenly sampled time stamps [s].
+    f : array_like, shape (N,) or (N, nf)
+        Forces or inputs; force ``j`` acts on degree of freedom ``j``, so
+        ``1 <= nf <= nx``.  A 1-D array is stored as shape ``(N, 1)``.
+    x : array_like, shape (N,) or (N, nx)
+        Displacements or outputs, ``nx >= 1``.  A 1-D array is stored as
+        shape ``(N, 1)``.
+    source : str, optional
+        Where the data came from (a file path); used in error messages.
+    sampling_rtol : float, optional
+        Allowed relative deviation of every time step from the median step
+        ``dt``: ``max |diff(t) - dt| <= sampling_rtol * dt``.
+
+    Raises
+    ------
+    RecordError
+        If the shapes are inconsistent, there are fewer than 2 samples, a
+        value is NaN or infinite, ``t`` does not strictly increase or is not
+        evenly sampled.  The message names the column and the 0-based sample
+        index.
+
+    Notes
+    -----
+    The arrays are stored as read-only float64 copies.  Two records compare
+    equal when their ``t``, ``f``, ``x`` and ``sampling_rtol`` are identical;
+    ``source`` is ignored.
+    """
+
+    t: np.ndarray
+    f: np.ndarray
+    x: np.ndarray
+    source: str = ARRAY_SOURCE
+    sampling_rtol: float = 1e-6
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.source, str):
+            raise OptionError(f"source must be a string, got {self.source!r}")
+        source = self.source
+        rtol = _check_rtol(self.sampling_rtol)
+        t = _numeric_array(self.t, "t", source)
+        if t.ndim != 1:
+            raise RecordError(f"{source}: t must be 1-D, got shape {t.shape}")
+        n = t.shape[0]
+        arrays: dict[str, np.ndarray] = {}
+        for name, value in (("f", self.f), ("x", self.x)):
+            arr = _numeric_array(value, name, source)
+            if arr.ndim == 1:
+                arr = arr.reshape(-1, 1)
+            if arr.ndim != 2:
+                raise RecordError(
+                    f"{source}: {name} must be 1-D or 2-D (samples x channels), "
+                    f"got shape {arr.shape}"
+                )
+            if arr.shape[0] != n:
+                raise RecordError(
+                    f"{source}: {name} has {arr.shape[0]} samples but t has {n}"
+                )
+            if arr.shape[1] < 1:
+                raise RecordError(f"{source}: {name} has no columns")
+            arrays[name] = arr
+        f, x = arrays["f"], arrays["x"]
+        if f.shape[1] > x.shape[1]:
+            raise RecordError(
+                f"{source}: {f.shape[1]} force columns but only {x.shape[1]} "
+                "displacement columns; force j acts on DOF j, so nf <= nx is required"
+            )
+        names = _column_names(f.shape[1], x.shape[1])
+        columns = [(f"column '{names[0]}'", t)]
+        columns += [(f"column '{names[1 + j]}'", f[:, j]) for j in range(f.shape[1])]
+        columns += [
+            (f"column '{names[1 + f.shape[1] + j]}'", x[:, j]) for j in range(x.shape[1])
+        ]
+        dt = _check_samples(
+            t,
+            columns,
+            source=source,
+            sampling_rtol=rtol,
+            where=lambda i: f"sample index {i}",
+            t_desc=None,
+        )
+        for arr in (t, f, x):
+            arr.setflags(write=False)
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "f", f)
+        object.__setattr__(self, "x", x)
+        object.__setattr__(self, "sampling_rtol", rtol)
+        object.__setattr__(self, "_dt", dt)
+
+    # ------------------------------------------------------------------ dunder
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Record):
+            return NotImplemented
+        return (
+            self.sampling_rtol == other.sampling_rtol
+            and np.array_equal(self.t, other.t)
+            and np.array_equal(self.f, other.f)
+            and np.array_equal(self.x, other.x)
+        )
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __repr__(self) -> str:
+        return (
+            f"Record(n_samples={self.n_samples}, n_forces={self.n_forces}, "
+            f"n_dof={self.n_dof}, dt={self.dt!r}, source={self.source!r})"
+        )
+
+    # -------------------------------------------------------------- properties
+    @property
+    def dt(self) -> float:
+        """Sampling step: the median of ``diff(t)`` [s]."""
+        return self._dt  # type: ignore[attr-defined, no-any-return]
+
+    @property
+    def fs(self) -> float:
+        """Sampling rate ``1 / dt`` [Hz]."""
+        return 1.0 / self.dt
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples ``N``."""
+        return int(self.t.shape[0])
+
+    @property
+    def n_dof(self) -> int:
+        """Number of displacement columns ``nx`` (degrees of freedom)."""
+        return int(self.x.shape[1])
+
+    @property
+    def n_forces(self) -> int:
+        """Number of force columns ``nf``."""
+        return int(self.f.shape[1])
+
+    @property
+    def duration(self) -> float:
+        """Time span ``t[-1] - t[0]`` [s]."""
+        return float(self.t[-1] - self.t[0])
+
+    @property
+    def column_names(self) -> list[str]:
+        """Column names used in CSV files.
+
+        ``['t', 'f', 'x']`` when ``nf == nx == 1``, otherwise
+        ``['t', 'f1', ..., 'f<nf>', 'x1', ..., 'x<nx>']``.
+        """
+        return _column_names(self.n_forces, self.n_dof)
+
+    # ----------------------------------------------------------------- methods
+    def require_samples(self, n: int, purpose: str) -> None:
+        """Raise if the record has fewer than `n` samples.
+
+        Parameters
+        ----------
+        n : int
+            Minimum number of samples needed.
+        purpose : str
+            What needs them, for the message (e.g. ``"identification window"``).
+
+        Raises
+        ------
+        RecordError
+            ``"<source>: <purpose> needs at least <n> samples, the record has <N>"``.
+        """
+        if self.n_samples < n:
+            raise RecordError(
+                f"{self.source}: {purpose} needs at least {n} samples, "
+                f"the record has {self.n_samples}"
+            )
+
+    def slice(self, start: float | None = None, stop: float | None = None) -> Record:
+        """Return the samples with ``start <= t <= stop``.
+
+        Parameters
+        ----------
+        start, stop : float or None, optional
+            Time limits [s], both inclusive; ``None`` means unbounded.  A
+            sample within ``1e-9 * dt`` of a limit counts as inside, so limits
+            computed as multiples of ``dt`` select the expected samples.
+
+        Returns
+        -------
+        Record
+            New record with the selected samples; ``t`` is kept as is (not
+            shifted to start at zero) and ``source`` is unchanged.
+
+        Raises
+        ------
+        RecordError
+            If ``start > stop`` or fewer than 2 samples are selected.
+        """
+        for name, value in (("start", start), ("stop", stop)):
+            if value is not None and not math.isfinite(float(value)):
+                raise InputError(f"{name} must be a finite time or None, got {value!r}")
+        if start is not None and stop is not None and start > stop:
+            raise RecordError(f"{self.source}: slice start {start!r} is after stop {stop!r}")
+        tol = 1e-9 * self.dt
+        mask = np.ones(self.n_samples, dtype=bool)
+        if start is not None:
+            mask &= self.t >= float(start) - tol
+        if stop is not None:
+            mask &= self.t <= float(stop) + tol
+        count = int(mask.sum())
+        if count < 2:
+            raise RecordError(
+                f"{self.source}: slice [{start!r}, {stop!r}] selects {count} sample(s) "
+                f"of the record spanning [{float(self.t[0])!r}, {float(self.t[-1])!r}]; "
+                "at least 2 are needed"
+            )
+        return Record(
+            self.t[mask],
+            self.f[mask],
+            self.x[mask],
+            source=self.source,
+            sampling_rtol=self.sampling_rtol,
+        )
+
+    # --------------------------------------------------------------------- CSV
+    def scaled(self, factors: Mapping[str, float]) -> Record:
+        """The record with its time (``t``), forces (``f``) and displacements (``x``) multiplied
+        by ``factors`` (e.g. ``{"x": 1e-3}`` for millimetres)."""
+        return _scaled(self, factors)
+
+    def to_csv(self, path: str | os.PathLike[str]) -> None:
+        """Write the record as a CSV file.
+
+        The header line holds :attr:`column_names`; values are written with
+        ``'%.17g'`` so that :meth:`read_csv` gives back bit-identical arrays.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            File to write (overwritten if it exists).
+        """
+        data = np.column_stack([self.t, self.f, self.x])
+        np.savetxt(
+            os.fspath(path),
+            data,
+            fmt="%.17g",
+            delimiter=",",
+            header=",".join(self.column_names),
+            comments="",
+        )
+
+    @classmethod
+    def read_csv(
+        cls, path: str | os.PathLike[str], *, sampling_rtol: float = 1e-6,
+        columns: Mapping[str, str | int] | None = None, delimiter: str = ",",
+        scale: Mapping[str, float] | None = None, fs: float | None = None,
+    ) -> Record:
+        """Read a record from a CSV file: duffid's own layout, or what a logger wrote.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            CSV file (UTF-8).
+        sampling_rtol : float, optional
+            Allowed relative deviation of every time step from the median step.
+        columns : mapping, optional
+            Which file column holds each signal: role (``t``, ``f``, ``x``, or ``f1``..,
+            ``x1``.. for several) -> header name or 1-based column number, e.g.
+            ``{"t": "time_s", "f": "force_N", "x": 4}``. Other columns are not read. A row
+            right after the header whose fields are all non-numeric is a units row: a mapped
+            column in a unit that is not SI (``mm``, ``kN``, ...) must be scaled (``scale``).
+            Default: duffid's own layout (below).
+        delimiter : str, optional
+            Field separator, one character (``","``, ``";"``, ``"\t"``, ...).
+        scale : mapping, optional
+            Role -> factor multiplying that column into SI units, e.g. ``{"x": 1e-3}`` for
+            millimetres (``x``/``f`` apply to every displacement/force column).
+        fs : float, optional
+            Sampling rate [Hz] of a file without a time column (``t = k / fs``).
+
+        Returns
+        -------
+        Record
+            The record, with ``source`` set to ``str(path)``.
+
+        Raises
+        ------
+        RecordError
+            On any problem; the message names the file, the line (header =
+            line 1, comment lines counted) and the column.
+
+        Notes
+        -----
+        Format rules, checked strictly:
+
+        * Lines starting with ``#`` (and blank lines) before the header are
+          comments.  The header is required and its first column is ``t``.
+        * The other columns, in any order, are either ``f,x`` (one DOF) or
+          ``f1..f<nf>,x1..x<nx>`` with both families numbered contiguously
+          from 1 and ``nf <= nx``.  Unknown, duplicated or missing columns are
+          errors.  Whitespace around names and values is ignored.
+        * Every data row has exactly one value per column; values are decimal
+          numbers (``1``, ``-2.5``, ``3e-4``).  Empty, non-numeric, NaN and
+          infinite values are errors, as are blank lines between data rows
+          (blank lines at the end are fine) and comment lines after the header.
+        * At least 2 data rows; ``t`` strictly increasing and evenly sampled
+          within `sampling_rtol`.  Nothing is ever dropped or resampled.
+        """
+        rtol = _check_rtol(sampling_rtol)
+        source = os.fspath(path)
+        if len(delimiter) != 1:
+            raise InputError(f"the delimiter must be one character, got {delimiter!r}")
+        if fs is not None and not (np.isfinite(fs) and fs > 0):
+            raise InputError(f"the sampling rate must be a positive number of Hz, got {fs!r}")
+        lines = _read_text_lines(source)
+        if columns is None and delimiter == "," and fs is None:
+            record = _parse_csv_lines(lines, source, rtol)
+            return record if not scale else record.scaled(scale)
+        return _parse_logger_lines(lines, source, rtol, columns, delimiter, scale or {}, fs)
+
+    # --------------------------------------------------------------------- MAT
+    def to_mat(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        t: str = "t",
+        f: str | Sequence[str] = "f",
+        x: str | Sequence[str] = "x",
+    ) -> None:
+        """Write the record as a MATLAB (version 5/7) ``.mat`` file.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            File to write; no ``.mat`` extension is appended.
+        t : str, optional
+            Variable name of the time column vector.
+        f, x : str or sequence of str, optional
+            A single name stores the ``(N, n)`` matrix under that name; a
+            sequence of ``n`` names stores one ``(N, 1)`` column per name.
+
+        Raises
+        ------
+        ValueError
+            If a name is not a valid MATLAB identifier, names repeat, or the
+            number of names does not match the number of columns.
+        """
+        data: dict[str, np.ndarray] = {}
+
+        def put(name: str, value: np.ndarray) -> None:
+            if not isinstance(name, str) or not _MATLAB_NAME_RE.fullmatch(name):
+                raise InputError(
+                    f"{name!r} is not a valid MATLAB variable name (letter first, then "
+                    "letters, digits or '_', at most 63 characters)"
+                )
+            if name in data:
+                raise InputError(f"variable name {name!r} is used twice")
+            data[name] = np.ascontiguousarray(value)
+
+        put(t, self.t.reshape(-1, 1))
+        for param, names, arr in (("f", f, self.f), ("x", x, self.x)):
+            listed = _names_list(names, param)
+            if listed is None:
+                put(names, arr)  # type: ignore[arg-type]
+            else:
+                if len(listed) != arr.shape[1]:
+                    raise InputError(
+                        f"{param}: {len(listed)} names given for {arr.shape[1]} columns"
+                    )
+                for j, name in enumerate(listed):
+                    put(name, arr[:, j : j + 1])
+        scipy.io.savemat(os.fspath(path), data, appendmat=False, format="5")
+
+    @classmethod
+    def read_mat(
+        cls,
+        path: str | os.PathLike[str],
+        *,
+        x: str | Sequence[str],
+        f: str | Sequence[str],
+        t: str | None = None,
+        fs: float | None = None,
+        sampling_rtol: float = 1e-6,
+    ) -> Record:
+        """Read a record from a MATLAB ``.mat`` file (version 4 to 7).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The ``.mat`` file; no extension is appended.
+        x, f : str or sequence of str
+            Variable name of a vector or ``(N, n)`` matrix (a ``(1, N)`` row
+            vector is taken as a column), or a sequence of names of vectors,
+            one column each.
+        t : str or None, optional
+            Variable name of the time vector.
+        fs : float or None, optional
+            Sampling rate [Hz], used when there is no time variable:
+            ``t = arange(N) / fs``.  Give exactly one of `t` and `fs`.
+        sampling_rtol : float, optional
+            Allowed relative deviation of every time step from the median step.
+
+        Returns
+        -------
+        Record
+            The record, with ``source`` set to ``str(path)``.
+
+        Raises
+        ------
+        RecordError
+            If the file cannot be read (MATLAB v7.3/HDF5 files included), a
+            variable is missing (the message lists those present), not real
+            numeric, has the wrong shape, lengths differ, neither or both of
+            `t` and `fs` are given, or the data fail the :class:`Record`
+            checks (the message names variable and 1-based row).
+        """
+        rtol = _check_rtol(sampling_rtol)
+        source = os.fspath(path)
+        x_names = _names_list(x, "x")
+        f_names = _names_list(f, "f")
+        if t is not None and not (isinstance(t, str) and t):
+            raise InputError(f"t must be a variable name or None, got {t!r}")
+        if t is not None and fs is not None:
+            raise RecordError(
+                f"{source}: give either the time variable t={t!r} or the sampling "
+                f"rate fs={fs!r}, not both"
+            )
+        if t is None and fs is None:
+            raise RecordError(
+                f"{source}: no time given; pass t='<time variable>' or the "
+                "sampling rate fs"
+            )
+        contents = _load_mat(source)
+        present = sorted(k for k in contents if k not in _MAT_HEADER_KEYS)
+        wanted = [] if t is None else [t]
+        for names, listed in ((f, f_names), (x, x_names)):
+            wanted += [names] if listed is None else listed  # type: ignore[list-item]
+        for name in wanted:
+            if name not in present:
+                found = ", ".join(present) if present else "none"
+                raise RecordError(
+                    f"{source}: variable '{name}' not found (variables present: {found})"
+                )
+
+        def fetch(name: str) -> np.ndarray:
+            value = contents[name]
+            if not isinstance(value, np.ndarray):
+                raise RecordError(
+                    f"{source}, variable '{name}': not a numeric array "
+                    f"(found {type(value).__name__})"
+                )
+            dtype = value.dtype
+            if dtype == np.bool_ or not (
+                np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating)
+            ):
+                kind = "complex" if np.issubdtype(dtype, np.complexfloating) else str(dtype)
+                raise RecordError(
+                    f"{source}, variable '{name}': not a real numeric array "
+                    f"(dtype {kind})"
+                )
+            if value.ndim != 2 or value.size == 0:
+                raise RecordError(
+                    f"{source}, variable '{name}': expected a non-empty vector or "
+                    f"matrix, got shape {_shape(value)}"
+                )
+            arr = value.astype(np.float64)
+            if arr.shape[0] == 1:
+                arr = arr.T
+            return arr
+
+        def vector(name: str, role: str) -> np.ndarray:
+            arr = fetch(name)
+            if arr.shape[1] != 1:
+                raise RecordError(
+                    f"{source}, variable '{name}': expected a vector ({role}), "
+                    f"got shape {_shape(contents[name])}"
+                )
+            return arr
+
+        # (description, data (N, 1)) pairs per family, and variables for length checks
+        lengths: list[tuple[str, np.ndarray]] = []
+        families: dict[str, list[tuple[str, np.ndarray]]] = {}
+        for family, single, listed in (("f", f, f_names), ("x", x, x_names)):
+            cols: list[tuple[str, np.ndarray]] = []
+            if listed is None:
+                arr = fetch(single)  # type: ignore[arg-type]
+                lengths.append((single, arr))  # type: ignore[arg-type]
+                if arr.shape[1] == 1:
+                    cols.append((f"variable '{single}'", arr))
+                else:
+                    cols += [
+                        (f"variable '{single}' column {j + 1}", arr[:, j : j + 1])
+                        for j in range(arr.shape[1])
+                    ]
+            else:
+                role = f"one column per name in {family}={listed!r}"
+                for name in listed:
+                    arr = vector(name, role)
+                    lengths.append((name, arr))
+                    cols.append((f"variable '{name}'", arr))
+            families[family] = cols
+        t_arr: np.ndarray | None = None
+        if t is not None:
+            t_arr = vector(t, "time stamps")
+            lengths.insert(0, (t, t_arr))
+        sizes = {arr.shape[0] for _, arr in lengths}
+        if len(sizes) > 1:
+            parts = ", ".join(
+                f"{name} {arr.shape[0]} (shape {_shape(contents[name])})" for name, arr in lengths
+            )
+            raise RecordError(
+                f"{source}: variables have different lengths: {parts}; samples must "
+                "run along the rows (one column per channel)"
+            )
+        n = sizes.pop()
+        if t_arr is None:
+            try:
+                fs_val = float(fs)  # type: ignore[arg-type]
+            except (TypeError, ValueError):
+                fs_val = math.nan
+            if not math.isfinite(fs_val) or fs_val <= 0.0:
+                raise RecordError(f"{source}: sampling rate fs must be finite and > 0, got {fs!r}")
+            t_vec = np.arange(n, dtype=np.float64) / fs_val
+        else:
+            t_vec = t_arr[:, 0]
+        f_mat = np.column_stack([arr[:, 0] for _, arr in families["f"]])
+        x_mat = np.column_stack([arr[:, 0] for _, arr in families["x"]])
+        if f_mat.shape[1] > x_mat.shape[1]:
+            raise RecordError(
+                f"{source}: {f_mat.shape[1]} force columns but only {x_mat.shape[1]} "
+                "displacement columns; force j acts on DOF j, so nf <= nx is required"
+            )
+        columns = [(f"variable '{t}'", t_vec)] if t is not None else []
+        columns += [(desc, arr[:, 0]) for desc, arr in families["f"] + families["x"]]
+        _check_samples(
+            t_vec,
+            columns,
+            source=source,
+            sampling_rtol=rtol,
+            where=lambda i: f"row {i + 1}",
+            t_desc=None if t is None else f"variable '{t}'",
+        )
+        return cls(t_vec, f_mat, x_mat, source=source, sampling_rtol=rtol)
+
+
+# ---------------------------------------------------------------------- helpers
+def _column_names(nf: int, nx: int) -> list[str]:
+    """CSV column names for `nf` forces and `nx` displacements."""
+    if nf == 1 and nx == 1:
+        return ["t", "f", "x"]
+    return ["t"] + [f"f{j + 1}" for j in range(nf)] + [f"x{j + 1}" for j in range(nx)]
+
+
+def _shape(arr: np.ndarray) -> str:
+    """MATLAB-style shape text, e.g. ``'2x1000'``."""
+    return "x".join(str(s) for s in arr.shape)
+
+
+def _read_text_lines(source: str) -> list[str]:
+    """Read a text file as lines (universal newlines), raising RecordError."""
+    try:
+        with open(source, encoding="utf-8-sig", newline=None) as fh:
+            text = fh.read()
+    except UnicodeDecodeError as exc:
+        raise RecordError(
+            f"{source}: not a UTF-8 text file (undecodable byte at offset {exc.start})"
+        ) from None
+    except OSError as exc:
+        raise RecordError(f"{source}: cannot read file: {exc.strerror or exc}") from None
+    lines = text.split("\n")
+    if lines and lines[-1] == "":
+        lines.pop()
+    return lines
+
+
+def _split_fields(line: str) -> list[str]:
+    """Split one CSV line into stripped fields."""
+    return [field.strip() for field in next(csv.reader([line]))]
+
+
+def _parse_header(
+    names: list[str], source: str, lineno: int
+) -> tuple[list[int], list[int]]:
+    """Map header names to (force column indices, displacement column indices)."""
+    where = f"{source}, line {lineno} (header)"
+    found = ", ".join(n if n else "''" for n in names)
+    if names[0] != "t":
+        hint = ""
+        if len(names) == 1 and any(sep in names[0] for sep in (";", "\t", " ")):
+            hint = "; columns must be separated by commas"
+        raise RecordError(
+            f"{where}: first column must be 't', found {names[0]!r}{hint} "
+            f"(expected {_CSV_LAYOUTS})"
+        )
+    for k, name in enumerate(names):
+        if not name:
+            raise RecordError(f"{where}: column {k + 1} has an empty name (found {found})")
+    seen: set[str] = set()
+    for name in names:
+        if name in seen:
+            raise RecordError(f"{where}: duplicate column {name!r} (found {found})")
+        seen.add(name)
+    plain: dict[str, int] = {}
+    numbered: dict[str, dict[int, int]] = {"f": {}, "x": {}}
+    unknown: list[str] = []
+    for k, name in enumerate(names[1:], start=1):
+        if name in ("f", "x"):
+            plain[name] = k
+            continue
+        match = _NUMBERED_RE.fullmatch(name)
+        if match:
+            numbered[match.group(1)][int(match.group(2))] = k
+        else:
+            unknown.append(name)
+    if unknown:
+        listed = ", ".join(repr(n) for n in unknown)
+        raise RecordError(
+            f"{where}: unknown column{'s' if len(unknown) > 1 else ''} {listed} "
+            f"(found {found}; expected {_CSV_LAYOUTS})"
+        )
+    any_numbered = bool(numbered["f"] or numbered["x"])
+    if plain and any_numbered:
+        raise RecordError(
+            f"{where}: mixes unnumbered {', '.join(repr(n) for n in plain)} with "
+            f"numbered columns (found {found}; expected {_CSV_LAYOUTS})"
+        )
+    if not any_numbered:
+        for fam in ("f", "x"):
+            if fam not in plain:
+                raise RecordError(f"{where}: missing column '{fam}' (found {found})")
+        return [plain["f"]], [plain["x"]]
+    result: list[list[int]] = []
+    for fam in ("f", "x"):
+        indices = numbered[fam]
+        top = max(indices) if indices else 1
+        missing = [f"{fam}{j}" for j in range(1, top + 1) if j not in indices]
+        if missing:
+            listed = ", ".join(repr(n) for n in missing)
+            raise RecordError(
+                f"{where}: missing column{'s' if len(missing) > 1 else ''} {listed} "
+                f"(found {found})"
+            )
+        result.append([indices[j] for j in range(1, top + 1)])
+    f_idx, x_idx = result
+    if len(f_idx) > len(x_idx):
+        raise RecordError(
+            f"{where}: {len(f_idx)} force columns but only {len(x_idx)} displacement "
+            f"columns (found {found}); force j acts on DOF j, so nf <= nx is required"
+        )
+    return f_idx, x_idx
+
+
+def _number(text: str, place: str) -> float:
+    """The decimal number ``text`` of a CSV field; RecordError naming ``place`` otherwise."""
+    if _NUMBER_RE.fullmatch(text):
+        return float(text)
+    if not text:
+        raise RecordError(f"{place}: empty value")
+    if _NONFINITE_RE.fullmatch(text):
+        raise RecordError(f"{place}: value '{text}' is not finite")
+    raise RecordError(f"{place}: value '{text}' is not a number")
+
+
+def _parse_csv_lines(lines: list[str], source: str, rtol: float) -> Record:
+    """Parse the lines of a CSV record file (see :meth:`Record.read_csv`)."""
+    pos = 0
+    while pos < len(lines) and (not lines[pos].strip() or lines[pos].lstrip().startswith("#")):
+        pos += 1
+    if pos == len(lines):
+        raise RecordError(
+            f"{source}: empty file, expected a header line such as 't,f,x' "
+            "followed by data rows"
+        )
+    header_line = pos + 1
+    names = _split_fields(lines[pos])
+    f_idx, x_idx = _parse_header(names, source, header_line)
+    ncol = len(names)
+    rows: list[list[float]] = []
+    linenos: list[int] = []
+    blank_at: int | None = None
+    for k in range(pos + 1, len(lines)):
+        lineno = k + 1
+        line = lines[k]
+        if not line.strip():
+            if blank_at is None:
+                blank_at = lineno
+            continue
+        if blank_at is not None:
+            raise RecordError(
+                f"{source}, line {blank_at}: blank line inside the data "
+                f"(data continues on line {lineno})"
+            )
+        if line.lstrip().startswith("#"):
+            raise RecordError(
+                f"{source}, line {lineno}: comment lines are only allowed before the header"
+            )
+        fields = _split_fields(line)
+        if len(fields) != ncol:
+            raise RecordError(
+                f"{source}, line {lineno}: {len(fields)} field"
+                f"{'s' if len(fields) != 1 else ''}, the header has {ncol} columns"
+            )
+        rows.append([_number(text, f"{source}, line {lineno}, column '{name}'") for name, text in zip(names, fields)])
+        linenos.append(lineno)
+    if len(rows) < 2:
+        what = "no data rows (header only)" if not rows else "only 1 data row"
+        raise RecordError(f"{source}: {what}; a record needs at least 2 samples")
+    data = np.array(rows, dtype=np.float64)
+    t = data[:, 0]
+    f = data[:, f_idx]
+    x = data[:, x_idx]
+    _check_samples(
+        t,
+        [(f"column '{names[k]}'", data[:, k]) for k in range(ncol)],
+        source=source,
+        sampling_rtol=rtol,
+        where=lambda i: f"line {linenos[i]}",
+        t_desc=None,
+    )
+    return Record(t, f, x, source=source, sampling_rtol=rtol)
+
+
+def _load_mat(source: str) -> dict[str, Any]:
+    """Load a .mat file with scipy, converting every failure to RecordError."""
+    try:
+        return scipy.io.loadmat(source, appendmat=False)  # type: ignore[no-any-return]
+    except NotImplementedError:
+        raise RecordError(
+            f"{source}: the file is a MATLAB v7.3 (HDF5) file, which duffid cannot "
+            "read; save it with save(..., '-v7') in MATLAB"
+        ) from None
+    except OSError as exc:
+        raise RecordError(f"{source}: cannot read file: {exc.strerror or exc}") from None
+    except (MatReadError, ValueError, TypeError, IndexError, KeyError) as exc:
+        # scipy < 1.12 raises IndexError/KeyError on some files that are not .mat at all
+        raise RecordError(f"{source}: not a readable MATLAB .mat file ({exc or type(exc).__name__})") from None
+
+
+# ------------------------------------------------------------------------- logger files
+#: SI units of each role; a units row naming another unit needs a scale factor.
+SI_UNITS = {"t": ("s",), "f": ("N", "V"), "x": ("m", "C")}
+_ROLE_RE = re.compile(r"([tfx])([1-9][0-9]*)?", re.ASCII)
+#: Factors into SI of the non-SI units a units row commonly names (suggested, never applied).
+_UNIT_FACTORS = {"ms": 1e-3, "us": 1e-6, "µs": 1e-6, "mm": 1e-3, "cm": 1e-2, "um": 1e-6, "µm": 1e-6,
+                 "nm": 1e-9, "kN": 1e3, "mN": 1e-3, "mV": 1e-3, "kV": 1e3, "mC": 1e-3, "uC": 1e-6,
+                 "µC": 1e-6, "nC": 1e-9}
+
+
+def _check_roles(columns: Mapping[str, str | int], source: str) -> tuple[str | None, list[str], list[str]]:
+    """Validate the role names; return the time role and the force and displacement roles in order."""
+    for role in columns:
+        match = _ROLE_RE.fullmatch(str(role))
+        if match is None or (match.group(1) == "t" and match.group(2)):
+            raise RecordError(f"{source}: unknown role {role!r} (roles: t, f, x, or f1.., x1..)")
+    families = {}
+    for fam in ("f", "x"):
+        plain = fam in columns
+        numbered = sorted(int(r[1:]) for r in columns if r[0] == fam and len(r) > 1)
+        if plain and numbered:
+            raise RecordError(f"{source}: give either {fam} or {fam}1, {fam}2, ... for the columns, not both")
+        if numbered and numbered != list(range(1, len(numbered) + 1)):
+            raise RecordError(f"{source}: the {fam} columns must be numbered {fam}1..{fam}{len(numbered)} "
+                              f"without gaps, got {', '.join(f'{fam}{j}' for j in numbered)}")
+        families[fam] = [fam] if plain else [f"{fam}{j}" for j in numbered]
+        if not families[fam]:
+            raise RecordError(f"{source}: no column given for {fam} (the {'forces' if fam == 'f' else 'displacements'})")
+    if len(families["f"]) > len(families["x"]):
+        raise RecordError(f"{source}: {len(families['f'])} force columns but {len(families['x'])} displacement "
+                          f"columns; force j acts on DOF j, so there may not be more forces than displacements")
+    return ("t" if "t" in columns else None), families["f"], families["x"]
+
+
+def _column_index(spec: str | int, role: str, names: list[str], where: str) -> int:
+    """0-based index of the column ``spec`` (header name or 1-based number) for ``role``."""
+    if isinstance(spec, (int, np.integer)) and not isinstance(spec, bool):
+        if not 1 <= int(spec) <= len(names):
+            raise RecordError(f"{where}: no column {int(spec)} for {role}: the header has {len(names)} columns")
+        return int(spec) - 1
+    if str(spec) not in names:
+        raise RecordError(f"{where}: no column {str(spec)!r} for {role} (found: {', '.join(names)})")
+    if names.count(str(spec)) > 1:
+        raise RecordError(f"{where}: the header has {names.count(str(spec))} columns named {str(spec)!r}; "
+                          f"give the column's number instead")
+    return names.index(str(spec))
+
+
+def _is_number(text: str) -> bool:
+    return bool(_NUMBER_RE.fullmatch(text) or _NONFINITE_RE.fullmatch(text))
+
+
+def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Mapping[str, str | int] | None,
+                        delimiter: str, scale: Mapping[str, float], fs: float | None) -> Record:
+    """Parse a CSV file with a column mapping, delimiter, units row, scale or sampling rate."""
+    def split(line: str) -> list[str]:
+        return [field.strip() for field in next(csv.reader([line], delimiter=delimiter))]
+
+    pos = 0
+    while pos < len(lines) and (not lines[pos].strip() or lines[pos].lstrip().startswith("#")):
+        pos += 1
+    if pos == len(lines):
+        raise RecordError(f"{source}: empty file, expected a header line followed by data rows")
+    header_line = pos + 1
+    names = split(lines[pos])
+    where = f"{source}, line {header_line} (header)"
+    if len(names) == 1 and delimiter not in lines[pos]:
+        seen = [d for d in (",", ";", "\t", " ") if d in lines[pos]]
+        hint = f"; the line contains {seen[0]!r}: is that the delimiter?" if seen else ""
+        raise RecordError(f"{where}: one column only with the delimiter {delimiter!r}{hint}")
+    if columns is None:
+        columns = {"t": "t", "f": "f", "x": "x"} if fs is None else {"f": "f", "x": "x"}
+    t_role, f_roles, x_roles = _check_roles(columns, source)
+    unknown = sorted(set(scale) - {"t", "f", "x"} - set(columns))
+    if unknown:
+        raise RecordError(f"{source}: a scale for {', '.join(unknown)}, which names no column")
+    if t_role is not None and fs is not None:
+        raise RecordError(f"{source}: a time column and a sampling rate were both given; give one of them")
+    if t_role is None and fs is None:
+        raise RecordError(f"{source}: no time column: give the sampling rate, or which column holds the time")
+    roles = ([t_role] if t_role else []) + f_roles + x_roles
+    index = {role: _column_index(columns[role], role, names, where) for role in roles}
+    used = sorted(set(index.values()))
+    if len(used) != len(roles):
+        raise RecordError(f"{where}: one column is given for two signals ({', '.join(roles)})")
+    pos += 1
+    units: dict[str, str] = {}
+    while pos < len(lines) and not lines[pos].strip():
+        pos += 1
+    if pos < len(lines):
+        fields = split(lines[pos])
+        if len(fields) == len(names) and all(f and not _is_number(f) for f in (fields[i] for i in used)):
+            units = {role: fields[index[role]] for role in roles}
+            units_line = pos + 1
+            for role, unit in units.items():
+                fam = role[0]
+                factor = scale.get(role, scale.get(fam))
+                if factor is None and unit not in SI_UNITS[fam]:
+                    known = _UNIT_FACTORS.get(unit)
+                    raise RecordError(
+                        f"{source}: column {names[index[role]]!r} ({role}) is in {unit!r} (units row, line "
+                        f"{units_line}): duffid needs SI units ({' or '.join(SI_UNITS[fam])}); scale it "
+                        f"into {SI_UNITS[fam][0]}" + (f" (multiply {role} by {known:g})" if known else ""))
+            pos += 1
+    rows: list[list[float]] = []
+    linenos: list[int] = []
+    blank_at: int | None = None
+    for k in range(pos, len(lines)):
+        lineno = k + 1
+        line = lines[k]
+        if not line.strip():
+            blank_at = blank_at or lineno
+            continue
+        if blank_at is not None:
+            raise RecordError(f"{source}, line {blank_at}: blank line inside the data (data continues on line {lineno})")
+        fields = split(line)
+        if len(fields) != len(names):
+            raise RecordError(f"{source}, line {lineno}: {len(fields)} field{'s' if len(fields) != 1 else ''}, "
+                              f"the header has {len(names)} columns")
+        rows.append([_number(fields[index[role]], f"{source}, line {lineno}, column {names[index[role]]!r}")
+                     for role in roles])
+        linenos.append(lineno)
+    if len(rows) < 2:
+        raise RecordError(f"{source}: {'no data rows' if not rows else 'only 1 data row'}; a record needs at least 2 samples")
+    data = np.array(rows, dtype=np.float64)
+    for j, role in enumerate(roles):
+        factor = scale.get(role, scale.get(role[0], 1.0))
+        if not (np.isfinite(factor) and factor != 0):
+            raise RecordError(f"{source}: the scale of {role} must be a finite non-zero number, got {factor!r}")
+        data[:, j] *= factor
+    if t_role is None:
+        t = np.arange(len(rows)) / float(fs)  # type: ignore[arg-type]
+        first = 0
+    else:
+        t = data[:, 0]
+        first = 1
+    f = data[:, first:first + len(f_roles)]
+    x = data[:, first + len(f_roles):]
+    _check_samples(t, [(f"column {names[index[role]]!r}", data[:, j]) for j, role in enumerate(roles)],
+                   source=source, sampling_rtol=rtol, where=lambda i: f"line {linenos[i]}", t_desc=None)
+    return Record(t, f, x, source=source, sampling_rtol=rtol)
+
+
+def _scaled(record: Record, scale: Mapping[str, float]) -> Record:
+    """``record`` with its time, force and displacement columns multiplied by ``scale``."""
+    unknown = sorted(set(scale) - {"t", "f", "x"})
+    if unknown:
+        raise RecordError(f"{record.source}: a scale for {', '.join(unknown)}: the roles are t, f and x")
+    return Record(record.t * scale.get("t", 1.0), record.f * scale.get("f", 1.0), record.x * scale.get("x", 1.0),
+                  source=record.source, sampling_rtol=record.sampling_rtol)

@@ -1,0 +1,233 @@
+"""modelDescription.xml (FMI 2.0 and 3.0) and buildDescription.xml (FMI 3.0) writers."""
+from __future__ import annotations
+
+import re
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+
+from .variables import FmuVariable
+
+__all__ = ["FmuInfo", "model_description_fmi2", "model_description_fmi3", "build_description",
+           "unit_exponents"]
+
+GENERATION_TOOL = "duffid.modelica (pymoca front end, CasADi code generation)"
+LOG_CATEGORIES = {
+    "logStatusError": "Errors (always logged)",
+    "logStatusDiscard": "Discarded steps (always logged)",
+    "logStatusWarning": "Warnings",
+    "logAll": "All messages",
+}
+_BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+_UNITS = {
+    "kg": (1, 0, 0, 0, 0, 0, 0, 0), "m": (0, 1, 0, 0, 0, 0, 0, 0), "s": (0, 0, 1, 0, 0, 0, 0, 0),
+    "A": (0, 0, 0, 1, 0, 0, 0, 0), "K": (0, 0, 0, 0, 1, 0, 0, 0), "mol": (0, 0, 0, 0, 0, 1, 0, 0),
+    "cd": (0, 0, 0, 0, 0, 0, 1, 0), "rad": (0, 0, 0, 0, 0, 0, 0, 1),
+    "N": (1, 1, -2, 0, 0, 0, 0, 0), "J": (1, 2, -2, 0, 0, 0, 0, 0), "W": (1, 2, -3, 0, 0, 0, 0, 0),
+    "Pa": (1, -1, -2, 0, 0, 0, 0, 0), "Hz": (0, 0, -1, 0, 0, 0, 0, 0), "C": (0, 0, 1, 1, 0, 0, 0, 0),
+    "V": (1, 2, -3, -1, 0, 0, 0, 0), "Ohm": (1, 2, -3, -2, 0, 0, 0, 0), "Wb": (1, 2, -2, -1, 0, 0, 0, 0),
+    "H": (1, 2, -2, -2, 0, 0, 0, 0), "F": (-1, -2, 4, 2, 0, 0, 0, 0), "S": (-1, -2, 3, 2, 0, 0, 0, 0),
+    "T": (1, 0, -2, -1, 0, 0, 0, 0),
+}
+_FACTOR = re.compile(r"^([A-Za-z]+)(-?\d+)?$")
+
+
+def unit_exponents(unit: str) -> tuple[int, ...] | None:
+    """SI base-unit exponents of a Modelica unit string such as ``N.s/m`` (None: unknown)."""
+    if unit == "1":
+        return (0,) * len(_BASE)
+    numerator, _, denominator = unit.partition("/")
+    total = [0] * len(_BASE)
+    for part, sign in ((numerator, 1), (denominator, -1)):
+        if not part:
+            if sign == 1:
+                return None
+            continue
+        for factor in part.split("."):
+            m = _FACTOR.match(factor)
+            if m is None or m.group(1) not in _UNITS:
+                return None
+            power = int(m.group(2)) if m.group(2) else 1
+            for k, e in enumerate(_UNITS[m.group(1)]):
+                total[k] += sign * power * e
+    return tuple(total)
+
+
+@dataclass(frozen=True)
+class FmuInfo:
+    """Model-level data of a modelDescription."""
+
+    model_name: str
+    model_identifier: str
+    token: str
+    description: str
+    sources: tuple[str, ...]
+    model_exchange: bool
+    co_simulation: bool
+    experiment: dict
+
+
+def _num(value: float) -> str:
+    return repr(float(value))
+
+
+def _units(parent: ET.Element, table: list[FmuVariable]) -> None:
+    units = sorted({v.unit for v in table if v.unit})
+    if not units:
+        return
+    defs = ET.SubElement(parent, "UnitDefinitions")
+    for unit in units:
+        element = ET.SubElement(defs, "Unit", name=unit)
+        exps = unit_exponents(unit)
+        if exps is not None:
+            ET.SubElement(element, "BaseUnit", {b: str(e) for b, e in zip(_BASE, exps) if e})
+
+
+def _log_categories(parent: ET.Element) -> None:
+    cats = ET.SubElement(parent, "LogCategories")
+    for name, text in LOG_CATEGORIES.items():
+        ET.SubElement(cats, "Category", name=name, description=text)
+
+
+def _experiment(parent: ET.Element, info: FmuInfo) -> None:
+    exp = info.experiment
+    attrs = {}
+    for key, attr in (("StartTime", "startTime"), ("StopTime", "stopTime"), ("Tolerance", "tolerance"),
+                      ("Interval", "stepSize")):
+        if key in exp:
+            attrs[attr] = _num(exp[key])
+    ET.SubElement(parent, "DefaultExperiment", attrs)
+
+
+def _serialize(root: ET.Element) -> bytes:
+    ET.indent(root, space="  ")
+    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
+
+
+def _initial_unknown(v: FmuVariable) -> bool:
+    return (v.causality == "output" and v.initial in ("calculated", "approx")) or \
+        v.causality == "calculatedParameter" or v.derivative_of is not None or \
+        (v.variability == "continuous" and v.initial in ("calculated", "approx") and
+         v.causality != "local" and v.causality != "independent")
+
+
+def model_description_fmi2(info: FmuInfo, table: list[FmuVariable]) -> bytes:
+    """modelDescription.xml for FMI 2.0 (Model Exchange and/or Co-Simulation)."""
+    root = ET.Element("fmiModelDescription", {
+        "fmiVersion": "2.0", "modelName": info.model_name, "guid": info.token,
+        "description": info.description, "generationTool": GENERATION_TOOL,
+        "variableNamingConvention": "structured", "numberOfEventIndicators": "0"})
+    common = {"modelIdentifier": info.model_identifier, "canNotUseMemoryManagementFunctions": "true",
+              "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true",
+              "providesDirectionalDerivative": "false"}
+    for enabled, tag, extra in (
+            (info.model_exchange, "ModelExchange", {"completedIntegratorStepNotNeeded": "true"}),
+            (info.co_simulation, "CoSimulation", {"canHandleVariableCommunicationStepSize": "true",
+                                                  "canInterpolateInputs": "false",
+                                                  "maxOutputDerivativeOrder": "0"})):
+        if enabled:
+            element = ET.SubElement(root, tag, {**common, **extra})
+            files = ET.SubElement(element, "SourceFiles")
+            for name in info.sources:
+                ET.SubElement(files, "File", name=name)
+    _units(root, table)
+    _log_categories(root)
+    _experiment(root, info)
+    variables = ET.SubElement(root, "ModelVariables")
+    for v in table:
+        attrs = _variable_attributes(v)
+        sv = ET.SubElement(variables, "ScalarVariable", attrs)
+        real = _value_attributes(v)
+        if v.derivative_of is not None:
+            real["derivative"] = str(v.derivative_of + 1)
+        ET.SubElement(sv, "Real", real)
+    structure = ET.SubElement(root, "ModelStructure")
+    outputs = [v for v in table if v.causality == "output"]
+    if outputs:
+        element = ET.SubElement(structure, "Outputs")
+        for v in outputs:
+            ET.SubElement(element, "Unknown", index=str(v.vr + 1))
+    derivatives = [v for v in table if v.derivative_of is not None]
+    if derivatives:
+        element = ET.SubElement(structure, "Derivatives")
+        for v in derivatives:
+            ET.SubElement(element, "Unknown", index=str(v.vr + 1))
+    initial = [v for v in table if _initial_unknown(v)]
+    if initial:
+        element = ET.SubElement(structure, "InitialUnknowns")
+        for v in initial:
+            ET.SubElement(element, "Unknown", index=str(v.vr + 1))
+    return _serialize(root)
+
+
+def _variable_attributes(v: FmuVariable) -> dict[str, str]:
+    """The attributes FMI 2 and FMI 3 variables share: name, reference, description,
+    causality, variability and initial."""
+    attrs = {"name": v.name, "valueReference": str(v.vr)}
+    if v.description:
+        attrs["description"] = v.description
+    attrs["causality"] = v.causality
+    attrs["variability"] = v.variability
+    if v.initial is not None and v.causality not in ("input", "independent"):
+        attrs["initial"] = v.initial
+    return attrs
+
+
+def _value_attributes(v: FmuVariable) -> dict[str, str]:
+    """Unit, min, max and start of a Float64 variable (FMI 2 Real element, FMI 3 Float64)."""
+    attrs = {}
+    if v.unit:
+        attrs["unit"] = v.unit
+    if v.minimum is not None:
+        attrs["min"] = _num(v.minimum)
+    if v.maximum is not None:
+        attrs["max"] = _num(v.maximum)
+    if v.start is not None:
+        attrs["start"] = _num(v.start)
+    return attrs
+
+
+def model_description_fmi3(info: FmuInfo, table: list[FmuVariable]) -> bytes:
+    """modelDescription.xml for FMI 3.0 (Model Exchange and/or Co-Simulation)."""
+    root = ET.Element("fmiModelDescription", {
+        "fmiVersion": "3.0", "modelName": info.model_name, "instantiationToken": info.token,
+        "description": info.description, "generationTool": GENERATION_TOOL,
+        "variableNamingConvention": "structured"})
+    common = {"modelIdentifier": info.model_identifier, "canGetAndSetFMUState": "true",
+              "canSerializeFMUState": "true", "providesDirectionalDerivatives": "false"}
+    if info.model_exchange:
+        ET.SubElement(root, "ModelExchange", {**common, "needsCompletedIntegratorStep": "false"})
+    if info.co_simulation:
+        ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": "true",
+                                             "hasEventMode": "false", "maxOutputDerivativeOrder": "0",
+                                             "providesIntermediateUpdate": "false"})
+    _units(root, table)
+    _log_categories(root)
+    _experiment(root, info)
+    variables = ET.SubElement(root, "ModelVariables")
+    for v in table:
+        attrs = {**_variable_attributes(v), **_value_attributes(v)}
+        if v.derivative_of is not None:
+            attrs["derivative"] = str(v.derivative_of)
+        ET.SubElement(variables, "Float64", attrs)
+    structure = ET.SubElement(root, "ModelStructure")
+    for v in table:
+        if v.causality == "output":
+            ET.SubElement(structure, "Output", valueReference=str(v.vr))
+    for v in table:
+        if v.derivative_of is not None:
+            ET.SubElement(structure, "ContinuousStateDerivative", valueReference=str(v.vr))
+    for v in table:
+        if _initial_unknown(v):
+            ET.SubElement(structure, "InitialUnknown", valueReference=str(v.vr))
+    return _serialize(root)
+
+
+def build_description(model_identifier: str, sources: tuple[str, ...]) -> bytes:
+    """sources/buildDescription.xml of an FMI 3.0 FMU (read by ``fmpy compile``)."""
+    root = ET.Element("fmiBuildDescription", fmiVersion="3.0")
+    config = ET.SubElement(root, "BuildConfiguration", modelIdentifier=model_identifier)
+    files = ET.SubElement(config, "SourceFileSet", language="C99")
+    for name in sources:
+        ET.SubElement(files, "SourceFile", name=name)
+    ET.SubElement(config, "Library", name="m")
+    return _serialize(root)

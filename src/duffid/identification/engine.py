@@ -1,0 +1,1081 @@
+"""Online algebraic identification (paper sections 2-3) and its robust variant.
+
+Two methods share the integrated-by-parts regressors of :mod:`duffid.identification.regressors`:
+
+``"robust"`` (default)
+    Rows ``sigma^a (T - sigma)^b`` with ``a >= 2`` (no raw measurement term), a window
+    that grows from the first sample and then slides, Gregory quadrature, rows
+    normalised to force units, unknowns equilibrated, all rows of all past windows
+    accumulated in a QR-updated least-squares problem (optionally with exponential
+    forgetting), a conditioning figure per step and an ``identified`` flag. Until the
+    problem is well conditioned the estimate is NaN.
+``"paper"``
+    Eqs. (16)-(19) as printed (with NOTES.md's corrections of eq. 12): fixed ``t0`` at the
+    first sample, rows ``I^0 .. I^(p-1)`` from cascaded integrators, raw Cramer
+    determinants and the filtered ratio with gain ``gamma``. Known weaknesses: every
+    zero crossing of the determinant flips the sign of the estimate (``sign_in_numerator``
+    applies NOTES.md's fix), determinants are tiny and the fixed ``t0`` loses float64
+    accuracy on long records.
+
+Both work per degree of freedom; an unforced DOF yields its parameters divided by its
+mass, and the mass follows from a stiffness identified on an absolute scale in a
+neighbouring equation (``m2 = k2 / (k2/m2)`` for the 2-DOF chain of the paper).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field, replace
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..data.record import Record
+from ..errors import InputError, OptionError, RecordError
+from ..models.chain import Chain, Channel, Equation
+from .orthogonal import BASES
+from .regressors import KernelBank, SlidingMoments, row_exponents
+
+__all__ = ["OnlineIdentifier", "check_record", "Identification", "Estimate", "METHODS", "ONLINE_METHODS",
+           "STATUSES", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "prior_sizes", "default_options", "check_options", "filtered_cramer", "combine_equations",
+           "auto_window", "Integrators", "solve_factor", "triangular_factor", "equilibrated_condition"]
+
+#: Online methods (OnlineIdentifier) and the buffered orthogonal-function methods of
+#: section 4 (duffid.identification.buffered); identify() accepts all of them.
+ONLINE_METHODS = ("robust", "paper")
+METHODS = ONLINE_METHODS + BASES
+
+#: Status of a parameter; its index is the status code of the C core (DUFFID_STATUS_*) and of
+#: the estimator FMUs' ``<name>_status`` outputs. ``uncertain``: not (yet) determined well
+#: enough; ``published``: its relative standard error stayed within ``max_uncertainty`` for
+#: ``settle`` s, the value is shown; ``not excited``: its term carries less than
+#: :data:`MIN_SHARE` of the force balance; ``lost``: it was published and has not been
+#: trustworthy for ``settle`` s since (its error above :data:`LOSS_FACTOR` times
+#: ``max_uncertainty``, or its value non-physical; the value is withdrawn).
+STATUSES = ("uncertain", "published", "not excited", "lost")
+
+
+def status_codes() -> str:
+    """The status codes of the C core and the estimator FMUs in words: ``"0 uncertain, ..."``."""
+    return ", ".join(f"{code} {name}" for code, name in enumerate(STATUSES))
+
+
+#: A term carrying less than this share of its equation's force balance is "not excited".
+MIN_SHARE = 0.01
+#: A published parameter is lost once its error stayed above this many times
+#: ``max_uncertainty`` for ``settle`` s (a band, so that an error hovering at the limit
+#: does not switch the value on and off).
+LOSS_FACTOR = 2.0
+#: A growing window's estimate is published once it has stayed within half of
+#: ``max_uncertainty`` of one value while the window grew by this share of its length.
+GROWTH_STEADY = 0.25
+
+_ROBUST_DEFAULTS: dict[str, Any] = {
+    "window": "auto",         # seconds, or "auto": window_periods x the identified natural period
+    "window_periods": 1.5,
+    "max_window": 1.0,        # seconds: buffer capacity, the longest window
+    "forgetting": None,       # seconds (time constant) or None: no forgetting
+    "rows": "integrals",      # row kernel family, see regressors.row_exponents
+    "n_rows": None,           # rows per window; default: max(unknowns + 1, 8)
+    "max_condition": 1e6,     # identified when cond(equilibrated R) <= this,
+    "max_uncertainty": 0.01,  # every relative standard error <= this,
+    "min_time": 0.01,         # and the window spans at least this many seconds;
+    "settle": 0.01,           # a parameter is published after its error stayed small this long (s)
+    "deadband": 0.0,          # |dx| <= deadband keeps the previous sign of velocity
+    "nominal": None,          # optional prior sizes {public name: size}: the trust test's scale
+}
+_PAPER_DEFAULTS: dict[str, Any] = {
+    "gamma": 20.0,
+    "quadrature": "adams3",   # or "trapezoid"
+    "sign_in_numerator": False,
+    "max_condition": 1e6,
+    "min_time": 0.01,
+    "deadband": 0.0,
+}
+_MIN_SAMPLES = 8
+
+
+def default_options(method: str) -> dict[str, Any]:
+    """A copy of the default options of the online ``method`` ("robust" or "paper")."""
+    return dict(check_options(method, {}))
+
+
+def check_options(method: str, options: Mapping[str, Any]) -> dict[str, Any]:
+    """Validate ``options`` of the online ``method`` and merge them with its defaults.
+
+    Raises
+    ------
+    ValueError
+        Unknown method, or an option value out of range (the message names it).
+    TypeError
+        An option the method does not have (the message lists those it has).
+    """
+    if method not in ONLINE_METHODS:
+        hint = " (the buffered bases run through identify() or duffid.identification.buffered.BufferedIdentifier)" \
+            if method in METHODS else ""
+        raise InputError(f"unknown online method {method!r}; choose one of {', '.join(ONLINE_METHODS)}{hint}")
+    defaults = _ROBUST_DEFAULTS if method == "robust" else _PAPER_DEFAULTS
+    unknown = set(options) - set(defaults)
+    if unknown:
+        raise OptionError(f"method {method!r} has no option(s) {sorted(unknown)}; "
+                        f"its options are {sorted(defaults)}")
+    merged = {**defaults, **options}
+    for key in ("max_condition", "max_uncertainty", "settle", "min_time", "max_window", "window_periods", "gamma"):
+        if key in merged and not (np.isfinite(merged[key]) and merged[key] >= 0):
+            raise InputError(f"option {key} must be a finite number >= 0, got {merged[key]!r}")
+    if method == "robust":
+        w = merged["window"]
+        if not (w == "auto" or (isinstance(w, (int, float)) and np.isfinite(w) and w > 0)):
+            raise InputError(f"option window must be 'auto' or a positive number of seconds, got {w!r}")
+        fg = merged["forgetting"]
+        if fg is not None and not (np.isfinite(fg) and fg > 0):
+            raise InputError(f"option forgetting must be None or a positive time constant in s, got {fg!r}")
+        prior = merged["nominal"]
+        if prior is not None and not (isinstance(prior, Mapping) and all(
+                isinstance(v, (int, float)) and np.isfinite(v) for v in prior.values())):
+            raise InputError(f"option nominal must be None or a mapping of parameter names to finite "
+                             f"sizes, got {prior!r}")
+    elif merged["quadrature"] not in ("adams3", "trapezoid"):
+        raise InputError(f"option quadrature must be 'adams3' or 'trapezoid', got {merged['quadrature']!r}")
+    return merged
+
+
+# ---------------------------------------------------------------------- channels
+class _Channels:
+    """Evaluates the distinct channels of all equations, including sgn(velocity)."""
+
+    def __init__(self, channels: tuple[Channel, ...], deadband: float) -> None:
+        self.channels = channels
+        self.deadband = float(deadband)
+        self._sign_dofs = [c.index for c in channels if c.kind == "sign_velocity"]
+        self.reset()
+
+    def reset(self) -> None:
+        self._last_x: np.ndarray | None = None
+        self._sign = np.zeros(len(self._sign_dofs))
+
+    def evaluate(self, x: np.ndarray, f: np.ndarray) -> np.ndarray:
+        if self._sign_dofs:
+            if self._last_x is not None:
+                dx = x[self._sign_dofs] - self._last_x[self._sign_dofs]
+                moving = np.abs(dx) > self.deadband
+                self._sign = np.where(moving, np.sign(dx), self._sign)
+            self._last_x = x.copy()
+        out = np.empty(len(self.channels))
+        signs = iter(self._sign)
+        for i, c in enumerate(self.channels):
+            out[i] = next(signs) if c.kind == "sign_velocity" else c.evaluate(x, f)
+        return out
+
+
+class _Assembly:
+    """Maps kernel entries ``E[row, order, channel]`` to ``A`` (rows x unknowns) and ``D``."""
+
+    def __init__(self, equation: Equation, channels: tuple[Channel, ...], max_order: int) -> None:
+        n_ch = len(channels)
+        self.unknowns = equation.unknowns
+        self.lhs = np.zeros(((max_order + 1) * n_ch, len(equation.unknowns)))
+        self.rhs = np.zeros((max_order + 1) * n_ch)
+        for term in equation.lhs:
+            self.lhs[term.order * n_ch + channels.index(term.channel), equation.unknowns.index(term.unknown)] += term.sign
+        for term in equation.rhs:
+            self.rhs[term.order * n_ch + channels.index(term.channel)] += term.sign
+
+    def __call__(self, E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        flat = E.reshape(E.shape[:-2] + (-1,))
+        return flat @ self.lhs, flat @ self.rhs
+
+
+# ---------------------------------------------------------------------- outliers
+#: A displacement sample further than this many robust standard deviations from the
+#: quadratic through the three samples before it is held back one sample: if the next
+#: sample agrees with the samples before it, the held one was an isolated glitch (a spike,
+#: a dropout to 0, a wrapped encoder count) and is replaced.
+OUTLIER_SIGMAS = 12.0
+#: The outlier test's scale is never below this share of the range the displacement has
+#: covered (a noise-free record's smooth differences are no scale).
+OUTLIER_RANGE = 1e-4
+#: Memory of the running scale of the prediction residuals [samples].
+OUTLIER_MEMORY = 64.0
+_GAUSS_MEAN_ABS = 1.2533141373155003  # sigma / mean|r| of a normal distribution
+
+
+class _OutlierGuard:
+    """Online exclusion of isolated displacement outliers (one sample of delay, only for
+    a suspect sample). :meth:`admit` returns the samples to process now, in order."""
+
+    def __init__(self, n_dof: int) -> None:
+        self.n_dof = n_dof
+        self.reset()
+
+    def reset(self) -> None:
+        n = self.n_dof
+        self.h = np.zeros((3, n))       # accepted x at n-1, n-2, n-3
+        self.count = 0                  # accepted samples
+        self.mean_abs = np.zeros(n)     # running mean |prediction residual|
+        self.lo = np.full(n, np.inf)
+        self.hi = np.full(n, -np.inf)
+        self.step = np.full(n, np.inf)  # smallest non-zero change (quantisation step)
+        self.pending: tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+        self.found: list[tuple[int, int, float, float]] = []
+
+    def _threshold(self) -> np.ndarray:
+        step = np.where(np.isfinite(self.step), self.step, 0.0)
+        scale = np.maximum(np.maximum(_GAUSS_MEAN_ABS * self.mean_abs, step), OUTLIER_RANGE * (self.hi - self.lo))
+        return OUTLIER_SIGMAS * scale
+
+    def _accept(self, x: np.ndarray, threshold: np.ndarray | None) -> None:
+        h = self.h
+        if self.count >= 3:
+            r = np.abs(x - (3.0 * h[0] - 3.0 * h[1] + h[2]))
+            if threshold is not None:
+                r = np.minimum(r, threshold)
+            self.mean_abs = r if self.count == 3 else self.mean_abs + (r - self.mean_abs) / OUTLIER_MEMORY
+        if self.count >= 1:
+            d = np.abs(x - h[0])
+            self.step = np.where(d > 0.0, np.minimum(self.step, d), self.step)
+        self.lo = np.minimum(self.lo, x)
+        self.hi = np.maximum(self.hi, x)
+        h[2] = h[1]
+        h[1] = h[0]
+        h[0] = x
+        self.count += 1
+
+    def admit(self, k: int, x: np.ndarray, f: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Sample ``k`` (``x``, ``f``): the samples to process now."""
+        out: list[tuple[np.ndarray, np.ndarray]] = []
+        h = self.h
+        if self.pending is not None:
+            kp, xp, fp, suspect, threshold = self.pending
+            self.pending = None
+            ahead = 6.0 * h[0] - 8.0 * h[1] + 3.0 * h[2]  # the samples before, two steps on
+            isolated = suspect & (np.abs(x - ahead) <= threshold)
+            if isolated.any():
+                xp = xp.copy()
+                for j in np.flatnonzero(isolated):
+                    value = (3.0 * h[0, j] - h[1, j] + x[j]) / 3.0  # the quadratic through n-2, n-1, n+1
+                    self.found.append((kp, int(j), float(xp[j]), float(value)))
+                    xp[j] = value
+            self._accept(xp, threshold)
+            out.append((xp, fp))
+        if self.count >= _MIN_SAMPLES:
+            threshold = self._threshold()
+            suspect = np.abs(x - (3.0 * h[0] - 3.0 * h[1] + h[2])) > threshold
+            if suspect.any():
+                self.pending = (k, x.copy(), f.copy(), suspect, threshold)
+                return out
+            self._accept(x, threshold)
+        else:
+            self._accept(x, None)
+        out.append((x, f))
+        return out
+
+    def flush(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The held sample, if any (the record ended: nothing tells it was a glitch)."""
+        if self.pending is None:
+            return []
+        _, xp, fp, _, threshold = self.pending
+        self.pending = None
+        self._accept(xp, threshold)
+        return [(xp, fp)]
+
+
+# ---------------------------------------------------------------------- solvers
+class _QRLeastSquares:
+    """Least squares over rows of full-length windows, with exponential forgetting.
+
+    The factor of the augmented matrix ``[A D]`` is updated by QR, so the unknowns are
+    never formed through normal equations; its last diagonal entry is the residual norm.
+    """
+
+    def __init__(self, n_unknowns: int, forgetting_factor: float) -> None:
+        self.n = n_unknowns
+        self.lam = float(forgetting_factor)
+        self.R = np.zeros((n_unknowns + 1, n_unknowns + 1))
+        self.rows = 0.0
+
+    def reset(self) -> None:
+        self.R[:] = 0.0
+        self.rows = 0.0
+
+    def update(self, A: np.ndarray, D: np.ndarray) -> None:
+        stacked = np.vstack([np.sqrt(self.lam) * self.R, np.column_stack([A, D])])
+        self.R = triangular_factor(stacked, self.n + 1)
+        self.rows = self.lam * self.rows + len(A)
+
+
+def triangular_factor(M: np.ndarray, size: int) -> np.ndarray:
+    """The upper-triangular factor of ``M``'s QR decomposition, padded with zero rows to
+    ``size x size`` (the least-squares state accumulated by the online and buffered methods)."""
+    R = np.linalg.qr(M, mode="r")
+    out = np.zeros((size, size))
+    out[: R.shape[0]] = R[:size]
+    return out
+
+
+def solve_factor(R_aug: np.ndarray, rows: float, overlap: float
+                  ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, float]:
+    """Solve the least-squares problem held in the factor ``R_aug`` of ``[A D]``.
+
+    Returns the unknowns, the condition number of the column-equilibrated factor, the
+    relative standard error of each unknown: ``sqrt(diag(cov)) / |theta|`` with
+    ``cov = s^2 (R^T R)^-1``, ``s^2 = residual^2 / (rows - n)`` inflated by ``overlap``
+    (consecutive windows share samples, so their residuals are not independent), and the
+    share of each term and of the right-hand side in the force balance:
+    ``|theta_i| ||A_i||`` and ``||D||`` over the root of the sum of their squares.
+    """
+    n = R_aug.shape[0] - 1
+    R = R_aug[:n, :n]
+    scale = np.linalg.norm(R, axis=0)
+    nan = np.full(n, np.nan)
+    if not np.all(scale > 0):
+        return nan, np.inf, np.full(n, np.inf), nan, np.nan
+    U, sv, Vt = np.linalg.svd(R / scale)
+    cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else np.inf
+    if not np.isfinite(cond) or cond > 1e14:
+        return nan, np.inf, np.full(n, np.inf), nan, np.nan
+    Rinv = (Vt.T / sv) @ U.T
+    theta = Rinv @ R_aug[:n, n] / scale
+    terms = np.abs(theta) * scale
+    rhs = float(np.sqrt(np.sum(R_aug[:, n] ** 2)))
+    balance = float(np.sqrt(np.sum(np.append(terms**2, rhs**2))))
+    share, rhs_share = (terms / balance, rhs / balance) if balance > 0 else (nan, np.nan)
+    dof = rows - n
+    if dof <= 0:
+        return theta, cond, np.full(n, np.inf), share, rhs_share
+    s2 = R_aug[n, n] ** 2 / dof * overlap
+    std = np.sqrt(s2 * np.sum(Rinv**2, axis=1)) / scale
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rse = np.where(theta != 0, std / np.abs(theta), np.inf)
+    return theta, cond, rse, share, rhs_share
+
+
+class Integrators:
+    """Cascade of ``depth`` integrators per input channel, fixed t0 at the first sample."""
+
+    def __init__(self, n_inputs: int, depth: int, dt: float, quadrature: str) -> None:
+        self.dt = dt
+        self.adams = quadrature == "adams3"
+        self.y = np.zeros((depth + 1, n_inputs))   # y[0] = input, y[k] = k-fold integral
+        self.prev1 = np.zeros_like(self.y)
+        self.prev2 = np.zeros_like(self.y)
+        self.count = 0
+
+    def reset(self) -> None:
+        self.y[:] = 0.0
+        self.prev1[:] = 0.0
+        self.prev2[:] = 0.0
+        self.count = 0
+
+    def push(self, u: np.ndarray) -> np.ndarray:
+        h = self.dt
+        self.prev2[:] = self.prev1
+        self.prev1[:] = self.y
+        self.y[0] = u
+        for k in range(1, len(self.y)):
+            if self.count == 0:
+                self.y[k] = 0.0
+            elif self.count == 1 or not self.adams:
+                self.y[k] = self.prev1[k] + 0.5 * h * (self.y[k - 1] + self.prev1[k - 1])
+            else:
+                self.y[k] = self.prev1[k] + h / 12.0 * (
+                    5.0 * self.y[k - 1] + 8.0 * self.prev1[k - 1] - self.prev2[k - 1])
+        self.count += 1
+        return self.y
+
+
+# ---------------------------------------------------------------------- estimate
+def _next_status(status: str, settled: int, unsettled: int, settle: int, good: bool, share: float) -> str:
+    """A parameter's status after a sample (see :data:`STATUSES`): ``settled`` counts the
+    samples since its error was last above ``max_uncertainty``, ``unsettled`` those since
+    it was last within :data:`LOSS_FACTOR` times that."""
+    published, not_excited, lost = STATUSES[1], STATUSES[2], STATUSES[3]
+    if settled >= settle:
+        return published
+    if status == published:
+        return lost if unsettled >= settle else published
+    if good and share < MIN_SHARE:
+        return not_excited
+    return lost if status == lost else STATUSES[0]
+
+
+def _physical(name: str, value: float) -> bool:
+    """A mass must be positive and a damping coefficient not negative (a passive plant)."""
+    if name[0] == "m" and name[1:].isdigit():
+        return value > 0
+    if name[0] == "b" and name[1:].isdigit():
+        return value >= 0
+    return True
+
+
+def prior_sizes(model: Chain, nominal: Mapping[str, float] | None) -> dict[str, float]:
+    """Canonical sizes from the optional prior ``nominal`` (the option of that name, by
+    public name); ValueError for a name the model does not have."""
+    if not nominal:
+        return {}
+    unknown = set(nominal) - set(model.parameters)
+    if unknown:
+        raise InputError(f"option nominal: {model.name} has no parameter(s) {sorted(unknown)}; "
+                         f"its parameters are {list(model.parameters)}")
+    sizes = {}
+    for public, size in nominal.items():
+        name = model.canonical_name(public)
+        # the public value is the canonical one or (the circuit's C = 1/k) its reciprocal
+        probe = model.from_canonical({**model.canonical_parameters(), name: 2.0})[public]
+        sizes[name] = abs(float(size)) if probe == 2.0 or size == 0 else 1.0 / abs(float(size))
+    return sizes
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One step of the online identifier.
+
+    Attributes
+    ----------
+    t : float
+        Time of the sample [s] (relative to the first sample).
+    parameters : dict
+        Estimates under the model's public names; NaN unless published (robust: see
+        ``status``).
+    identified : bool
+        True when every parameter is published (robust: see ``status``; paper: a
+        well-conditioned, finite solution).
+    condition : float
+        Largest condition number over the equations (column-equilibrated).
+    uncertainty : float
+        Largest relative standard error of a parameter (robust method; NaN for paper), an
+        approximate figure from the least-squares residual; relative to
+        max(|estimate|, prior size) for a parameter given an optional prior (``nominal``).
+    window : float
+        Current window length [s].
+    current : dict or None
+        The estimator's solution at this sample (public names), trusted or not (NaN where
+        the system is singular); None when the estimator does not report it. Input to
+        :func:`duffid.identification.trust.assess`, never a published value.
+    status : dict or None
+        Public name -> one of :data:`STATUSES` (None when the estimator does not report it).
+    outliers : int
+        Isolated displacement outliers excluded so far (see :data:`OUTLIER_SIGMAS`); a
+        suspect sample is processed one sample late, and meanwhile the previous estimate
+        is repeated.
+    """
+
+    t: float
+    parameters: dict[str, float]
+    identified: bool
+    condition: float
+    uncertainty: float
+    window: float
+    current: dict[str, float] | None = None
+    status: dict[str, str] | None = None
+    outliers: int = 0
+
+
+class _EquationState:
+    def __init__(self, equation: Equation, assembly: _Assembly) -> None:
+        self.equation = equation
+        self.assembly = assembly
+        self.theta = np.empty(len(equation.unknowns))
+        self.rse = np.empty(len(equation.unknowns))
+        self.share = np.empty(len(equation.unknowns))
+        self.clear()
+
+    def clear(self) -> None:
+        self.theta[:] = np.nan
+        self.cond = np.inf
+        self.rse[:] = np.inf
+        self.share[:] = np.nan
+        self.rhs_share = np.nan
+
+
+class OnlineIdentifier:
+    """Online algebraic identifier: O(1) work and memory per sample.
+
+    Parameters
+    ----------
+    model : Chain
+        Model structure (e.g. :class:`~duffid.models.chain.Duffing1`); its parameter values are
+        not used. A parameter is published once its relative standard error stayed at most
+        ``max_uncertainty`` for ``settle`` s (a growing window's estimate must also have
+        stayed put while the window grew by :data:`GROWTH_STEADY`; without a prior, only a
+        physical value of an excited term), withdrawn ("lost") once its error stayed above
+        :data:`LOSS_FACTOR` times that, or its value non-physical, for ``settle`` s; "not
+        excited" while its term carries less than :data:`MIN_SHARE` of the force balance
+        (see :data:`STATUSES`). Every scale comes from the data, unless
+        the optional prior ``nominal`` gives a parameter a size: then its standard error is
+        taken relative to the larger of the estimate and that size (so that a parameter
+        known to be small next to that size is published).
+    dt : float
+        Sampling period [s].
+    method : {"robust", "paper"}
+        Estimator, see the module documentation.
+    **options
+        Method options. ``robust``: ``window`` ("auto" or seconds), ``window_periods``
+        (auto window in natural periods, 1.5), ``max_window`` (s, 1.0), ``forgetting``
+        (time constant in s or None), ``rows`` ("integrals", "bernstein" or "paper"),
+        ``n_rows`` (max(unknowns + 1, 8)), ``max_condition`` (1e6), ``max_uncertainty``
+        (0.01), ``settle`` (s, 0.01), ``min_time`` (s, 0.01), ``deadband`` (m),
+        ``nominal`` (None, or prior sizes by public name).
+        ``paper``: ``gamma`` (20), ``quadrature`` ("adams3" or "trapezoid"),
+        ``sign_in_numerator`` (False), ``max_condition``, ``min_time``, ``deadband``.
+
+    Examples
+    --------
+    >>> ident = OnlineIdentifier(Duffing1(), dt=1e-3)            # doctest: +SKIP
+    >>> for x, f in samples:                                      # doctest: +SKIP
+    ...     est = ident.update(x, f)
+    """
+
+    def __init__(self, model: Chain, dt: float, method: str = "robust", **options: Any) -> None:
+        if not (np.isfinite(dt) and dt > 0):
+            raise InputError(f"dt must be a positive number of seconds, got {dt!r}")
+        self.model = model
+        self.dt = float(dt)
+        self.method = method
+        self.options = check_options(method, options)
+        self.equations = model.equations()
+        self._prior = prior_sizes(model, self.options.get("nominal"))
+        # robust: samples a parameter's error must stay small before it is published
+        self._settle = max(int(round(self.options["settle"] / self.dt)), 1) if method == "robust" else 1
+        channels: dict[Channel, None] = {}
+        for eq in self.equations:
+            for c in eq.channels:
+                channels.setdefault(c, None)
+        self.channels = tuple(channels)
+        self._channels = _Channels(self.channels, self.options["deadband"])
+        self._guard = _OutlierGuard(model.n_dof)
+        max_order = max(eq.max_order for eq in self.equations)
+        self._states = [_EquationState(eq, _Assembly(eq, self.channels, max_order)) for eq in self.equations]
+        o = self.options
+        if method == "robust":
+            fixed = o["window"] != "auto"
+            seconds = o["window"] if fixed else o["max_window"]
+            self.capacity = max(int(round(seconds / self.dt)), 2)
+            self._target = self.capacity
+            self._auto = not fixed
+            n_rows = o["n_rows"] or max(max(len(eq.unknowns) for eq in self.equations) + 1, 8)
+            self.bank = KernelBank.build(row_exponents(o["rows"], n_rows), max_order)
+            self._moments = SlidingMoments(self.capacity, self.bank.degree, len(self.channels))
+            lam = 1.0 if o["forgetting"] is None else float(np.exp(-self.dt / o["forgetting"]))
+            self._solvers = [_QRLeastSquares(len(eq.unknowns), lam) for eq in self.equations]
+        else:
+            self._paper_setup()
+        self.reset()
+
+    # -------------------------------------------------------------- common
+    def reset(self) -> None:
+        """Forget all samples (start a new identification)."""
+        self.n = -1
+        self._received = -1
+        self._guard.reset()
+        self._last: Estimate | None = None
+        self._channels.reset()
+        self._window_fixed = False
+        canonical = self.model.canonical_parameters()
+        self._steady = {k: 0 for k in canonical}
+        self._anchor = {k: np.nan for k in canonical}
+        self._anchored = {k: 0 for k in canonical}
+        self._settled = {k: 0 for k in canonical}
+        self._unsettled = {k: 0 for k in canonical}
+        self._status = {k: STATUSES[0] for k in canonical}
+        self._held = {name: np.nan for name in self.parameter_names}
+        if self.method == "robust":
+            self._moments.reset()
+            self._target = self.capacity
+            for s in self._solvers:
+                s.reset()
+        else:
+            self._paper_reset()
+        for st in self._states:
+            st.clear()
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        """Public parameter names of the model, in output order."""
+        return tuple(self.model.parameters)
+
+    def update(self, x: float | np.ndarray, f: float | np.ndarray) -> Estimate:
+        """Consume one sample of displacements ``x`` and forces ``f``; return the estimate."""
+        x = np.atleast_1d(np.asarray(x, dtype=float))
+        f = np.atleast_1d(np.asarray(f, dtype=float))
+        if x.shape != (self.model.n_dof,) or f.shape != (self.model.n_forces,):
+            raise InputError(f"{self.model.name}: update needs {self.model.n_dof} displacement(s) and "
+                             f"{self.model.n_forces} force(s), got {x.size} and {f.size}")
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(f))):
+            raise InputError(f"{self.model.name}: sample {self._received + 1} is not finite (x={x}, f={f})")
+        self._received += 1
+        estimate = None
+        for xi, fi in self._guard.admit(self._received, x, f):
+            estimate = self._process(xi, fi)
+        return self._reported(estimate)
+
+    def flush(self) -> Estimate | None:
+        """Process a sample held back as a suspect outlier (at the end of a record: nothing
+        tells it was a glitch); its estimate, or None if no sample was held."""
+        estimate = None
+        for xi, fi in self._guard.flush():
+            estimate = self._process(xi, fi)
+        return None if estimate is None else self._reported(estimate)
+
+    @property
+    def outliers(self) -> list[dict[str, Any]]:
+        """The displacement samples excluded as isolated outliers: ``t`` [s from the first
+        sample], ``column`` (x1, x2, ...), ``value`` and ``replaced_by``."""
+        return [{"t": k * self.dt, "column": f"x{j + 1}", "value": v, "replaced_by": r}
+                for k, j, v, r in self._guard.found]
+
+    def _reported(self, estimate: Estimate | None) -> Estimate:
+        """The estimate after the latest sample: ``estimate``, or the previous one while a
+        suspect sample is held back."""
+        if estimate is None:
+            assert self._last is not None  # the first samples are never held
+            estimate = self._last
+        estimate = replace(estimate, t=self._received * self.dt, outliers=len(self._guard.found))
+        self._last = estimate
+        return estimate
+
+    def _process(self, x: np.ndarray, f: np.ndarray) -> Estimate:
+        self.n += 1
+        g = self._channels.evaluate(x, f)
+        if self.method == "robust":
+            window = self._robust_step(g)
+        else:
+            window = self._paper_step(g)
+        estimate = self._publish(window)
+        if self.method == "robust":
+            self._after_publish(window)
+        return estimate
+
+    def _publish(self, window_samples: int) -> Estimate:
+        canonical, cond, rse, share = self._combine()
+        if self.method == "paper":
+            # the paper's estimator outputs its estimate from the start (faithful)
+            self._held = self.model.from_canonical(canonical)
+            ok = self._window_ok(cond, window_samples) and all(np.isfinite(v) for v in canonical.values())
+            status = {k: STATUSES[1] if ok else STATUSES[0] for k in self._held}
+            return Estimate(self.n * self.dt, dict(self._held), ok, cond, np.nan, window_samples * self.dt,
+                            dict(self._held), status)
+        good = self._window_ok(cond, window_samples)
+        # a growing window's solution rests on its own few rows, whose standard errors are not
+        # credible: it is published only once it has stayed within max_uncertainty / 2 of
+        # one value while the window grew by a quarter (GROWTH_STEADY); the least-squares
+        # solution over full windows is (its errors account for the overlap of the windows)
+        full = window_samples >= self._target
+        tol = 0.5 * self.options["max_uncertainty"]
+        settle = self._settle
+        worst = 0.0
+        trusted = {}
+        for k, v in canonical.items():
+            relative = rse[k] if np.isfinite(v) and v != 0 else np.inf
+            if self._prior.get(k, 0.0) > 0 and np.isfinite(relative):  # the user's prior size
+                relative = relative * abs(v) / max(abs(v), self._prior[k])
+            worst = max(worst, relative)
+            # without a prior, a term that carries almost nothing of the force balance is not
+            # published online however small its error looks (e.g. the mass at low frequency)
+            excited = share[k] >= MIN_SHARE or self._prior.get(k, 0.0) > 0
+            physical = _physical(k, v)
+            small = good and excited and physical and relative <= self.options["max_uncertainty"]
+            large = not (good and physical and relative <= LOSS_FACTOR * self.options["max_uncertainty"])
+            self._steady[k] = self._steady[k] + 1 if small else 0
+            if not (np.isfinite(v) and abs(v - self._anchor[k]) <= tol * abs(self._anchor[k])):
+                self._anchor[k], self._anchored[k] = v, self.n
+            grown = self.n - self._anchored[k] >= GROWTH_STEADY * window_samples
+            self._settled[k] = self._settled[k] + 1 if small and (full or grown) else 0
+            self._unsettled[k] = self._unsettled[k] + 1 if large else 0
+            self._status[k] = _next_status(self._status[k], self._settled[k], self._unsettled[k], settle,
+                                           good, share[k])
+            trusted[k] = v if self._settled[k] >= settle else np.nan
+        public = self.model.from_canonical(trusted)
+        status = {name: self._status[self.model.canonical_name(name)] for name in public}
+        self._held = {name: (v if np.isfinite(v) else self._held[name]) if status[name] == STATUSES[1] else np.nan
+                      for name, v in public.items()}
+        ok = all(s == STATUSES[1] for s in status.values())
+        current = self.model.from_canonical(canonical) if good else {k: np.nan for k in self._held}
+        return Estimate(self.n * self.dt, dict(self._held), ok, cond, worst, window_samples * self.dt, current,
+                        status)
+
+    def _window_ok(self, cond: float, L: int) -> bool:
+        o = self.options
+        return bool(cond <= o["max_condition"] and L * self.dt >= o["min_time"] - 1e-12
+                    and self.n >= _MIN_SAMPLES)
+
+    def _combine(self) -> tuple[dict[str, float], float, dict[str, float], dict[str, float]]:
+        solutions = [dict(zip(st.equation.unknowns, st.theta)) for st in self._states]
+        errors = [dict(zip(st.equation.unknowns, st.rse)) for st in self._states]
+        cond = max(st.cond for st in self._states)
+        values, rse = combine_equations(self.model, solutions, errors)
+        return values, cond, rse, self._shares(values)
+
+    def _shares(self, canonical: Mapping[str, float]) -> dict[str, float]:
+        """Share of each canonical parameter's term in the force balance of the equations
+        it appears in (the largest); an unforced DOF's mass is its equation's right-hand side."""
+        out = {}
+        for name in canonical:
+            found = []
+            for j, st in enumerate(self._states):
+                key = name if j in self.model.forced else f"{name}/m{j + 1}"
+                if key in st.equation.unknowns:
+                    found.append(float(st.share[st.equation.unknowns.index(key)]))
+                elif name == f"m{j + 1}" and j not in self.model.forced:
+                    found.append(float(st.rhs_share))
+            found = [v for v in found if np.isfinite(v)]
+            out[name] = max(found) if found else np.nan
+        return out
+
+    # -------------------------------------------------------------- robust
+    def _robust_step(self, g: np.ndarray) -> int:
+        moments, L = self._moments.push(g, self._target)
+        if L == 0:
+            return 0
+        E = self.bank.entries(L / self.capacity, moments, g, self.capacity * self.dt)
+        self._robust_solve([st.assembly(E) for st in self._states], L)
+        return L
+
+    def _robust_solve(self, systems: list[tuple[np.ndarray, np.ndarray]], L: int) -> None:
+        """Update the estimate with the rows of the current window (length ``L``).
+
+        While the window grows, the current window alone is solved (like the paper's
+        fixed t0); once it has its full length, the rows of every full window are
+        accumulated (with forgetting).
+        """
+        full = L >= self._target
+        for st, solver, (A, D) in zip(self._states, self._solvers, systems):
+            if full:
+                solver.update(A, D)
+                st.theta, st.cond, st.rse, st.share, st.rhs_share = solve_factor(solver.R, solver.rows, float(L))
+            else:
+                R = triangular_factor(np.column_stack([A, D]), len(st.equation.unknowns) + 1)
+                st.theta, st.cond, st.rse, st.share, st.rhs_share = solve_factor(R, len(A), 1.0)
+
+    def _after_publish(self, L: int) -> None:
+        """Fix the auto window once the masses and linear stiffnesses (the natural periods)
+        and every excited parameter have kept a small standard error for ``settle`` s."""
+        if self._auto and not self._window_fixed and self._window_known():
+            self._window_fixed = True
+            canonical = self._combine()[0]
+            self._target = auto_window(self.model, canonical, self.dt, L, self.capacity,
+                                       self.options["window_periods"])
+
+    def _window_known(self) -> bool:
+        """Every mass and linear stiffness steady (its standard error small for ``settle``
+        s), every other parameter steady or not excited: the natural periods are known."""
+        def needed(name: str) -> bool:
+            return (name[0] == "m" and name[1:].isdigit()) or (name[0] == "k" and name.endswith("_1"))
+        return all(self._steady[k] >= self._settle or (self._status[k] == STATUSES[2] and not needed(k))
+                   for k in self._steady)
+
+    # -------------------------------------------------------------- paper
+    def _paper_setup(self) -> None:
+        """Integrator banks of eqs. (16)-(17) (inputs tau^j g, j = 0..2) and of eq. (19)."""
+        quadrature = self.options["quadrature"]
+        n_ch = len(self.channels)
+        self._paper = []
+        for st in self._states:
+            n_rows = len(st.equation.unknowns)
+            regressors = Integrators(3 * n_ch, n_rows + 1, self.dt, quadrature)
+            determinants = Integrators(n_rows + 1, 2, self.dt, quadrature)
+            self._paper.append((regressors, determinants))
+
+    def _paper_reset(self) -> None:
+        for banks in self._paper:
+            for bank in banks:
+                bank.reset()
+
+    def _paper_rows(self, y: np.ndarray, n_rows: int) -> np.ndarray:
+        """Entries E[row, order, channel] of eq. (16)-(17) from the integrator outputs."""
+        n_ch = len(self.channels)
+        Y = y.reshape(y.shape[0], 3, n_ch)  # [k-fold integral, power j of tau, channel]
+        E = np.zeros((n_rows, 3, n_ch))
+        for p in range(n_rows):
+            # order 2: tau^2 g - 4 I(tau g) + 2 II(g), then p more integrals
+            E[p, 2] = Y[p, 2] - 4.0 * Y[p + 1, 1] + 2.0 * Y[p + 2, 0]
+            E[p, 1] = Y[p + 1, 2] - 2.0 * Y[p + 2, 1]
+            E[p, 0] = Y[p + 2, 2]
+        return E
+
+    def _paper_step(self, g: np.ndarray) -> int:
+        tau = self.n * self.dt
+        u = np.concatenate([g, tau * g, tau**2 * g])
+        gamma = self.options["gamma"]
+        for st, (integ, det_integ) in zip(self._states, self._paper):
+            n_rows = len(st.equation.unknowns)
+            y = integ.push(u)
+            A, D = st.assembly(self._paper_rows(y, n_rows))
+            st.theta = filtered_cramer(A, D, det_integ, gamma, tau, self.options["sign_in_numerator"])
+            st.cond = equilibrated_condition(A)
+        return self.n
+
+    # -------------------------------------------------------------- state
+    def identify_record(self, record: Record) -> "Identification":
+        """Run the identifier over a record sample by sample (see also :func:`identify`)."""
+        check_record(record, self.model, self.dt)
+        self.reset()
+        history = []
+        for xi, fi in zip(record.x, record.f):
+            history.append(self.update(xi, fi))
+        last = self.flush()
+        if last is not None:
+            history[-1] = last
+        result = Identification.from_estimates(self, record, history)
+        result.outliers = self.outliers
+        return result
+
+
+def filtered_cramer(A: np.ndarray, D: np.ndarray, filters: Integrators, gamma: float, tau: float,
+                    sign_in_numerator: bool) -> np.ndarray:
+    """Eq. (19) for one sample: Cramer determinants of ``A theta = D``, then the ratio of
+    the doubly integrated, exponentially weighted ``|Delta_i|`` and ``|Delta|`` (with the
+    signs of the current sample), or, with ``sign_in_numerator``, of ``Delta_i sgn(Delta)``.
+
+    ``filters`` integrates the ``len(D) + 1`` weighted determinants twice; NaN until the
+    filtered ``|Delta|`` is positive.
+    """
+    m = len(D)
+    delta = np.linalg.det(A)
+    deltas = np.empty(m)
+    for i in range(m):
+        Ai = A.copy()
+        Ai[:, i] = D
+        deltas[i] = np.linalg.det(Ai)
+    num = deltas * np.sign(delta) if sign_in_numerator else np.abs(deltas)
+    weight = np.exp(-gamma * tau)
+    z = filters.push(np.concatenate([weight * num, [weight * abs(delta)]]))[2]
+    if z[m] > 0:
+        ratio = z[:m] / z[m]
+        return ratio if sign_in_numerator else np.sign(deltas) * np.sign(delta) * ratio
+    return np.full(m, np.nan)
+
+
+def equilibrated_condition(A: np.ndarray) -> float:
+    """Condition number of ``A`` after scaling its rows and columns to unit norm (the
+    condition the online methods compare with ``max_condition``)."""
+    col = np.linalg.norm(A, axis=0)
+    row = np.linalg.norm(A, axis=1)
+    if not (np.all(col > 0) and np.all(row > 0)):
+        return np.inf
+    As = A / col
+    As = As / np.linalg.norm(As, axis=1)[:, None]
+    with np.errstate(all="ignore"):
+        return float(np.linalg.cond(As))
+
+
+def auto_window(model: Chain, canonical: Mapping[str, float], dt: float, current: int,
+                capacity: int, periods: float) -> int:
+    """Window length (samples) of ``periods`` lowest natural periods of the estimate.
+
+    Never shorter than the current window nor longer than the buffer ``capacity``; if the
+    estimate has no positive linear stiffness the window keeps its capacity.
+    """
+    try:
+        omega = model.linear_natural_frequencies(canonical)
+    except (KeyError, np.linalg.LinAlgError, ZeroDivisionError):
+        return capacity
+    omega = omega[np.isfinite(omega) & (omega > 0)]
+    if not len(omega):
+        return capacity
+    samples = int(round(periods * 2.0 * np.pi / omega.min() / dt))
+    return int(min(max(samples, current), capacity))
+
+
+def combine_equations(model: Chain, solutions: list[dict[str, float]],
+                      errors: list[dict[str, float]] | None = None) -> tuple[dict[str, float], dict[str, float]]:
+    """Canonical parameters (and their relative standard errors) from per-equation solutions.
+
+    A forced DOF's equation gives absolute values; an unforced DOF's equation gives values
+    divided by its mass ``m_i``, found from a linear stiffness known on an absolute scale in
+    a neighbouring equation. Each element's parameters are taken from the lowest-index
+    equation with a known scale. Relative errors of products add in quadrature.
+    """
+    n = model.n_dof
+    errors = errors if errors is not None else [{k: np.nan for k in sol} for sol in solutions]
+    # scale[i] = (m_i or 1 for a forced DOF, its relative error)
+    scale: list[tuple[float, float] | None] = [(1.0, 0.0) if i in model.forced else None for i in range(n)]
+
+    def lookup(j: int, name: str) -> tuple[float, float] | None:
+        key = name if j in model.forced else f"{name}/m{j + 1}"
+        if key not in solutions[j] or scale[j] is None:
+            return None
+        s, es = scale[j]
+        return s * solutions[j][key], float(np.hypot(es, errors[j][key]))
+
+    progress = True
+    while progress and any(s is None for s in scale):
+        progress = False
+        for i in range(n):
+            if scale[i] is not None:
+                continue
+            for e in (i + 1, i + 2):  # left and right element of mass i (1-based elements)
+                key = f"k{e}_1/m{i + 1}"
+                if key not in solutions[i] or solutions[i][key] == 0:
+                    continue
+                for j in (e - 2, e - 1):  # the equations that contain element e
+                    absolute = lookup(j, f"k{e}_1") if j != i and 0 <= j < n else None
+                    if absolute is not None:
+                        scale[i] = (absolute[0] / solutions[i][key],
+                                    float(np.hypot(absolute[1], errors[i][key])))
+                        progress = True
+                        break
+                if scale[i] is not None:
+                    break
+    values: dict[str, float] = {}
+    rse: dict[str, float] = {}
+    for name in model.canonical_parameters():
+        found = None
+        if name.startswith("m") and name[1:].isdigit():
+            i = int(name[1:]) - 1
+            found = (solutions[i][name], errors[i][name]) if i in model.forced else scale[i]
+        else:
+            for j in range(n):
+                found = lookup(j, name)
+                if found is not None:
+                    break
+        values[name], rse[name] = found if found is not None else (np.nan, np.inf)
+    return values, rse
+
+
+# ---------------------------------------------------------------------- results
+@dataclass
+class Identification:
+    """Result of :func:`identify` on a record.
+
+    Attributes
+    ----------
+    model, method : str
+        Model and method names.
+    parameters : dict
+        Final estimates (public names); NaN if the record never identified the model.
+    t : ndarray
+        Sample times [s].
+    history : dict of ndarray
+        Estimate of each parameter at each sample (NaN before identification).
+    condition : ndarray
+        Conditioning figure at each sample.
+    identified : ndarray of bool
+        Identified flag at each sample.
+    t_identified : float or None
+        First time the flag was set (checked by :func:`duffid.identification.trust.identify`: the end of
+        the record when the estimator integrated it in one window).
+    window : float
+        Final window length [s].
+    options : dict
+        Method options used.
+    source : str
+        Where the record came from.
+    estimates : dict
+        The estimator's final solution (public names), whether the record supports it or
+        not; ``parameters`` holds the values that passed the checks.
+    assessment : duffid.identification.trust.Assessment or None
+        What the record supports (status, uncertainty and fit per parameter, notes), set by
+        :func:`duffid.identification.trust.identify`; None for a bare estimator run (:func:`estimate`, or
+        ``identify(check=False)``), whose ``parameters`` are the estimator's final values,
+        unchecked.
+    status : dict
+        The online estimator's own status of each parameter at the last sample (see
+        :data:`STATUSES`); empty for the buffered methods. The checked status is the
+        assessment's.
+    outliers : list of dict
+        Displacement samples the online estimator excluded as isolated outliers
+        (:attr:`OnlineIdentifier.outliers`).
+    """
+
+    model: str
+    method: str
+    parameters: dict[str, float]
+    t: np.ndarray
+    history: dict[str, np.ndarray]
+    condition: np.ndarray
+    identified: np.ndarray
+    t_identified: float | None
+    window: float
+    options: dict[str, Any] = field(default_factory=dict)
+    source: str = ""
+    estimates: dict[str, float] = field(default_factory=dict)
+    assessment: Any = None
+    status: dict[str, str] = field(default_factory=dict)
+    outliers: list[dict[str, Any]] = field(default_factory=list)
+
+    @classmethod
+    def from_estimates(cls, ident: OnlineIdentifier, record: Record, estimates: list[Estimate]) -> "Identification":
+        names = ident.parameter_names
+        history = {name: np.array([e.parameters[name] for e in estimates]) for name in names}
+        flags = np.array([e.identified for e in estimates])
+        final = estimates[-1].current if estimates[-1].current is not None else estimates[-1].parameters
+        return cls(
+            model=ident.model.name, method=ident.method,
+            parameters={name: float(history[name][-1]) for name in names},
+            t=record.t - record.t[0], history=history,
+            condition=np.array([e.condition for e in estimates]), identified=flags,
+            t_identified=float(record.t[np.argmax(flags)] - record.t[0]) if flags.any() else None,
+            window=estimates[-1].window, options=dict(ident.options), source=record.source,
+            estimates={name: float(final[name]) for name in names},
+            status=dict(estimates[-1].status or {}),
+        )
+
+    def errors(self, truth: Mapping[str, float]) -> dict[str, float]:
+        """Relative errors of the final estimates against ``truth`` (in %)."""
+        return {k: 100.0 * (self.parameters[k] - v) / v for k, v in truth.items() if k in self.parameters and v}
+
+    def time_within(self, truth: Mapping[str, float], tolerance: float) -> dict[str, float | None]:
+        """First time after which each estimate stays within ``tolerance`` (relative) of the truth."""
+        out: dict[str, float | None] = {}
+        for name, value in truth.items():
+            h = self.history[name]
+            bad = ~(np.abs(h - value) <= tolerance * abs(value))
+            if bad.all():
+                out[name] = None
+            else:
+                last_bad = np.flatnonzero(bad)
+                out[name] = float(self.t[0]) if not len(last_bad) else (
+                    float(self.t[last_bad[-1] + 1]) if last_bad[-1] + 1 < len(self.t) else None)
+        return out
+
+    @property
+    def is_identified(self) -> bool:
+        """True when every parameter is published at the end of the record (checked), or
+        the estimator's own flag at the last sample (``check=False``)."""
+        if self.assessment is not None:
+            return self.assessment.identified
+        return bool(self.identified[-1]) if len(self.identified) else False
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary: model, method, parameters (published values only, null
+        otherwise), status, uncertainty, fit, notes, identified, window, ..."""
+        def clean(v: float) -> float | None:
+            return float(v) if np.isfinite(v) else None
+        out = {
+            "model": self.model,
+            "method": self.method,
+            "parameters": {k: clean(v) for k, v in self.parameters.items()},
+            "identified": self.is_identified,
+        }
+        if self.assessment is not None:
+            out.update(self.assessment.to_dict())
+        elif self.status:
+            out["status"] = dict(self.status)
+        if self.outliers:
+            out["outliers_excluded"] = [dict(o) for o in self.outliers]
+        out.update({
+            "t_identified": self.t_identified if self.is_identified else None,
+            "condition": clean(self.condition[-1]) if len(self.condition) else None,
+            "window": self.window,
+            "samples": int(len(self.t)),
+            "source": self.source,
+            "options": {k: v for k, v in self.options.items()},
+        })
+        return out
+
+    def to_json(self) -> str:
+        """:meth:`to_dict` as a JSON string."""
+        return json.dumps(self.to_dict())
+
+
+def check_record(record: Record, model: Any, dt: float | None = None) -> None:
+    """Check that ``record`` fits ``model`` (anything with ``name``, ``n_dof``, ``n_forces``)."""
+    if record.n_dof != model.n_dof:
+        raise RecordError(f"{record.source}: model {model.name} needs {model.n_dof} displacement column(s), "
+                          f"the record has {record.n_dof}")
+    if record.n_forces != model.n_forces:
+        raise RecordError(f"{record.source}: model {model.name} needs {model.n_forces} force column(s), "
+                          f"the record has {record.n_forces}")
+    record.require_samples(2 * _MIN_SAMPLES, f"identification of {model.name}")
+    if dt is not None and abs(record.dt - dt) > 1e-9 * dt:
+        raise RecordError(f"{record.source}: sampled every {record.dt} s, the identifier expects {dt} s")

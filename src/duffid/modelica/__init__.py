@@ -1,0 +1,16 @@
+"""Modelica to FMU translation (:mod:`duffid.modelica.export` is the entry point).
+
+Modules, in pipeline order: :mod:`.source` (files, class index, unsupported
+constructs), :mod:`.pymoca_fixes`, :mod:`.arrays` (component arrays),
+:mod:`.flat_model` (pymoca front end to scalar CasADi SX), :mod:`.causalize` (DAE to
+ODE), :mod:`.table` (value references), :mod:`.codegen` (C code); then
+:mod:`duffid.fmu` writes modelDescription.xml, compiles and zips. The FMI glue in C
+lives in ``fmus/common``.
+"""
+from __future__ import annotations
+
+from ..errors import ModelicaExportError
+from .causalize import OdeModel, causalize
+from .flat_model import FlatModel, Variable, flatten_model
+
+__all__ = ["ModelicaExportError", "FlatModel", "Variable", "flatten_model", "OdeModel", "causalize"]

@@ -1,0 +1,525 @@
+"""Nonlinear oscillator models: the chain of the paper's eqs. (1)-(5) and named shortcuts.
+
+Conventions
+-----------
+A chain has ``n`` masses in series hanging from a fixed wall; the last mass is free.
+Element ``i`` (1-based) joins mass ``i-1`` (the wall for ``i = 1``) to mass ``i``; with the
+deflection ``y_i = x_i - x_{i-1}`` (``x_0 = 0``) it carries the force
+
+    F_i = b_i * dy_i/dt + sum_j k_i_j * y_i**j
+
+and each mass may rub on the ground with Coulomb friction ``fc_i * sgn(dx_i/dt)``.
+Mass ``i`` then obeys (eq. 3 of the paper)
+
+    m_i x_i'' + F_i + fc_i sgn(x_i') - F_{i+1} = f_i .
+
+Canonical parameter names are ``m<i>``, ``b<i>``, ``k<i>_<j>`` (stiffness of order j of
+element i) and ``fc<i>``. The named shortcuts rename them with the paper's symbols:
+:class:`Duffing1` uses ``m, b, k, kp`` (eqs. 10-11), :class:`Duffing2` uses
+``m1, b1, k1, kp1, m2, b2, k2, kp2`` (eqs. 20-21) and :class:`DuffingCircuit` is the
+series circuit ``L q'' + R q' + q/C + a q**3 = u`` with parameters ``L, R, C, a``.
+
+For identification, every model exposes :meth:`Chain.equations`: one
+:class:`Equation` per degree of freedom, linear in its unknowns, written with
+:class:`Term` objects (unknown, signal channel, derivative order, sign).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = [
+    "Channel",
+    "Term",
+    "Equation",
+    "Chain",
+    "Duffing1",
+    "Duffing2",
+    "DuffingCircuit",
+    "model_from_name",
+    "PAPER_DUFFING1",
+    "PAPER_DUFFING2",
+]
+
+#: Paper Table 1 (with b = 12.47 N s/m, the paper's estimate, as the truth for simulation).
+PAPER_DUFFING1: dict[str, float] = {"m": 2.53, "b": 12.47, "k": 1272.1, "kp": -1.237e6}
+#: Paper Table 3 with m1 from Tables 1 and 4 (2.53 kg) and the damping the issue fixes.
+PAPER_DUFFING2: dict[str, float] = {
+    "m1": 2.53, "b1": 5.0, "k1": 1272.1, "kp1": -1.237e6,
+    "m2": 2.754, "b2": 4.0, "k2": 1570.0, "kp2": -1.350e6,
+}
+
+
+@dataclass(frozen=True)
+class Channel:
+    """A scalar signal computed from one sample of displacements ``x`` and forces ``f``.
+
+    Parameters
+    ----------
+    kind : {"x", "deflection", "force", "sign_velocity", "one"}
+        ``x``: displacement of DOF ``index``; ``deflection``: ``(x_i - x_{i-1})**power``
+        of element ``index``; ``force``: force input ``index``; ``sign_velocity``: sign of
+        the velocity of DOF ``index`` (taken from position increments by the identifier);
+        ``one``: the constant 1 (offset term).
+    index : int
+        0-based DOF, element or force index.
+    power : int
+        Power of a deflection channel.
+    """
+
+    kind: str
+    index: int = 0
+    power: int = 1
+
+    def evaluate(self, x: np.ndarray, f: np.ndarray) -> np.ndarray:
+        """Evaluate the channel on samples ``x`` (..., nx) and ``f`` (..., nf)."""
+        if self.kind == "x":
+            return x[..., self.index]
+        if self.kind == "deflection":
+            y = x[..., self.index] - (x[..., self.index - 1] if self.index > 0 else 0.0)
+            return y**self.power
+        if self.kind == "force":
+            return f[..., self.index]
+        if self.kind == "one":
+            return np.ones(np.shape(x)[:-1])
+        raise InputError(f"channel {self.label} needs the identifier's state")
+
+    @property
+    def label(self) -> str:
+        """Readable name of the channel, e.g. ``(x2-x1)^3``."""
+        i = self.index + 1
+        if self.kind == "x":
+            return f"x{i}"
+        if self.kind == "deflection":
+            y = f"(x{i}-x{i - 1})" if i > 1 else f"x{i}"
+            return y if self.power == 1 else f"{y}^{self.power}"
+        if self.kind == "force":
+            return f"f{i}"
+        if self.kind == "sign_velocity":
+            return f"sgn(v{i})"
+        return "1"
+
+
+@dataclass(frozen=True)
+class Term:
+    """``sign * unknown * d^order/dt^order channel`` in an equation (unknown None: known)."""
+
+    unknown: str | None
+    channel: Channel
+    order: int = 0
+    sign: float = 1.0
+
+
+@dataclass(frozen=True)
+class Equation:
+    """One degree-of-freedom equation ``sum(lhs terms) = sum(rhs terms)``.
+
+    ``unknowns`` lists the names of the unknowns in column order. When the DOF has no
+    force input the equation is divided by its mass: the unknowns are ratios such as
+    ``b2/m2`` and the right-hand side is ``-x2''``.
+    """
+
+    dof: int
+    unknowns: tuple[str, ...]
+    lhs: tuple[Term, ...]
+    rhs: tuple[Term, ...]
+
+    @property
+    def channels(self) -> tuple[Channel, ...]:
+        """Distinct channels used by the equation, in first-use order."""
+        seen: dict[Channel, None] = {}
+        for term in self.lhs + self.rhs:
+            seen.setdefault(term.channel, None)
+        return tuple(seen)
+
+    @property
+    def max_order(self) -> int:
+        """Highest derivative order of any term."""
+        return max(t.order for t in self.lhs + self.rhs)
+
+
+def _positive(name: str, value: float) -> float:
+    value = float(value)
+    if not np.isfinite(value) or value <= 0.0:
+        raise InputError(f"parameter {name} must be a finite positive number, got {value!r}")
+    return value
+
+
+def _finite(name: str, value: float) -> float:
+    value = float(value)
+    if not np.isfinite(value):
+        raise InputError(f"parameter {name} must be finite, got {value!r}")
+    return value
+
+
+@dataclass(frozen=True)
+class Chain:
+    """Chain of ``n`` masses from a fixed wall (eqs. 1-5 of the paper).
+
+    Parameters
+    ----------
+    masses : sequence of float
+        ``m_1 .. m_n`` [kg], positive.
+    damping : sequence of float
+        Viscous damping ``b_i`` of element ``i`` [N s/m].
+    stiffness : sequence of mapping
+        Per element ``i``, ``{order j: k_i_j}`` [N/m^j]. The union of the orders over all
+        elements is the polynomial structure used for identification (``orders``).
+    coulomb : sequence of float, optional
+        Coulomb friction force ``fc_i`` of each mass [N]; None: no friction terms.
+    forced : sequence of int, optional
+        0-based DOFs that carry a force input, default ``(0,)``. Force column ``k`` of a
+        record acts on DOF ``forced[k]``.
+    offset : bool
+        Add an unknown constant force per equation (``c<i>``) to the identification
+        structure (real data: multiplying by (t-t0)^2 removes initial conditions, not
+        biases).
+    orders : sequence of int, optional
+        Stiffness orders in the identification structure; default: every order present in
+        ``stiffness`` plus 1. A zero coefficient of a listed order is still identified.
+    """
+
+    masses: tuple[float, ...]
+    damping: tuple[float, ...]
+    stiffness: tuple[Mapping[int, float], ...]
+    coulomb: tuple[float, ...] | None = None
+    forced: tuple[int, ...] = (0,)
+    offset: bool = False
+    orders: tuple[int, ...] | None = None
+
+    def __post_init__(self) -> None:
+        n = len(self.masses)
+        if n < 1:
+            raise InputError("a chain needs at least one mass")
+        object.__setattr__(self, "masses", tuple(_positive(f"m{i + 1}", m) for i, m in enumerate(self.masses)))
+        if len(self.damping) != n or len(self.stiffness) != n:
+            raise InputError(
+                f"chain with {n} masses needs {n} damping values and {n} stiffness maps, "
+                f"got {len(self.damping)} and {len(self.stiffness)}"
+            )
+        object.__setattr__(self, "damping", tuple(_finite(f"b{i + 1}", b) for i, b in enumerate(self.damping)))
+        stiff = []
+        for i, s in enumerate(self.stiffness):
+            entry = {}
+            for order, value in dict(s).items():
+                if int(order) != order or order < 1:
+                    raise InputError(f"element {i + 1}: stiffness order must be an integer >= 1, got {order!r}")
+                entry[int(order)] = _finite(f"k{i + 1}_{order}", value)
+            stiff.append(entry)
+        object.__setattr__(self, "stiffness", tuple(stiff))
+        if self.orders is None:
+            orders = sorted({o for s in stiff for o in s} | {1})
+        else:
+            orders = sorted(set(int(o) for o in self.orders))
+            if not orders or orders[0] < 1:
+                raise InputError(f"orders must be integers >= 1, got {self.orders!r}")
+            missing = {o for s in stiff for o in s if s[o] != 0.0} - set(orders)
+            if missing:
+                raise InputError(f"stiffness has orders {sorted(missing)} not listed in orders {orders}")
+        object.__setattr__(self, "orders", tuple(orders))
+        if self.coulomb is not None:
+            if len(self.coulomb) != n:
+                raise InputError(f"coulomb needs {n} values, got {len(self.coulomb)}")
+            object.__setattr__(self, "coulomb", tuple(_finite(f"fc{i + 1}", c) for i, c in enumerate(self.coulomb)))
+        forced = tuple(int(i) for i in self.forced)
+        if not forced or len(set(forced)) != len(forced) or any(not 0 <= i < n for i in forced):
+            raise InputError(f"forced must list distinct DOF indices in 0..{n - 1}, got {self.forced!r}")
+        object.__setattr__(self, "forced", forced)
+
+    # ------------------------------------------------------------------ structure
+    @property
+    def n_dof(self) -> int:
+        """Number of masses."""
+        return len(self.masses)
+
+    @property
+    def n_forces(self) -> int:
+        """Number of force inputs."""
+        return len(self.forced)
+
+    @property
+    def name(self) -> str:
+        """Model name used by the CLI and in JSON output."""
+        return "chain"
+
+    def canonical_parameters(self) -> dict[str, float]:
+        """Parameter values under canonical names (``m1``, ``b1``, ``k1_3``, ``fc1``, ...)."""
+        out: dict[str, float] = {}
+        for i in range(self.n_dof):
+            out[f"m{i + 1}"] = self.masses[i]
+            out[f"b{i + 1}"] = self.damping[i]
+            for j in self.orders:
+                out[f"k{i + 1}_{j}"] = self.stiffness[i].get(j, 0.0)
+            if self.coulomb is not None:
+                out[f"fc{i + 1}"] = self.coulomb[i]
+        if self.offset:
+            out.update({f"c{i + 1}": 0.0 for i in range(self.n_dof)})
+        return out
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        """Parameter values under the model's public names."""
+        return self.canonical_parameters()
+
+    def from_canonical(self, values: Mapping[str, float]) -> dict[str, float]:
+        """Rename canonical parameter estimates to the model's public names."""
+        return dict(values)
+
+    def canonical_name(self, public: str) -> str:
+        """Canonical name (``m1``, ``k1_3``, ...) of the public parameter ``public``."""
+        if public not in self.parameters:
+            raise KeyError(f"{self.name}: no parameter {public!r}; known: {', '.join(self.parameters)}")
+        return public
+
+    def equations(self) -> tuple[Equation, ...]:
+        """Identification structure: one equation per DOF, linear in its unknowns."""
+        eqs = []
+        for i in range(self.n_dof):
+            forced = i in self.forced
+            scale = "" if forced else f"/m{i + 1}"
+            lhs: list[Term] = []
+            unknowns: list[str] = []
+
+            def add(name: str, channel: Channel, order: int, sign: float = 1.0) -> None:
+                unknowns.append(name + scale)
+                lhs.append(Term(name + scale, channel, order, sign))
+
+            if forced:
+                add(f"m{i + 1}", Channel("x", i), 2)
+            add(f"b{i + 1}", Channel("deflection", i, 1), 1)
+            for j in self.orders:
+                add(f"k{i + 1}_{j}", Channel("deflection", i, j), 0)
+            if self.coulomb is not None:
+                add(f"fc{i + 1}", Channel("sign_velocity", i), 0)
+            if i + 1 < self.n_dof:
+                add(f"b{i + 2}", Channel("deflection", i + 1, 1), 1, -1.0)
+                for j in self.orders:
+                    add(f"k{i + 2}_{j}", Channel("deflection", i + 1, j), 0, -1.0)
+            if self.offset:
+                add(f"c{i + 1}", Channel("one"), 0)
+            if forced:
+                rhs = (Term(None, Channel("force", self.forced.index(i)), 0),)
+            else:
+                rhs = (Term(None, Channel("x", i), 2, -1.0),)
+            eqs.append(Equation(i, tuple(unknowns), tuple(lhs), tuple(rhs)))
+        return tuple(eqs)
+
+    # ------------------------------------------------------------------ dynamics
+    def with_parameters(self, **values: float) -> "Chain":
+        """A copy with some canonical parameters replaced."""
+        current = self.canonical_parameters()
+        unknown = set(values) - set(current)
+        if unknown:
+            raise InputError(f"unknown parameters {sorted(unknown)}; known: {sorted(current)}")
+        current.update(values)
+        return _chain_from_canonical(self, current)
+
+    def element_forces(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Force carried by each element, shape (..., n)."""
+        x = np.asarray(x, dtype=float)
+        v = np.asarray(v, dtype=float)
+        zeros = np.zeros_like(x[..., :1])
+        y = x - np.concatenate([zeros, x[..., :-1]], axis=-1)
+        ydot = v - np.concatenate([zeros, v[..., :-1]], axis=-1)
+        force = np.asarray(self.damping) * ydot
+        for j in self.orders:
+            kj = np.array([s.get(j, 0.0) for s in self.stiffness])
+            force = force + kj * y**j
+        return force
+
+    def acceleration(self, x: np.ndarray, v: np.ndarray, f: np.ndarray,
+                     friction_velocity: float = 1e-4) -> np.ndarray:
+        """Accelerations for displacements ``x``, velocities ``v`` and forces ``f``.
+
+        Coulomb friction is smoothed as ``fc * tanh(v / friction_velocity)`` so that an
+        adaptive ODE solver can integrate it (documented approximation of sgn).
+        """
+        element = self.element_forces(x, v)
+        right = np.concatenate([element[..., 1:], np.zeros_like(element[..., :1])], axis=-1)
+        applied = np.zeros_like(element)
+        applied[..., list(self.forced)] = f
+        net = applied - element + right
+        if self.coulomb is not None:
+            net = net - np.asarray(self.coulomb) * np.tanh(v / friction_velocity)
+        return net / np.asarray(self.masses)
+
+    def _linear_matrices(self, parameters: Mapping[str, float] | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Mass, damping and stiffness matrices of the chain linearised about x = 0."""
+        p = self.canonical_parameters() if parameters is None else parameters
+        n = self.n_dof
+
+        def chain_matrix(values: np.ndarray) -> np.ndarray:
+            A = np.diag(values)
+            A[:-1, :-1] += np.diag(values[1:])
+            A[np.arange(n - 1), np.arange(1, n)] = -values[1:]
+            A[np.arange(1, n), np.arange(n - 1)] = -values[1:]
+            return A
+
+        k = np.array([p.get(f"k{i + 1}_1", 0.0) for i in range(n)])
+        b = np.array([p.get(f"b{i + 1}", 0.0) for i in range(n)])
+        m = np.array([p[f"m{i + 1}"] for i in range(n)])
+        return np.diag(m), chain_matrix(b), chain_matrix(k)
+
+    def linear_natural_frequencies(self, parameters: Mapping[str, float] | None = None) -> np.ndarray:
+        """Undamped natural frequencies [rad/s] of the linearised chain about x = 0."""
+        M, _, K = self._linear_matrices(parameters)
+        eig = np.linalg.eigvals(np.linalg.solve(M, K))
+        return np.sqrt(np.sort(np.abs(eig.real)))
+
+    def linear_poles(self, parameters: Mapping[str, float] | None = None) -> np.ndarray:
+        """Poles [rad/s] of the chain linearised about x = 0 (viscous damping included)."""
+        M, B, K = self._linear_matrices(parameters)
+        n = self.n_dof
+        A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, K), -np.linalg.solve(M, B)]])
+        return np.linalg.eigvals(A)
+
+
+def _chain_from_canonical(template: Chain, values: Mapping[str, float]) -> Chain:
+    n = template.n_dof
+    stiffness = [{j: values[f"k{i + 1}_{j}"] for j in template.orders} for i in range(n)]
+    new = Chain(
+        masses=tuple(values[f"m{i + 1}"] for i in range(n)),
+        damping=tuple(values[f"b{i + 1}"] for i in range(n)),
+        stiffness=tuple(stiffness),
+        coulomb=None if template.coulomb is None else tuple(values[f"fc{i + 1}"] for i in range(n)),
+        forced=template.forced,
+        offset=template.offset,
+        orders=template.orders,
+    )
+    if type(template) is Chain:
+        return new
+    return template._rebuild(new)  # type: ignore[attr-defined]
+
+
+class _Named(Chain):
+    """A chain whose parameters carry the paper's names."""
+
+    _names: dict[str, str] = {}  # public name -> canonical name
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        return self.from_canonical(self.canonical_parameters())
+
+    def _to_public(self, public: str, canonical: Mapping[str, float]) -> float:
+        return canonical[self._names[public]]
+
+    def canonical_name(self, public: str) -> str:
+        if public in self._names:
+            return self._names[public]
+        return super().canonical_name(public)
+
+    def from_canonical(self, values: Mapping[str, float]) -> dict[str, float]:
+        out = {public: self._to_public(public, values) for public in self._names}
+        if self.offset:  # offsets keep their canonical names c1, c2, ...
+            out.update({f"c{i + 1}": values[f"c{i + 1}"] for i in range(self.n_dof)})
+        return out
+
+    def _rebuild(self, chain: Chain) -> "_Named":
+        params = {public: self._to_public(public, chain.canonical_parameters()) for public in self._names}
+        return type(self)(**params, offset=chain.offset)  # type: ignore[call-arg]
+
+
+class Duffing1(_Named):
+    """One-DOF Duffing oscillator ``m x'' + b x' + k x + kp x^3 = f`` (eqs. 10-11).
+
+    Defaults are the paper's Table 1 with ``b = 12.47`` N s/m.
+    """
+
+    _names = {"m": "m1", "b": "b1", "k": "k1_1", "kp": "k1_3"}
+
+    def __init__(self, m: float = 2.53, b: float = 12.47, k: float = 1272.1, kp: float = -1.237e6,
+                 *, offset: bool = False) -> None:
+        super().__init__(masses=(m,), damping=(b,), stiffness=({1: k, 3: kp},), offset=offset,
+                         orders=(1, 3))
+
+    @property
+    def name(self) -> str:
+        return "duffing1"
+
+
+class Duffing2(_Named):
+    """Two-DOF chain wall-m1-m2 of Figure 9, force on m1 (eqs. 20-21).
+
+    ``m1 x1'' + b1 x1' + k1 x1 + kp1 x1^3 + b2 (x1' - x2') + k2 (x1 - x2) - kp2 (x2 - x1)^3 = f1``
+    and ``m2 x2'' + b2 (x2' - x1') + k2 (x2 - x1) + kp2 (x2 - x1)^3 = 0``.
+    """
+
+    _names = {"m1": "m1", "b1": "b1", "k1": "k1_1", "kp1": "k1_3",
+              "b2": "b2", "k2": "k2_1", "kp2": "k2_3", "m2": "m2"}
+
+    def __init__(self, m1: float = 2.53, b1: float = 5.0, k1: float = 1272.1, kp1: float = -1.237e6,
+                 m2: float = 2.754, b2: float = 4.0, k2: float = 1570.0, kp2: float = -1.350e6,
+                 *, offset: bool = False) -> None:
+        super().__init__(masses=(m1, m2), damping=(b1, b2),
+                         stiffness=({1: k1, 3: kp1}, {1: k2, 3: kp2}), offset=offset,
+                         orders=(1, 3))
+
+    @property
+    def name(self) -> str:
+        return "duffing2"
+
+
+class DuffingCircuit(_Named):
+    """Series circuit ``L q'' + R q' + q/C + a q^3 = u`` (charge q, source voltage u).
+
+    The same equation as :class:`Duffing1` with ``m = L``, ``b = R``, ``k = 1/C`` and
+    ``kp = a``; records hold ``q`` in the displacement column and ``u`` in the force column.
+    """
+
+    _names = {"L": "m1", "R": "b1", "C": "k1_1", "a": "k1_3"}
+
+    def __init__(self, L: float = 0.1, R: float = 2.0, C: float = 1e-3, a: float = 5e6,
+                 *, offset: bool = False) -> None:
+        super().__init__(masses=(L,), damping=(R,), stiffness=({1: 1.0 / _positive("C", C), 3: a},),
+                         offset=offset, orders=(1, 3))
+
+    def _to_public(self, public: str, canonical: Mapping[str, float]) -> float:
+        value = canonical[self._names[public]]
+        if public == "C":
+            return 1.0 / value if value != 0.0 else float("inf")
+        return value
+
+    @property
+    def name(self) -> str:
+        return "circuit"
+
+
+def model_from_name(name: str, n_dof: int = 1, *, orders: Sequence[int] = (1, 3),
+                    coulomb: bool = False, offset: bool = False,
+                    forced: Sequence[int] = (0,)) -> Chain:
+    """Build a model (structure with nominal parameter values) from its CLI name.
+
+    Parameters
+    ----------
+    name : {"duffing1", "duffing2", "circuit", "chain"}
+        Model name.
+    n_dof : int
+        Number of masses of a ``chain``.
+    orders : sequence of int
+        Stiffness orders of a ``chain``.
+    coulomb : bool
+        Coulomb friction terms in a ``chain``.
+    offset : bool
+        Add an unknown constant offset per equation.
+    forced : sequence of int
+        0-based DOFs carrying force inputs (``chain`` only).
+    """
+    if name == "duffing1":
+        return Duffing1(offset=offset)
+    if name == "duffing2":
+        return Duffing2(offset=offset)
+    if name == "circuit":
+        return DuffingCircuit(offset=offset)
+    if name == "chain":
+        if n_dof < 1:
+            raise InputError(f"a chain needs n_dof >= 1, got {n_dof}")
+        orders = tuple(sorted(set(int(o) for o in orders)))
+        stiffness = tuple({1: 1000.0} for _ in range(n_dof))
+        return Chain(masses=(1.0,) * n_dof, damping=(1.0,) * n_dof, stiffness=stiffness,
+                     coulomb=(0.0,) * n_dof if coulomb else None, forced=tuple(forced), offset=offset,
+                     orders=orders)
+    raise InputError(f"unknown model {name!r}; choose duffing1, duffing2, chain or circuit")
