@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-kernels venv bench clean
+.PHONY: demo test test-kernels venv bench clean generated
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,11 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/silverbox.py
 	$(BIN)/python benchmarks/cosim.py
 	$(BIN)/python benchmarks/trust.py
+
+# files generated from one source: the C option table from duffid.identification.options
+generated: $(STAMP)
+	$(BIN)/python -c 'from duffid.identification.options import c_header; print(c_header(), end="")' \
+		> fmus/estimator/duffid_options.h
 
 clean:
 	rm -rf $(VENV) out build *.egg-info src/*.egg-info

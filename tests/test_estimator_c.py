@@ -29,6 +29,7 @@ from duffid.cbuild import find_compiler
 from duffid.errors import BuildError, CompilerNotFoundError
 from duffid.identification.batch import estimate
 from duffid.identification.c_core import CFLAGS, CIdentifier, build_library, source_dir
+from duffid.identification.options import to_c
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None,
                                 reason="no C compiler")
@@ -285,7 +286,7 @@ def test_c_program_on_a_csv_record(c_program, tmp_path, case_a, two_dof_exact, m
     path = tmp_path / "record.csv"
     record.to_csv(path)
     args = [str(c_program), "run", model_name, method, str(path), f"dt={record.dt!r}"]
-    args += [f"{k}={int(v) if isinstance(v, bool) else v}" for k, v in options.items()]
+    args += [f"{k}={to_c(k, v)!r}" for k, v in options.items()]
     proc = subprocess.run(args, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     assert "mean update time" in proc.stderr

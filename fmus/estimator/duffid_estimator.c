@@ -230,27 +230,33 @@ int duffid_default_config(duffid_config *cfg, int model, int method, double dt)
     cfg->method = method;
     cfg->offset = 0;
     cfg->dt = dt;
-    cfg->max_condition = 1e6;
-    cfg->min_time = 0.01;
-    cfg->deadband = 0.0;
-    cfg->window = 0.0;
-    cfg->window_periods = 1.5;
-    cfg->max_window = 1.0;
-    cfg->forgetting = 0.0;
-    cfg->rows = DUFFID_ROWS_INTEGRALS;
-    cfg->n_rows = 0;
-    cfg->max_uncertainty = 0.01;
-    cfg->settle = 0.01;
-    cfg->gamma = 20.0;
-    cfg->quadrature = DUFFID_ADAMS3;
-    cfg->sign_in_numerator = 0;
+#define DUFFID_SET_DEFAULT(kind, name, default_value, minimum, maximum, methods, valid) \
+    cfg->name = default_value;
+    DUFFID_OPTIONS(DUFFID_SET_DEFAULT)
+#undef DUFFID_SET_DEFAULT
     return DUFFID_OK;
 }
 
-static int check_nonneg(const char *name, double v, char *msg, size_t size)
+/* The range checks of the option table (duffid_options.h): a REAL option is a finite
+ * number >= its minimum, a CODE option an int in 0 .. maximum (maximum < 0: no bound);
+ * only the options the configured method reads are checked. */
+static int check_REAL(const char *name, int used, double v, double minimum, int maximum, const char *valid,
+                      char *msg, size_t size)
 {
-    if (!(is_finite(v) && v >= 0.0)) {
-        set_msg(msg, size, "option %s must be a finite number >= 0, got %g", name, v);
+    (void)maximum;
+    if (used && !(is_finite(v) && v >= minimum)) {
+        set_msg(msg, size, "option %s must be %s, got %g", name, valid, v);
+        return DUFFID_ERR_CONFIG;
+    }
+    return DUFFID_OK;
+}
+
+static int check_CODE(const char *name, int used, int v, double minimum, int maximum, const char *valid,
+                      char *msg, size_t size)
+{
+    (void)minimum;
+    if (used && (v < 0 || (maximum >= 0 && v > maximum))) {
+        set_msg(msg, size, "option %s must be %s, got %d", name, valid, v);
         return DUFFID_ERR_CONFIG;
     }
     return DUFFID_OK;
@@ -283,7 +289,7 @@ static long capacity_of(const duffid_config *cfg)
 
 int duffid_check_config(const duffid_config *cfg, char *msg, size_t size)
 {
-    int i, rc, n_pub;
+    int i, rc, n_pub, method_bit;
     if (cfg == NULL) {
         set_msg(msg, size, "no configuration");
         return DUFFID_ERR_ARGUMENT;
@@ -313,37 +319,15 @@ int duffid_check_config(const duffid_config *cfg, char *msg, size_t size)
             return DUFFID_ERR_CONFIG;
         }
     }
-    if ((rc = check_nonneg("max_condition", cfg->max_condition, msg, size)) != DUFFID_OK ||
-        (rc = check_nonneg("min_time", cfg->min_time, msg, size)) != DUFFID_OK) {
-        return rc;
+    method_bit = cfg->method == DUFFID_ROBUST ? DUFFID_FOR_ROBUST : DUFFID_FOR_PAPER;
+#define DUFFID_CHECK_OPTION(kind, name, default_value, minimum, maximum, methods, valid) \
+    if ((rc = check_##kind(#name, ((methods) & method_bit) != 0, cfg->name, minimum, maximum, valid, msg, \
+                           size)) != DUFFID_OK) {                                                         \
+        return rc;                                                                                        \
     }
+    DUFFID_OPTIONS(DUFFID_CHECK_OPTION)
+#undef DUFFID_CHECK_OPTION
     if (cfg->method == DUFFID_ROBUST) {
-        if ((rc = check_nonneg("max_uncertainty", cfg->max_uncertainty, msg, size)) != DUFFID_OK ||
-            (rc = check_nonneg("settle", cfg->settle, msg, size)) != DUFFID_OK ||
-            (rc = check_nonneg("max_window", cfg->max_window, msg, size)) != DUFFID_OK ||
-            (rc = check_nonneg("window_periods", cfg->window_periods, msg, size)) != DUFFID_OK) {
-            return rc;
-        }
-        if (!(is_finite(cfg->window) && cfg->window >= 0.0)) {
-            set_msg(msg, size, "option window must be 0 ('auto') or a positive number of seconds, got %g",
-                    cfg->window);
-            return DUFFID_ERR_CONFIG;
-        }
-        if (!(is_finite(cfg->forgetting) && cfg->forgetting >= 0.0)) {
-            set_msg(msg, size, "option forgetting must be 0 (none) or a positive time constant in s, got %g",
-                    cfg->forgetting);
-            return DUFFID_ERR_CONFIG;
-        }
-        if (cfg->rows != DUFFID_ROWS_INTEGRALS && cfg->rows != DUFFID_ROWS_BERNSTEIN &&
-            cfg->rows != DUFFID_ROWS_PAPER) {
-            set_msg(msg, size, "unknown row family %d; choose integrals (0), bernstein (1) or paper (2)",
-                    cfg->rows);
-            return DUFFID_ERR_CONFIG;
-        }
-        if (cfg->n_rows < 0) {
-            set_msg(msg, size, "n_rows must be >= 1 (or 0 for the default), got %d", cfg->n_rows);
-            return DUFFID_ERR_CONFIG;
-        }
         if (effective_rows(cfg) > DUFFID_MAX_ROWS) {
             set_msg(msg, size, "n_rows must be at most %d in the C core, got %d", DUFFID_MAX_ROWS,
                     effective_rows(cfg));
@@ -354,18 +338,6 @@ int duffid_check_config(const duffid_config *cfg, char *msg, size_t size)
                 (double)SIZE_MAX / 2.0) {
             set_msg(msg, size, "the window (%g s at dt %g s) exceeds %ld samples or the address space",
                     cfg->window > 0.0 ? cfg->window : cfg->max_window, cfg->dt, MAX_CAPACITY);
-            return DUFFID_ERR_CONFIG;
-        }
-    } else {
-        if ((rc = check_nonneg("gamma", cfg->gamma, msg, size)) != DUFFID_OK) {
-            return rc;
-        }
-        if (cfg->quadrature != DUFFID_ADAMS3 && cfg->quadrature != DUFFID_TRAPEZOID) {
-            set_msg(msg, size, "option quadrature must be adams3 (0) or trapezoid (1), got %d", cfg->quadrature);
-            return DUFFID_ERR_CONFIG;
-        }
-        if (cfg->sign_in_numerator != 0 && cfg->sign_in_numerator != 1) {
-            set_msg(msg, size, "option sign_in_numerator must be 0 or 1, got %d", cfg->sign_in_numerator);
             return DUFFID_ERR_CONFIG;
         }
     }

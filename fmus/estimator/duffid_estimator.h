@@ -30,6 +30,8 @@
 
 #include <stddef.h>
 
+#include "duffid_options.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -110,23 +112,12 @@ typedef struct duffid_config {
      * (default: every scale comes from the data). A parameter with a prior is trustworthy
      * when its standard error is below max_uncertainty x max(|estimate|, |nominal|). */
     double nominal[DUFFID_MAX_PARAMS];
-    /* both methods */
-    double max_condition;   /* 1e6: largest condition number of an identified solution */
-    double min_time;        /* 0.01 s: shortest window of an identified solution */
-    double deadband;        /* 0: unused by the supported models (no Coulomb friction) */
-    /* robust */
-    double window;          /* 0: "auto" (default), otherwise the window length [s] */
-    double window_periods;  /* 1.5: auto window in natural periods */
-    double max_window;      /* 1.0 s: buffer capacity (longest window) */
-    double forgetting;      /* 0: none (default), otherwise the time constant [s] */
-    int rows;               /* DUFFID_ROWS_INTEGRALS */
-    int n_rows;             /* 0: max(unknowns + 1, 8) */
-    double max_uncertainty; /* 0.01 */
-    double settle;          /* 0.01 s */
-    /* paper */
-    double gamma;           /* 20: filter gain of eq. (19) */
-    int quadrature;         /* DUFFID_ADAMS3 */
-    int sign_in_numerator;  /* 0 */
+    /* The options (duffid_options.h, generated from duffid.identification.options.OPTIONS:
+     * names, defaults, ranges and meanings in one place). */
+#define DUFFID_DECLARE_OPTION(kind, name, default_value, minimum, maximum, methods, valid) \
+    DUFFID_CTYPE_##kind name;
+    DUFFID_OPTIONS(DUFFID_DECLARE_OPTION)
+#undef DUFFID_DECLARE_OPTION
 } duffid_config;
 
 /* Result of one update. */

@@ -43,22 +43,13 @@
 #define N_PARAMS 8
 #endif
 
-/* Options, in value-reference order after the outputs. */
+/* Options, in value-reference order after the outputs: the method, then the option table
+ * of duffid_options.h (generated from duffid.identification.options.OPTIONS). */
 enum {
-    OPT_METHOD,          /* 0 robust, 1 paper */
-    OPT_WINDOW,          /* s, 0: auto */
-    OPT_WINDOW_PERIODS,
-    OPT_MAX_WINDOW,      /* s */
-    OPT_FORGETTING,      /* s, 0: none */
-    OPT_ROWS,            /* 0 integrals, 1 bernstein, 2 paper */
-    OPT_N_ROWS,          /* 0: default */
-    OPT_MAX_CONDITION,
-    OPT_MAX_UNCERTAINTY,
-    OPT_MIN_TIME,        /* s */
-    OPT_SETTLE,          /* s */
-    OPT_GAMMA,
-    OPT_QUADRATURE,      /* 0 adams3, 1 trapezoid */
-    OPT_SIGN_IN_NUMERATOR, /* 0/1 */
+    OPT_METHOD, /* 0 robust, 1 paper */
+#define DUFFID_OPTION_ENUM(kind, name, default_value, minimum, maximum, methods, valid) OPT_##name,
+    DUFFID_FMU_OPTIONS(DUFFID_OPTION_ENUM)
+#undef DUFFID_OPTION_ENUM
     N_OPTIONS
 };
 
@@ -173,31 +164,22 @@ static int make_config(Instance *inst, double dt, duffid_config *cfg)
     duffid_default_config(cfg, ESTIMATOR_MODEL, method == 0 ? DUFFID_ROBUST : DUFFID_PAPER, dt);
     for (i = 0; i < N_PARAMS; i++)
         if (v[VR_NOMINAL + i] != start[VR_NOMINAL + i]) cfg->nominal[i] = v[VR_NOMINAL + i];
-    if (CHANGED(OPT_WINDOW)) cfg->window = v[VR_OPT + OPT_WINDOW];
-    if (CHANGED(OPT_WINDOW_PERIODS)) cfg->window_periods = v[VR_OPT + OPT_WINDOW_PERIODS];
-    if (CHANGED(OPT_MAX_WINDOW)) cfg->max_window = v[VR_OPT + OPT_MAX_WINDOW];
-    if (CHANGED(OPT_FORGETTING)) cfg->forgetting = v[VR_OPT + OPT_FORGETTING];
-    if (CHANGED(OPT_MAX_CONDITION)) cfg->max_condition = v[VR_OPT + OPT_MAX_CONDITION];
-    if (CHANGED(OPT_MAX_UNCERTAINTY)) cfg->max_uncertainty = v[VR_OPT + OPT_MAX_UNCERTAINTY];
-    if (CHANGED(OPT_MIN_TIME)) cfg->min_time = v[VR_OPT + OPT_MIN_TIME];
-    if (CHANGED(OPT_SETTLE)) cfg->settle = v[VR_OPT + OPT_SETTLE];
-    if (CHANGED(OPT_GAMMA)) cfg->gamma = v[VR_OPT + OPT_GAMMA];
-    if (CHANGED(OPT_ROWS)) {
-        if ((code = coded_option(inst, OPT_ROWS, 2)) < 0) return 1;
-        cfg->rows = code;
+    /* a REAL option is taken as it is (duffid_check_config checks its range); a CODE option
+     * must be a whole number in its range first (the only code without a maximum, n_rows, is
+     * bounded by the core's DUFFID_MAX_ROWS) */
+#define SET_REAL(name, maximum) cfg->name = v[VR_OPT + OPT_##name];
+#define SET_CODE(name, maximum)                                                              \
+    if ((code = coded_option(inst, OPT_##name, (maximum) >= 0 ? (maximum) : DUFFID_MAX_ROWS)) < 0) \
+        return 1;                                                                            \
+    cfg->name = code;
+#define DUFFID_SET_OPTION(kind, name, default_value, minimum, maximum, methods, valid) \
+    if (CHANGED(OPT_##name)) {                                                          \
+        SET_##kind(name, maximum)                                                       \
     }
-    if (CHANGED(OPT_N_ROWS)) {
-        if ((code = coded_option(inst, OPT_N_ROWS, DUFFID_MAX_ROWS)) < 0) return 1;
-        cfg->n_rows = code;
-    }
-    if (CHANGED(OPT_QUADRATURE)) {
-        if ((code = coded_option(inst, OPT_QUADRATURE, 1)) < 0) return 1;
-        cfg->quadrature = code;
-    }
-    if (CHANGED(OPT_SIGN_IN_NUMERATOR)) {
-        if ((code = coded_option(inst, OPT_SIGN_IN_NUMERATOR, 1)) < 0) return 1;
-        cfg->sign_in_numerator = code;
-    }
+    DUFFID_FMU_OPTIONS(DUFFID_SET_OPTION)
+#undef DUFFID_SET_OPTION
+#undef SET_CODE
+#undef SET_REAL
 #undef CHANGED
     if (duffid_check_config(cfg, msg, sizeof msg) != DUFFID_OK) {
         fmu_log(inst, FMU_ERROR, "logStatusError", "invalid estimator parameters: %s", msg);

@@ -52,38 +52,16 @@ static int set_option(duffid_config *cfg, const char *arg, long *repeat)
     key[len] = '\0';
     val = eq + 1;
     v = strtod(val, NULL);
-    if (strcmp(key, "window") == 0) {
-        cfg->window = strcmp(val, "auto") == 0 ? 0.0 : v;
-    } else if (strcmp(key, "window_periods") == 0) {
-        cfg->window_periods = v;
-    } else if (strcmp(key, "max_window") == 0) {
-        cfg->max_window = v;
-    } else if (strcmp(key, "forgetting") == 0) {
-        cfg->forgetting = strcmp(val, "none") == 0 ? 0.0 : v;
-    } else if (strcmp(key, "rows") == 0) {
-        cfg->rows = strcmp(val, "integrals") == 0 ? DUFFID_ROWS_INTEGRALS
-                    : strcmp(val, "bernstein") == 0 ? DUFFID_ROWS_BERNSTEIN
-                    : strcmp(val, "paper") == 0 ? DUFFID_ROWS_PAPER : -1;
-    } else if (strcmp(key, "n_rows") == 0) {
-        cfg->n_rows = atoi(val);
-    } else if (strcmp(key, "max_condition") == 0) {
-        cfg->max_condition = v;
-    } else if (strcmp(key, "max_uncertainty") == 0) {
-        cfg->max_uncertainty = v;
-    } else if (strcmp(key, "min_time") == 0) {
-        cfg->min_time = v;
-    } else if (strcmp(key, "settle") == 0) {
-        cfg->settle = v;
-    } else if (strcmp(key, "deadband") == 0) {
-        cfg->deadband = v;
-    } else if (strcmp(key, "gamma") == 0) {
-        cfg->gamma = v;
-    } else if (strcmp(key, "quadrature") == 0) {
-        cfg->quadrature = strcmp(val, "adams3") == 0 ? DUFFID_ADAMS3
-                          : strcmp(val, "trapezoid") == 0 ? DUFFID_TRAPEZOID : -1;
-    } else if (strcmp(key, "sign_in_numerator") == 0) {
-        cfg->sign_in_numerator = atoi(val);
-    } else if (strcmp(key, "offset") == 0) {
+    /* every option of the table, by its C code (duffid.identification.options.to_c) */
+#define TEST_SET_REAL(name) cfg->name = v;
+#define TEST_SET_CODE(name) cfg->name = atoi(val);
+#define TEST_SET_OPTION(kind, name, default_value, minimum, maximum, methods, valid) \
+    if (strcmp(key, #name) == 0) {                                                  \
+        TEST_SET_##kind(name) return 0;                                             \
+    }
+    DUFFID_OPTIONS(TEST_SET_OPTION)
+#undef TEST_SET_OPTION
+    if (strcmp(key, "offset") == 0) {
         cfg->offset = atoi(val);
     } else if (strcmp(key, "repeat") == 0) {
         *repeat = atol(val);

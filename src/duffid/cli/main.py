@@ -17,6 +17,7 @@ from ..data.record import Record
 from ..data.signals import from_spec
 from ..errors import DuffidError, InputError, RecordError
 from ..identification.engine import METHODS
+from ..identification.options import ONLINE_METHODS, add_arguments, options_from_arguments
 from ..identification.trust import OFFSETS, identify
 from ..modelica import export as modelica
 from ..models.chain import model_from_name
@@ -130,23 +131,20 @@ def build_parser() -> argparse.ArgumentParser:
     g = p.add_argument_group("robust method options")
     g.add_argument("--window", type=_window, default=None,
                    help="window length in s (robust: or auto, the default; buffered: default 0.25)")
-    g.add_argument("--window-periods", type=_positive_float, default=None,
-                   help="auto window length in natural periods (default 1.5)")
-    g.add_argument("--max-window", type=_positive_float, default=None, help="longest window in s (default 1)")
-    g.add_argument("--forgetting", type=_positive_float, default=None, help="forgetting time constant in s")
-    g.add_argument("--rows", choices=("integrals", "bernstein", "paper"), default=None, help="row kernel family")
-    g.add_argument("--n-rows", type=int, default=None, help="rows per window (default max(unknowns + 1, 8))")
+    add_arguments(g, "robust", ("window_periods", "max_window", "forgetting", "rows", "n_rows", "settle"))
     g.add_argument("--max-uncertainty", type=_positive_float, default=None,
                    help="largest relative standard error of a published parameter (default 0.01)")
     g.add_argument("--no-refine", action="store_true",
                    help="do not refine by output-error least squares when the algebraic estimate leaves "
                         "excited parameters undetermined (faster; fewer values published)")
     g = p.add_argument_group("paper method options")
-    g.add_argument("--gamma", type=float, default=None, help="filter gain of eq. (19) (default 20)")
+    add_arguments(g, "paper", ("gamma",))
     g.add_argument("--quadrature", choices=("adams3", "trapezoid", "gauss", "simpson"), default=None,
                    help="paper: adams3 (default) or trapezoid; buffered coefficients: gauss (default), "
                         "simpson or trapezoid")
-    g.add_argument("--sign-in-numerator", action="store_true", help="NOTES.md's fix of eq. (19)'s sign flips")
+    add_arguments(g, "paper", ("sign_in_numerator",))
+    g = p.add_argument_group("options of both online methods (robust and paper)")
+    add_arguments(g, "robust", ("max_condition", "min_time"))
     g = p.add_argument_group("buffered methods (legendre, chebyshev, block-pulse, haar)")
     g.add_argument("--terms", type=int, default=None, help="basis functions per window")
     g.add_argument("--every", type=int, default=None, help="samples between re-identifications (default: a window)")
@@ -237,22 +235,14 @@ def _read_record(args: argparse.Namespace, path: Path | None = None) -> Record:
         raise
 
 
-_OPTION_NAMES = {
-    "robust": ("window", "window_periods", "max_window", "forgetting", "rows", "n_rows", "max_uncertainty",
-               "deadband"),
-    "paper": ("gamma", "quadrature", "deadband"),
-}
 _BUFFERED_NAMES = {"window": "window", "terms": "n_terms", "every": "every", "quadrature": "quadrature",
                    "form": "form", "repeated": "repeated", "max_uncertainty": "max_uncertainty", "deadband": "deadband"}
 
 
 def _method_options(args: argparse.Namespace, method: str) -> dict[str, Any]:
     """The options given on the command line that ``method`` takes."""
-    if method in _OPTION_NAMES:
-        options = {k: getattr(args, k) for k in _OPTION_NAMES[method] if getattr(args, k) is not None}
-        if method == "paper" and args.sign_in_numerator:
-            options["sign_in_numerator"] = True
-        return options
+    if method in ONLINE_METHODS:
+        return options_from_arguments(args, method)
     options = {option: getattr(args, arg) for arg, option in _BUFFERED_NAMES.items() if getattr(args, arg) is not None}
     if options.get("window") == "auto":
         raise InputError("--window auto applies to the robust method; give the buffered window in seconds")

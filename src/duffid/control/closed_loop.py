@@ -39,6 +39,7 @@ import numpy as np
 from ..assets import asset_path
 from ..cosim.system import Result, System
 from ..errors import InputError
+from ..models.chain import PAPER_DUFFING1, PAPER_DUFFING2, Duffing2
 from .adaptive import controller_parameters, design, mismatched
 
 __all__ = ["SineReference", "LoopCase", "LoopResult", "loop_cases", "ensure_fmus", "loop_system",
@@ -168,9 +169,8 @@ class LoopCase:
 
 def loop_cases() -> dict[str, LoopCase]:
     """The three loops of the main job: 1-DOF oscillator, 2-DOF chain, Duffing circuit."""
-    one = {"m": 2.53, "b": 12.47, "k": 1272.1, "kp": -1.237e6}
-    two = {"m1": 2.53, "b1": 5.0, "k1": 1272.1, "kp1": -1.237e6,
-           "b2": 4.0, "k2": 1570.0, "kp2": -1.35e6, "m2": 2.754}
+    one = dict(PAPER_DUFFING1)
+    two = {name: PAPER_DUFFING2[name] for name in Duffing2().parameters}  # public order
     circuit = {"L": 0.1, "R": 2.0, "C": 1e-3, "a": 5e6}
     return {
         "oscillator1dof": LoopCase(

@@ -33,13 +33,12 @@ NaN unless published. To identify a record of ``n`` samples, simulate from ``t[0
 """
 from __future__ import annotations
 
-import ctypes
 from pathlib import Path
 
 from ..assets import fmu_sources
 from ..errors import InputError
-from ..identification.c_core import CConfig, load_library
 from ..identification.engine import status_codes
+from ..identification.options import ONLINE_METHODS, fmu_parameters
 from ..models.chain import Duffing1, Duffing2
 from .c_model import build_c_model_fmu
 from .python_estimator import build_python_fmu
@@ -55,34 +54,20 @@ _INPUTS = {"duffing1": (("x", "m", "displacement of the mass"), ("f", "N", "forc
            "duffing2": (("x1", "m", "displacement of m1"), ("x2", "m", "displacement of m2"),
                         ("f1", "N", "force on m1"))}
 _PARAM_UNITS = {"m": "kg", "b": "N.s/m", "k": "N/m", "kp": "N/m3"}
-#: Options in value-reference order (name, unit, description); must match
-#: ``fmus/estimator/fmu_model_estimator.c`` (OPT_*).
-OPTIONS = (
-    ("method", None, "identification method: 0 robust, 1 paper"),
-    ("window", "s", "robust: window length, 0 = auto"),
-    ("window_periods", None, "robust: auto window in natural periods"),
-    ("max_window", "s", "robust: longest window (buffer capacity)"),
-    ("forgetting", "s", "robust: forgetting time constant, 0 = none"),
-    ("rows", None, "robust: row kernels: 0 integrals, 1 bernstein, 2 paper"),
-    ("n_rows", None, "robust: rows per window, 0 = default"),
-    ("max_condition", None, "largest condition number of an identified solution"),
-    ("max_uncertainty", None, "robust: largest relative standard error of an identified parameter"),
-    ("min_time", "s", "shortest window of an identified solution"),
-    ("settle", "s", "robust: time an estimate must stay trustworthy"),
-    ("gamma", None, "paper: filter gain"),
-    ("quadrature", None, "paper: 0 adams3, 1 trapezoid"),
-    ("sign_in_numerator", None, "paper: the sign convention of the numerator (sign_in_numerator)"),
-)
+#: Parameters in value-reference order (name, unit, description): the method, then the
+#: options of the schema (duffid.identification.options), which also generates the C table.
+OPTIONS = (("method", None, "identification method: " + ", ".join(f"{i} {m}" for i, m in enumerate(ONLINE_METHODS))),
+           *((o.name, o.unit, o.coded_description) for o in fmu_parameters()))
 #: Variables that are not Float64 (and every ``<name>_status``: Integer).
-TYPES = {"method": "Integer", "rows": "Integer", "n_rows": "Integer", "quadrature": "Integer",
-         "sign_in_numerator": "Boolean", "identified": "Boolean"}
+TYPES = {"method": "Integer", "identified": "Boolean",
+         **{o.name: "Boolean" if o.kind == "bool" else "Integer" for o in fmu_parameters() if o.c_kind == "CODE"}}
 
 
 def variable_types(model_name: str) -> dict[str, str]:
     """:data:`TYPES` with the ``<name>_status`` outputs of the model."""
     model = Duffing1() if model_name == "duffing1" else Duffing2()
     return {**TYPES, "outliers": "Integer", **{f"{name}_status": "Integer" for name in model.parameters}}
-_CORE_FILES = ("duffid_estimator.c", "duffid_estimator.h", "duffid_linalg.c", "duffid_linalg.h",
+_CORE_FILES = ("duffid_estimator.c", "duffid_estimator.h", "duffid_options.h", "duffid_linalg.c", "duffid_linalg.h",
                "fmu_model_estimator.c")
 
 
@@ -91,15 +76,10 @@ def _param_unit(name: str) -> str:
 
 
 def _defaults(model_name: str) -> dict[str, float]:
-    """Option start values: ``duffid_default_config`` (robust) of the C core."""
-    lib = load_library()
-    cfg = CConfig()
-    lib.duffid_default_config(ctypes.byref(cfg), _CODES[model_name], 0, 1e-3)
-    values = {name: float(getattr(cfg, name)) for name, _, _ in OPTIONS}
-    values["method"] = 0.0
+    """Parameter start values: the robust method and the schema's defaults as the C core codes them."""
+    values = {"method": 0.0, **{o.name: float(o.c_default) for o in fmu_parameters()}}
     model = Duffing1() if model_name == "duffing1" else Duffing2()
-    for i, name in enumerate(model.parameters):
-        values[f"{name}_nominal"] = float(cfg.nominal[i])
+    values.update({f"{name}_nominal": 0.0 for name in model.parameters})
     return values
 
 

@@ -60,7 +60,8 @@ from typing import Any
 from xml.etree.ElementTree import Element, SubElement
 
 from ..errors import InputError
-from ..identification.engine import STATUSES, OnlineIdentifier, default_options, status_codes
+from ..identification.engine import STATUSES, OnlineIdentifier, status_codes
+from ..identification.options import fmu_parameters, from_c, to_c
 from ..models.chain import Duffing1, Duffing2
 
 __all__ = ["build_python_fmu", "FMU_NAMES", "EstimatorSlave"]
@@ -119,24 +120,18 @@ def _variable_types():
     return XsReal, Integer, Boolean, String, Fmi2Causality, Fmi2Initial, Fmi2Variability
 
 
-def _option_parameters() -> dict[str, tuple[str, Any]]:
-    """FMU parameter name -> (type, default) of the identifier options (identify()'s defaults)."""
-    r, p = default_options("robust"), default_options("paper")
-    return {
-        "window": ("Real", 0.0 if r["window"] == "auto" else float(r["window"])),
-        "window_periods": ("Real", float(r["window_periods"])),
-        "max_window": ("Real", float(r["max_window"])),
-        "forgetting": ("Real", 0.0 if r["forgetting"] is None else float(r["forgetting"])),
-        "rows": ("String", str(r["rows"])),
-        "n_rows": ("Integer", int(r["n_rows"] or 0)),
-        "max_condition": ("Real", float(r["max_condition"])),
-        "max_uncertainty": ("Real", float(r["max_uncertainty"])),
-        "min_time": ("Real", float(r["min_time"])),
-        "settle": ("Real", float(r["settle"])),
-        "gamma": ("Real", float(p["gamma"])),
-        "quadrature": ("String", str(p["quadrature"])),
-        "sign_in_numerator": ("Boolean", bool(p["sign_in_numerator"])),
-    }
+_FMI_TYPES = {"real": "Real", "count": "Integer", "choice": "String", "bool": "Boolean"}
+
+
+def _option_parameters() -> dict[str, tuple[str, Any, str]]:
+    """FMU parameter name -> (type, default, description) of the identifier options, from the
+    schema (identify()'s defaults): reals and counts coded as the C FMUs code them (0: unset),
+    choices by name."""
+    out = {}
+    for o in fmu_parameters():
+        default = o.default if o.kind in ("choice", "bool") else to_c(o, o.default)
+        out[o.name] = (_FMI_TYPES[o.kind], default, o.coded_description)
+    return out
 
 
 class _StepError(ValueError):
@@ -198,11 +193,11 @@ class EstimatorSlave:
         slave.method = "robust"
         slave.register_variable(String("method", causality=causality.parameter, variability=variability.tunable,
                                        description="robust or paper"))
-        for name, (kind, default) in _option_parameters().items():
+        for name, (kind, default, text) in _option_parameters().items():
             self.parameters[name] = default
             setattr(slave, name, default)
             slave.register_variable(types[kind](name, causality=causality.parameter,
-                                                variability=variability.tunable))
+                                                variability=variability.tunable, description=text))
         for name in self.names:
             pname = f"{name}_nominal"
             self.parameters[pname] = 0.0
@@ -234,25 +229,15 @@ class EstimatorSlave:
         method = str(values["method"])
         if method not in ("robust", "paper"):
             self._fail(f"parameter method must be 'robust' or 'paper', got {method!r}")
-        defaults = default_options(method)
         options: dict[str, Any] = {}
-        for key in defaults:
-            if key not in values:
-                continue  # deadband: unused by these models
-            value = values[key]
-            if key == "window":
-                value = "auto" if float(value) == 0.0 else float(value)
-            elif key == "forgetting":
-                value = None if float(value) == 0.0 else float(value)
-            elif key == "n_rows":
-                value = int(value) or None
-            elif key == "sign_in_numerator":
-                value = bool(value)
-            elif key in ("rows", "quadrature"):
-                value = str(value)
-            else:
-                value = float(value)
-            options[key] = value
+        for o in fmu_parameters():
+            if method not in o.methods:
+                continue
+            value = values[o.name]
+            try:
+                options[o.name] = str(value) if o.kind == "choice" else from_c(o, value)
+            except InputError as exc:
+                self._fail(str(exc))
         return method, options
 
     def _create(self, step_size: float) -> None:

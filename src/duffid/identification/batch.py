@@ -9,7 +9,8 @@ from ..data.record import Record
 from ..errors import InputError
 from ..models.chain import Chain
 from .buffered import identify_buffered
-from .engine import METHODS, ONLINE_METHODS, Identification, OnlineIdentifier, check_record
+from .engine import METHODS, Identification, OnlineIdentifier, check_record
+from .options import ONLINE_METHODS
 
 __all__ = ["estimate"]
 

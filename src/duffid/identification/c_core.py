@@ -30,7 +30,8 @@ from ..cbuild import LIBRARY_FLAGS, SHARED_LIBRARY_SUFFIX, compile_shared_librar
 from ..data.record import Record
 from ..errors import AssetError, InputError
 from ..models.chain import Chain, Duffing1, Duffing2, model_from_name
-from .engine import STATUSES, Estimate, Identification, check_options, check_record, prior_sizes
+from .engine import STATUSES, Estimate, Identification, check_record, prior_sizes
+from .options import C_HEADER_NAME, check_options, ctypes_fields, to_c
 
 __all__ = [
     "CIdentifier",
@@ -44,15 +45,13 @@ __all__ = [
 
 #: C sources of the core, relative to :func:`source_dir`.
 SOURCES = ("duffid_estimator.c", "duffid_linalg.c")
-HEADERS = ("duffid_estimator.h", "duffid_linalg.h")
+HEADERS = ("duffid_estimator.h", "duffid_linalg.h", C_HEADER_NAME)
 #: Compiler flags of the shared library (:mod:`duffid.cbuild`'s, strict C99).
 CFLAGS = CBUILD_FLAGS + LIBRARY_FLAGS
 
 _MAX_PARAMS = 10
 _MODELS = {"duffing1": 1, "duffing2": 2}
 _METHODS = {"robust": 0, "paper": 1}
-_ROWS = {"integrals": 0, "bernstein": 1, "paper": 2}
-_QUADRATURE = {"adams3": 0, "trapezoid": 1}
 _STATUS = {0: "ok", -1: "invalid argument", -2: "invalid configuration", -3: "sample not finite"}
 
 
@@ -69,20 +68,7 @@ class CConfig(ctypes.Structure):
         ("offset", ctypes.c_int),
         ("dt", ctypes.c_double),
         ("nominal", ctypes.c_double * _MAX_PARAMS),
-        ("max_condition", ctypes.c_double),
-        ("min_time", ctypes.c_double),
-        ("deadband", ctypes.c_double),
-        ("window", ctypes.c_double),
-        ("window_periods", ctypes.c_double),
-        ("max_window", ctypes.c_double),
-        ("forgetting", ctypes.c_double),
-        ("rows", ctypes.c_int),
-        ("n_rows", ctypes.c_int),
-        ("max_uncertainty", ctypes.c_double),
-        ("settle", ctypes.c_double),
-        ("gamma", ctypes.c_double),
-        ("quadrature", ctypes.c_int),
-        ("sign_in_numerator", ctypes.c_int),
+        *ctypes_fields(),  # the options, from the schema that generates the C header
     ]
 
 
@@ -284,28 +270,9 @@ class CIdentifier:
         sizes = prior_sizes(self.model, self.options.get("nominal"))
         for i, name in enumerate(self.model.parameters):
             cfg.nominal[i] = sizes.get(self.model.canonical_name(name), 0.0)
-        o = self.options
-        cfg.max_condition = float(o["max_condition"])
-        cfg.min_time = float(o["min_time"])
-        cfg.deadband = float(o["deadband"])
-        if method == "robust":
-            cfg.window = 0.0 if o["window"] == "auto" else float(o["window"])
-            cfg.window_periods = float(o["window_periods"])
-            cfg.max_window = float(o["max_window"])
-            cfg.forgetting = 0.0 if o["forgetting"] is None else float(o["forgetting"])
-            if o["rows"] not in _ROWS:
-                raise InputError(f"unknown row family {o['rows']!r}; choose paper, integrals or bernstein")
-            cfg.rows = _ROWS[o["rows"]]
-            n_rows = o["n_rows"]
-            if n_rows is not None and (int(n_rows) != n_rows or n_rows < 0):
-                raise InputError(f"n_rows must be >= 1, got {n_rows}")
-            cfg.n_rows = int(n_rows or 0)
-            cfg.max_uncertainty = float(o["max_uncertainty"])
-            cfg.settle = float(o["settle"])
-        else:
-            cfg.gamma = float(o["gamma"])
-            cfg.quadrature = _QUADRATURE[o["quadrature"]]
-            cfg.sign_in_numerator = int(bool(o["sign_in_numerator"]))
+        for name, value in self.options.items():
+            if name != "nominal":  # the prior sizes went to cfg.nominal above
+                setattr(cfg, name, to_c(name, value))
         self._config = cfg
         handle = ctypes.c_void_p()
         msg = ctypes.create_string_buffer(512)

@@ -30,18 +30,19 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..data.record import Record
-from ..errors import InputError, OptionError, RecordError
+from ..errors import InputError, RecordError
 from ..models.chain import Chain, Channel, Equation
+from .options import ONLINE_METHODS, check_options
 from .orthogonal import BASES
 from .regressors import KernelBank, SlidingMoments, row_exponents
 
-__all__ = ["OnlineIdentifier", "check_record", "Identification", "Estimate", "METHODS", "ONLINE_METHODS",
-           "STATUSES", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "prior_sizes", "default_options", "check_options", "filtered_cramer", "combine_equations",
+__all__ = ["OnlineIdentifier", "check_record", "Identification", "Estimate", "METHODS",
+           "STATUSES", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "prior_sizes", "filtered_cramer", "combine_equations",
            "auto_window", "Integrators", "solve_factor", "triangular_factor", "equilibrated_condition"]
 
-#: Online methods (OnlineIdentifier) and the buffered orthogonal-function methods of
-#: section 4 (duffid.identification.buffered); identify() accepts all of them.
-ONLINE_METHODS = ("robust", "paper")
+#: The online methods (OnlineIdentifier, :data:`duffid.identification.options.ONLINE_METHODS`)
+#: and the buffered orthogonal-function methods of section 4 (duffid.identification.buffered);
+#: identify() accepts all of them.
 METHODS = ONLINE_METHODS + BASES
 
 #: Status of a parameter; its index is the status code of the C core (DUFFID_STATUS_*) and of
@@ -69,74 +70,7 @@ LOSS_FACTOR = 2.0
 #: ``max_uncertainty`` of one value while the window grew by this share of its length.
 GROWTH_STEADY = 0.25
 
-_ROBUST_DEFAULTS: dict[str, Any] = {
-    "window": "auto",         # seconds, or "auto": window_periods x the identified natural period
-    "window_periods": 1.5,
-    "max_window": 1.0,        # seconds: buffer capacity, the longest window
-    "forgetting": None,       # seconds (time constant) or None: no forgetting
-    "rows": "integrals",      # row kernel family, see regressors.row_exponents
-    "n_rows": None,           # rows per window; default: max(unknowns + 1, 8)
-    "max_condition": 1e6,     # identified when cond(equilibrated R) <= this,
-    "max_uncertainty": 0.01,  # every relative standard error <= this,
-    "min_time": 0.01,         # and the window spans at least this many seconds;
-    "settle": 0.01,           # a parameter is published after its error stayed small this long (s)
-    "deadband": 0.0,          # |dx| <= deadband keeps the previous sign of velocity
-    "nominal": None,          # optional prior sizes {public name: size}: the trust test's scale
-}
-_PAPER_DEFAULTS: dict[str, Any] = {
-    "gamma": 20.0,
-    "quadrature": "adams3",   # or "trapezoid"
-    "sign_in_numerator": False,
-    "max_condition": 1e6,
-    "min_time": 0.01,
-    "deadband": 0.0,
-}
 _MIN_SAMPLES = 8
-
-
-def default_options(method: str) -> dict[str, Any]:
-    """A copy of the default options of the online ``method`` ("robust" or "paper")."""
-    return dict(check_options(method, {}))
-
-
-def check_options(method: str, options: Mapping[str, Any]) -> dict[str, Any]:
-    """Validate ``options`` of the online ``method`` and merge them with its defaults.
-
-    Raises
-    ------
-    ValueError
-        Unknown method, or an option value out of range (the message names it).
-    TypeError
-        An option the method does not have (the message lists those it has).
-    """
-    if method not in ONLINE_METHODS:
-        hint = " (the buffered bases run through identify() or duffid.identification.buffered.BufferedIdentifier)" \
-            if method in METHODS else ""
-        raise InputError(f"unknown online method {method!r}; choose one of {', '.join(ONLINE_METHODS)}{hint}")
-    defaults = _ROBUST_DEFAULTS if method == "robust" else _PAPER_DEFAULTS
-    unknown = set(options) - set(defaults)
-    if unknown:
-        raise OptionError(f"method {method!r} has no option(s) {sorted(unknown)}; "
-                        f"its options are {sorted(defaults)}")
-    merged = {**defaults, **options}
-    for key in ("max_condition", "max_uncertainty", "settle", "min_time", "max_window", "window_periods", "gamma"):
-        if key in merged and not (np.isfinite(merged[key]) and merged[key] >= 0):
-            raise InputError(f"option {key} must be a finite number >= 0, got {merged[key]!r}")
-    if method == "robust":
-        w = merged["window"]
-        if not (w == "auto" or (isinstance(w, (int, float)) and np.isfinite(w) and w > 0)):
-            raise InputError(f"option window must be 'auto' or a positive number of seconds, got {w!r}")
-        fg = merged["forgetting"]
-        if fg is not None and not (np.isfinite(fg) and fg > 0):
-            raise InputError(f"option forgetting must be None or a positive time constant in s, got {fg!r}")
-        prior = merged["nominal"]
-        if prior is not None and not (isinstance(prior, Mapping) and all(
-                isinstance(v, (int, float)) and np.isfinite(v) for v in prior.values())):
-            raise InputError(f"option nominal must be None or a mapping of parameter names to finite "
-                             f"sizes, got {prior!r}")
-    elif merged["quadrature"] not in ("adams3", "trapezoid"):
-        raise InputError(f"option quadrature must be 'adams3' or 'trapezoid', got {merged['quadrature']!r}")
-    return merged
 
 
 # ---------------------------------------------------------------------- channels

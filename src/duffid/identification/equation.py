@@ -8,10 +8,11 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..data.record import Record
-from ..errors import EquationError, InputError, OptionError
+from ..errors import EquationError, InputError
 from ..models.equation import DerivedRegressor, derive
 from .buffered import identify_buffered, velocity_signs
-from .engine import STATUSES, Identification, Integrators, default_options, equilibrated_condition, filtered_cramer
+from .engine import STATUSES, Identification, Integrators, equilibrated_condition, filtered_cramer
+from .options import check_options
 from .orthogonal import BASES
 
 __all__ = ["identify_equation", "EQUATION_METHODS"]
@@ -19,7 +20,6 @@ __all__ = ["identify_equation", "EQUATION_METHODS"]
 #: Methods of :func:`identify_equation`.
 EQUATION_METHODS = ("paper",) + BASES
 
-_PAPER_DEFAULTS: dict[str, Any] = default_options("paper")  # the same options as identify()'s
 
 
 def identify_equation(record: Record, equation: str | Sequence[str], method: str = "paper",
@@ -86,15 +86,7 @@ def _check_known_terms(reg: DerivedRegressor, joint: bool) -> None:
 
 
 def _identify_paper(record: Record, reg: DerivedRegressor, options: Mapping[str, Any]) -> Identification:
-    unknown = set(options) - set(_PAPER_DEFAULTS)
-    if unknown:
-        raise OptionError(f"method 'paper' has no option(s) {sorted(unknown)}; its options are {sorted(_PAPER_DEFAULTS)}")
-    o = {**_PAPER_DEFAULTS, **options}
-    if o["quadrature"] not in ("adams3", "trapezoid"):
-        raise InputError(f"option quadrature must be 'adams3' or 'trapezoid', got {o['quadrature']!r}")
-    for key in ("gamma", "max_condition", "min_time", "deadband"):
-        if not (isinstance(o[key], (int, float)) and np.isfinite(o[key]) and o[key] >= 0):
-            raise InputError(f"option {key} must be a finite number >= 0, got {o[key]!r}")
+    o = check_options("paper", options)  # the same options as identify()'s paper method
     record.require_samples(16, "identification of an equation")
     if any(r != len(u) for r, u in zip(reg.n_rows, reg.unknowns)):
         raise InputError("the paper method needs square systems (n_rows = unknowns)")

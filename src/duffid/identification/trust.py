@@ -91,14 +91,13 @@ from .batch import estimate
 from .c_core import CIdentifier
 from .engine import (
     MIN_SHARE,
-    ONLINE_METHODS,
     OUTLIER_RANGE,
     OUTLIER_SIGMAS,
     STATUSES,
     Identification,
-    check_options,
     check_record,
 )
+from .options import ONLINE_METHODS, check_options
 from .refine import OdeSimulator, canonical_from_public, fit_initial_state, refine, stretches, upsample
 
 __all__ = [

@@ -426,13 +426,13 @@ class _Named(Chain):
 class Duffing1(_Named):
     """One-DOF Duffing oscillator ``m x'' + b x' + k x + kp x^3 = f`` (eqs. 10-11).
 
-    Defaults are the paper's Table 1 with ``b = 12.47`` N s/m.
+    Defaults are :data:`PAPER_DUFFING1` (the paper's Table 1 with ``b = 12.47`` N s/m).
     """
 
     _names = {"m": "m1", "b": "b1", "k": "k1_1", "kp": "k1_3"}
 
-    def __init__(self, m: float = 2.53, b: float = 12.47, k: float = 1272.1, kp: float = -1.237e6,
-                 *, offset: bool = False) -> None:
+    def __init__(self, m: float = PAPER_DUFFING1["m"], b: float = PAPER_DUFFING1["b"], k: float = PAPER_DUFFING1["k"],
+                 kp: float = PAPER_DUFFING1["kp"], *, offset: bool = False) -> None:
         super().__init__(masses=(m,), damping=(b,), stiffness=({1: k, 3: kp},), offset=offset,
                          orders=(1, 3))
 
@@ -451,8 +451,10 @@ class Duffing2(_Named):
     _names = {"m1": "m1", "b1": "b1", "k1": "k1_1", "kp1": "k1_3",
               "b2": "b2", "k2": "k2_1", "kp2": "k2_3", "m2": "m2"}
 
-    def __init__(self, m1: float = 2.53, b1: float = 5.0, k1: float = 1272.1, kp1: float = -1.237e6,
-                 m2: float = 2.754, b2: float = 4.0, k2: float = 1570.0, kp2: float = -1.350e6,
+    def __init__(self, m1: float = PAPER_DUFFING2["m1"], b1: float = PAPER_DUFFING2["b1"],
+                 k1: float = PAPER_DUFFING2["k1"], kp1: float = PAPER_DUFFING2["kp1"],
+                 m2: float = PAPER_DUFFING2["m2"], b2: float = PAPER_DUFFING2["b2"],
+                 k2: float = PAPER_DUFFING2["k2"], kp2: float = PAPER_DUFFING2["kp2"],
                  *, offset: bool = False) -> None:
         super().__init__(masses=(m1, m2), damping=(b1, b2),
                          stiffness=({1: k1, 3: kp1}, {1: k2, 3: kp2}), offset=offset,
