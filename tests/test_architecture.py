@@ -248,7 +248,7 @@ def test_errors_share_one_base():
     for name in errors.__all__:
         cls = getattr(errors, name)
         assert issubclass(cls, errors.DuffidError), name
-        assert cls is errors.DuffidError or issubclass(cls, (ValueError, TypeError, RuntimeError, OSError)), name
+        assert cls is errors.DuffidError or issubclass(cls, (ValueError, TypeError, RuntimeError, OSError, ImportError)), name
 
 
 def test_the_readme_layout_names_every_module():
@@ -264,3 +264,34 @@ def test_the_readme_layout_names_every_module():
         if name and name not in layout:
             missing.append(str(relative))
     assert not missing, f"README's Layout does not name {missing}"
+
+
+def test_every_identifier_implements_one_interface_with_the_same_input_checks():
+    from duffid.errors import InputError
+    from duffid.identification.buffered import BufferedIdentifier
+    from duffid.identification.c_core import CIdentifier
+    from duffid.identification.identifier import Identifier
+
+    makers = {"OnlineIdentifier": lambda dt: duffid.OnlineIdentifier(duffid.Duffing1(), dt),
+              "CIdentifier": lambda dt: CIdentifier(duffid.Duffing1(), dt),
+              "BufferedIdentifier": lambda dt: BufferedIdentifier(duffid.Duffing1(), dt, "legendre", window=0.1)}
+    for label, make in makers.items():
+        for bad in (0.0, -1e-3, float("nan"), float("inf"), True):
+            with pytest.raises(InputError, match="dt must be a positive number of seconds"):
+                make(bad)
+        ident = make(1e-3)
+        assert isinstance(ident, Identifier), label
+        assert ident.parameter_names == ("m", "b", "k", "kp"), label
+        with pytest.raises(InputError, match=r"duffing1: update needs 1 displacement\(s\) and 1 force\(s\)"):
+            ident.update([0.0, 0.0], 1.0)
+
+
+def test_without_the_optional_modelica_dependency_duffid_works_and_says_what_to_install(tmp_path):
+    code = ("import sys; sys.modules['pymoca'] = None\n"
+            "import duffid, duffid.fmu.estimator, duffid.cosim.system, duffid.control.closed_loop\n"
+            "from duffid.cli import main\n"
+            f"sys.exit(main(['build-fmus', '--out', {str(tmp_path)!r}]))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 2, done.stderr
+    assert "duffid build-fmus: error: the Modelica export needs pymoca" in done.stderr
+    assert "pip install 'duffid[modelica]'" in done.stderr and "Traceback" not in done.stderr

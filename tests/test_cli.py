@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from duffid import Duffing1
-from duffid.cli.main import main
+from duffid.cli import main
 
 
 def _run(capsys, *argv):

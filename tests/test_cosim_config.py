@@ -8,7 +8,7 @@ import fmpy
 import numpy as np
 import pytest
 
-from duffid.cli.main import main
+from duffid.cli import main
 from duffid.cosim.config import ConfigError, load_config
 from duffid.cosim.system import System, WiringError
 

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from duffid.cli import build_fmus
 from duffid.modelica import export as modelica
 from duffid.modelica.export import EXAMPLE_PLANTS, ModelicaExportError, library_path, translate
 from duffid.models.chain import PAPER_DUFFING1, PAPER_DUFFING2, Chain, Duffing1, Duffing2, DuffingCircuit
@@ -329,7 +330,7 @@ def test_public_api_and_arguments():
     with pytest.raises(TypeError):
         modelica.export_fmu(LIB, "Duffid.Examples.Oscillator1DOF", "x.fmu", fmi_verison=2)  # misspelt
     parser = argparse.ArgumentParser()
-    modelica.add_cli(parser.add_subparsers(dest="command"))
+    build_fmus.add_parser(parser.add_subparsers(dest="command"))
     args = parser.parse_args(["build-fmus"])
     assert args.out == Path("build/fmus") and args.plant is None
     args = parser.parse_args(["build-fmus", "--out", "o", "--plant", "DuffingCircuit"])

@@ -18,8 +18,9 @@ from fmpy.validation import validate_fmu
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
+from duffid.cli import build_fmus
 from duffid.data.signals import Chirp
-from duffid.modelica.export import EXAMPLE_PLANTS, add_cli, build_all, run_cli
+from duffid.modelica.export import EXAMPLE_PLANTS, build_all
 from duffid.models.chain import Chain, Duffing1, Duffing2, DuffingCircuit
 
 T_END, H = 0.5, 1e-3
@@ -370,9 +371,9 @@ def test_fmu_state_get_set_and_serialize(fmus, tmp_path, version):
 # ---------------------------------------------------------------------------------- archives
 def test_cli_rebuild_is_byte_identical(fmus, tmp_path, capsys):
     parser = argparse.ArgumentParser()
-    add_cli(parser.add_subparsers(dest="command"))
+    build_fmus.add_parser(parser.add_subparsers(dest="command"))
     args = parser.parse_args(["build-fmus", "--out", str(tmp_path), "--plant", "DuffingCircuit"])
-    assert run_cli(args) == 0
+    assert build_fmus.run(args) == 0
     printed = capsys.readouterr().out.split()
     assert printed == [str(tmp_path / "DuffingCircuit.fmu"), str(tmp_path / "DuffingCircuit_fmi3.fmu")]
     for name in ("DuffingCircuit", "DuffingCircuit_fmi3"):

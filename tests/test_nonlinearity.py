@@ -24,7 +24,7 @@ from duffid.analysis.nonlinearity import (
     nonlinearity_index,
     sweep_record,
 )
-from duffid.cli.main import main
+from duffid.cli import main
 
 
 def _frf_1dof(f, m=2.53, b=12.47, k=1272.1):

@@ -113,7 +113,7 @@ def test_coding_round_trips():
 
 
 def test_the_cli_has_a_flag_for_every_online_option():
-    from duffid.cli.main import build_parser
+    from duffid.cli import build_parser
 
     identify = build_parser()._subparsers._group_actions[0].choices["identify"]  # noqa: SLF001
     flags = {s for a in identify._actions for s in a.option_strings}  # noqa: SLF001

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from duffid import Chain, Duffing1, Duffing2, DuffingCircuit, Multisine, Record, identify, measure, simulate
-from duffid.cli.main import build_parser, main
+from duffid.cli import build_parser, main
 from duffid.identification.trust import DISPLACEMENT_OFFSET, OFFSETS, displacement_offset_values, term_shares
 
 #: A hardening plant of another scale than the paper's (12.6 Hz, 0.4 kg).

@@ -17,6 +17,8 @@ import scipy.io
 
 from duffid import Chain, Multisine, Record, RecordError, simulate
 from duffid.analysis import silverbox as sb
+from duffid.cli import main
+from duffid.cli import silverbox as silverbox_cli
 
 DATA_DIR = sb.default_data_dir()
 MISSING = f"Silverbox data not found: {DATA_DIR / sb.DATA_FILE} (expected ../shared/data/silverbox/ next to the repository)"
@@ -43,7 +45,7 @@ def result(data):
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="duffid")
-    sb.add_cli(parser.add_subparsers(dest="command", required=True))
+    silverbox_cli.add_parser(parser.add_subparsers(dest="command", required=True))
     return parser
 
 
@@ -142,8 +144,7 @@ def test_cli_parser_defaults():
 
 
 def test_cli_reports_missing_data(tmp_path, capsys):
-    args = _parser().parse_args(["silverbox", str(tmp_path / "nowhere")])
-    assert sb.run_cli(args) == 2
+    assert main(["silverbox", str(tmp_path / "nowhere")]) == 2
     err = capsys.readouterr().err
     assert "duffid silverbox: error:" in err and "nowhere" in err and "not found" in err
 
@@ -189,15 +190,15 @@ def test_result_json_shape(result):
 
 @pytest.mark.slow
 def test_cli_output_json_plot_and_folder(result, monkeypatch, capsys, tmp_path):
-    monkeypatch.setattr(sb, "identify_silverbox", lambda path, refine_model=True: result)
+    monkeypatch.setattr(silverbox_cli, "identify_silverbox", lambda path, refine_model=True: result)
     png = tmp_path / "fit.png"
     args = _parser().parse_args(["silverbox", "--json", "--plot", str(png), "--out", str(tmp_path / "out")])
-    assert sb.run_cli(args) == 0
+    assert silverbox_cli.run(args) == 0
     printed = json.loads(capsys.readouterr().out)
     assert printed["rms_mV"]["arrow_full"]["refined"] == pytest.approx(result.rms_mV["arrow_full"]["refined"])
     assert png.stat().st_size > 10_000
     assert (tmp_path / "out" / "silverbox.png").is_file()
     assert json.loads((tmp_path / "out" / "silverbox.json").read_text()) == printed
-    assert sb.run_cli(_parser().parse_args(["silverbox"])) == 0
+    assert silverbox_cli.run(_parser().parse_args(["silverbox"])) == 0
     table = capsys.readouterr().out
     assert "arrow_full" in table and "f_n [Hz]" in table and "refined" in table

@@ -1,6 +1,6 @@
 """``python -m duffid`` runs the command line."""
 import sys
 
-from .cli.main import main
+from .cli import main
 
 sys.exit(main())

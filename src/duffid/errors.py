@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import Any
 
 __all__ = ["DuffidError", "InputError", "OptionError", "RecordError", "SimulationError", "EquationError",
-           "ModelicaExportError", "BuildError", "CompilerNotFoundError", "AssetError", "WiringError",
+           "ModelicaExportError", "MissingDependencyError", "BuildError", "CompilerNotFoundError", "AssetError", "WiringError",
            "CosimError", "ConfigError"]
 
 
@@ -53,6 +53,10 @@ class ModelicaExportError(DuffidError, RuntimeError):
     The message names the construct, the Modelica class and the source line where
     they are known; the export never writes an FMU after this error.
     """
+
+
+class MissingDependencyError(DuffidError, ImportError):
+    """An optional dependency a feature needs is not installed (the message says how to install it)."""
 
 
 class BuildError(DuffidError, RuntimeError):

@@ -50,15 +50,13 @@ Settings chosen by rule from the data
 """
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import os
 import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping
 
 import numpy as np
 from tqdm import tqdm
@@ -99,8 +97,6 @@ __all__ = [
     "SilverboxResult",
     "identify_silverbox",
     "plot_silverbox",
-    "add_cli",
-    "run_cli",
 ]
 
 #: Sampling frequency of the Silverbox records [Hz] (not stored in the files).
@@ -677,60 +673,3 @@ def plot_silverbox(result: SilverboxResult, path: str | os.PathLike[str]) -> Non
     fig.suptitle("Silverbox: simulated vs measured output (dashed: end of the no-extrapolation part)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-
-
-# ---------------------------------------------------------------------- CLI
-def add_cli(subparsers: Any) -> None:
-    """Add the ``silverbox`` subcommand to the ``duffid`` parser's subparsers."""
-    p = subparsers.add_parser(
-        "silverbox", help="identify the Silverbox electronic Duffing oscillator (real data)",
-        description="Identify m y'' + d y' + k y + k2 y^2 + k3 y^3 + offset = u on the Silverbox "
-                    "training record (algebraic estimator, then offline output-error refinement) and "
-                    "report the simulation RMS errors on the standard test records.")
-    p.add_argument("path", nargs="?", type=Path, default=None,
-                   help=f"folder holding {DATA_FILE} or the file (default: {default_data_dir()})")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--plot", type=Path, default=None, help="write measured vs simulated output to this PNG")
-    p.add_argument("--out", type=Path, default=None,
-                   help="write silverbox.json and silverbox.png into this folder")
-    p.add_argument("--no-refine", action="store_true", help="skip the output-error refinement")
-
-
-def run_cli(args: argparse.Namespace) -> int:
-    """Run the ``silverbox`` subcommand; returns the exit status.
-
-    Errors in the data (:class:`~duffid.data.record.RecordError`) are printed to stderr with
-    exit status 2.
-    """
-    try:
-        result = identify_silverbox(args.path, refine_model=not args.no_refine)
-    except RecordError as exc:
-        print(f"duffid silverbox: error: {exc}", file=sys.stderr)
-        return 2
-    summary = result.to_dict()
-    plots = [args.plot] if args.plot is not None else []
-    if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "silverbox.json").write_text(json.dumps(summary, indent=2))
-        plots.append(args.out / "silverbox.png")
-    for png in plots:
-        plot_silverbox(result, png)
-    if args.json:
-        print(json.dumps(summary))
-    else:
-        print(result.format())
-        for png in plots:
-            print(f"wrote {png}")
-    return 0
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Stand-alone entry point: ``python -m duffid.analysis.silverbox [PATH] [--json] ...``."""
-    parser = argparse.ArgumentParser(prog="duffid")
-    add_cli(parser.add_subparsers(dest="command", required=True))
-    argv = list(sys.argv[1:] if argv is None else argv)
-    return run_cli(parser.parse_args(["silverbox", *argv]))
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

@@ -9,7 +9,11 @@ from pathlib import Path
 
 from ..errors import AssetError
 
-__all__ = ["asset_path", "fmu_sources", "modelica_library"]
+__all__ = ["asset_path", "fmu_sources", "modelica_library", "EXAMPLE_PLANTS"]
+
+#: The example plants of the library (``Duffid.Examples``), built by ``duffid build-fmus``.
+EXAMPLE_PLANTS: tuple[str, ...] = ("Oscillator1DOF", "Oscillator2DOF", "ChainNDOF", "DuffingCircuit",
+                                   "SaturatingCircuit")
 
 
 def asset_path(*parts: str) -> Path:

@@ -1,4 +1,46 @@
-"""The command-line interface ``duffid`` (argparse, one subcommand per job)."""
-from .main import main
+"""The command-line interface ``duffid``: one module per subcommand (identify, simulate,
+nonlinearity, silverbox, build-fmus, cosim, demo, paper-cases), each with ``add_parser``
+and ``run``."""
+from __future__ import annotations
 
-__all__ = ["main"]
+import argparse
+import sys
+from typing import Sequence
+
+from ..errors import DuffidError
+from . import build_fmus, cosim, demo, identify, nonlinearity, paper_cases, silverbox, simulate
+
+__all__ = ["main", "build_parser", "COMMANDS"]
+
+#: Subcommand -> its module (``add_parser(sub)``, ``run(args)``), in the order of ``duffid --help``.
+COMMANDS = {"identify": identify, "simulate": simulate, "nonlinearity": nonlinearity, "silverbox": silverbox,
+            "build-fmus": build_fmus, "cosim": cosim, "demo": demo, "paper-cases": paper_cases}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser (exposed for documentation and tests)."""
+    parser = argparse.ArgumentParser(prog="duffid", description="Online algebraic identification of "
+                                     "Duffing-type oscillators: " + ", ".join(COMMANDS) + ".")
+    sub = parser.add_subparsers(dest="command", required=True)
+    for module in COMMANDS.values():
+        module.add_parser(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``duffid`` command; returns the exit status.
+
+    Errors duffid raises on purpose (:class:`~duffid.errors.DuffidError`) and files that cannot
+    be read or written are reported in one line with exit status 2; anything else is a bug and
+    surfaces as a traceback.
+    """
+    args = build_parser().parse_args(identify.bare_offset(sys.argv[1:] if argv is None else argv))
+    try:
+        return COMMANDS[args.command].run(args)
+    except DuffidError as exc:
+        print(f"duffid {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"duffid {args.command}: error: {exc.strerror or exc}"
+              + (f": {exc.filename}" if exc.filename else ""), file=sys.stderr)
+        return 2

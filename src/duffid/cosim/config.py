@@ -27,20 +27,18 @@ wrong (:class:`ConfigError`); wiring errors are those of :class:`duffid.cosim.sy
 """
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
-import sys
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..errors import ConfigError, CosimError, WiringError
+from ..errors import ConfigError, WiringError
 from .system import ORDERINGS, Result, System
 
-__all__ = ["ConfigError", "CosimConfig", "load_config", "add_cli", "run_cli"]
+__all__ = ["ConfigError", "CosimConfig", "load_config"]
 
 _TOP = {"components", "connections", "inputs", "input_csv", "run", "container"}
 _RUN = {"stop_time", "step", "start_time", "ordering", "order", "record"}
@@ -199,45 +197,3 @@ def load_config(path: str | os.PathLike[str]) -> CosimConfig:
                        start_time=_number(path, "run.start_time", run.get("start_time", 0.0)),
                        ordering=ordering, order=run.get("order"), record=run.get("record"),
                        container=container)
-
-
-def add_cli(subparsers: Any) -> argparse.ArgumentParser:
-    """Add the ``cosim`` subcommand to the ``duffid`` parser's subparsers."""
-    p = subparsers.add_parser("cosim", help="run a system of FMUs described in a JSON or TOML file",
-                              description=__doc__.split("\n\n")[1] if __doc__ else None)
-    p.add_argument("config", type=Path, help="configuration file (.json or .toml)")
-    p.add_argument("-o", "--output", type=Path, default=None, help="write the recorded outputs to this CSV")
-    p.add_argument("--ordering", choices=ORDERINGS, default=None, help="override the file's run.ordering")
-    p.add_argument("--progress", action="store_true", help="show a progress bar")
-    p.add_argument("--export-container", type=Path, default=None, metavar="FMU",
-                   help="write the system as one container FMU (see the file's container section) and exit")
-    return p
-
-
-def run_cli(args: argparse.Namespace) -> int:
-    """Run the ``cosim`` subcommand; returns the exit status (2: bad file, 1: failed run)."""
-    try:
-        config = load_config(args.config)
-        if args.export_container is not None:
-            print(config.export_container(args.export_container))
-            return 0
-        result = config.run(progress=args.progress, ordering=args.ordering)
-    except (ConfigError, WiringError) as exc:
-        print(f"duffid cosim: error: {exc}", file=sys.stderr)
-        return 2
-    except CosimError as exc:
-        print(f"duffid cosim: the run failed: {exc}", file=sys.stderr)
-        if args.output is not None and exc.result is not None:
-            exc.result.to_csv(args.output)
-            print(f"duffid cosim: the {len(exc.result)} rows before the failure are in {args.output}",
-                  file=sys.stderr)
-        return 1
-    if args.output is not None:
-        result.to_csv(args.output)
-    print(f"{len(result)} communication points from {result.time[0]:g} to {result.time[-1]:g} s "
-          f"({config.ordering if args.ordering is None else args.ordering}, order {', '.join(result.order)})"
-          + (f"; wrote {args.output}" if args.output is not None else ""))
-    for name in result.names:
-        values = result[name]
-        print(f"  {name:<32} final {values[-1]:.6g}")
-    return 0

@@ -56,6 +56,7 @@ from ..errors import InputError, OptionError, RecordError
 from ..models.chain import Chain, Channel
 from ..models.regression import LinearTerm, Regression
 from .engine import Estimate, Identification, check_record, combine_equations, solve_factor, triangular_factor
+from .identifier import Identifier
 from .orthogonal import BASES, QUADRATURES, make_basis, projection_matrix
 
 __all__ = [
@@ -271,7 +272,7 @@ def _window_kernels(method: str, n_terms: int, n_intervals: int, quadrature: str
 
 
 # ---------------------------------------------------------------------- identifier
-class BufferedIdentifier:
+class BufferedIdentifier(Identifier):
     """Buffered identifier (Figure 15): re-identify every ``every`` samples over the last window.
 
     Parameters
@@ -306,10 +307,7 @@ class BufferedIdentifier:
     """
 
     def __init__(self, model: Chain | Regression, dt: float, method: str = "legendre", **options: Any) -> None:
-        if not (isinstance(dt, (int, float)) and np.isfinite(dt) and dt > 0):
-            raise InputError(f"dt must be a positive number of seconds, got {dt!r}")
-        self.method = method
-        self.options = _options(method, options)
+        super().__init__(model, dt, method, _options(method, options))
         o = self.options
         if isinstance(model, Regression):
             if o["form"] != "per-dof":
@@ -317,8 +315,6 @@ class BufferedIdentifier:
             self.regression = model
         else:
             self.regression = regression_from_model(model, o["form"])
-        self.model = model
-        self.dt = float(dt)
         N = int(round(o["window"] / self.dt))
         if N < 3:
             raise InputError(f"window {o['window']} s holds {N} sample intervals of {self.dt} s; at least 3 are needed")
@@ -432,11 +428,7 @@ class BufferedIdentifier:
         the time signal.
         """
         reg = self.regression
-        x = np.atleast_1d(np.asarray(x, dtype=float))
-        f = np.atleast_1d(np.asarray(f, dtype=float))
-        if x.shape != (reg.n_dof,) or f.shape != (reg.n_forces,):
-            raise InputError(f"{reg.name}: update needs {reg.n_dof} displacement(s) and "
-                             f"{reg.n_forces} force(s), got {x.size} and {f.size}")
+        x, f = self.checked_sample(x, f)
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(f))):
             raise InputError(f"{reg.name}: sample {self.n + 1} is not finite (x={x}, f={f})")
         self.n += 1

@@ -31,6 +31,7 @@ from ..data.record import Record
 from ..errors import AssetError, InputError
 from ..models.chain import Chain, Duffing1, Duffing2, model_from_name
 from .engine import STATUSES, Estimate, Identification, check_record, prior_sizes
+from .identifier import Identifier
 from .options import C_HEADER_NAME, check_options, ctypes_fields, to_c
 
 __all__ = [
@@ -229,7 +230,7 @@ def _resolve_model(model: Chain | str) -> Chain:
     return model
 
 
-class CIdentifier:
+class CIdentifier(Identifier):
     """The C core with the interface of :class:`~duffid.identification.engine.OnlineIdentifier`.
 
     Parameters
@@ -255,14 +256,9 @@ class CIdentifier:
 
     def __init__(self, model: Chain | str, dt: float, method: str = "robust", *,
                  library: str | os.PathLike[str] | None = None, **options: Any) -> None:
-        self.model = _resolve_model(model)
         if method not in _METHODS:
             raise InputError(f"unknown method {method!r}; the C core supports {', '.join(_METHODS)}")
-        if not (np.isfinite(dt) and dt > 0):
-            raise InputError(f"dt must be a positive number of seconds, got {dt!r}")
-        self.dt = float(dt)
-        self.method = method
-        self.options = check_options(method, options)
+        super().__init__(_resolve_model(model), dt, method, check_options(method, options))
         self._lib = load_library(library)
         cfg = CConfig()
         self._lib.duffid_default_config(ctypes.byref(cfg), _MODELS[self.model.name], _METHODS[method], self.dt)
@@ -321,11 +317,7 @@ class CIdentifier:
 
     def update(self, x: float | Sequence[float] | np.ndarray, f: float | Sequence[float] | np.ndarray) -> Estimate:
         """Consume one sample of displacements ``x`` and forces ``f``; return the estimate."""
-        xa = np.atleast_1d(np.asarray(x, dtype=float))
-        fa = np.atleast_1d(np.asarray(f, dtype=float))
-        if xa.shape != (self.model.n_dof,) or fa.shape != (self.model.n_forces,):
-            raise InputError(f"{self.model.name}: update needs {self.model.n_dof} displacement(s) and "
-                             f"{self.model.n_forces} force(s), got {xa.size} and {fa.size}")
+        xa, fa = self.checked_sample(x, f)
         for i, v in enumerate(xa):
             self._x[i] = v
         for i, v in enumerate(fa):

@@ -32,6 +32,7 @@ import numpy as np
 from ..data.record import Record
 from ..errors import InputError, RecordError
 from ..models.chain import Chain, Channel, Equation
+from .identifier import Identifier
 from .options import ONLINE_METHODS, check_options
 from .orthogonal import BASES
 from .regressors import KernelBank, SlidingMoments, row_exponents
@@ -421,7 +422,7 @@ class _EquationState:
         self.rhs_share = np.nan
 
 
-class OnlineIdentifier:
+class OnlineIdentifier(Identifier):
     """Online algebraic identifier: O(1) work and memory per sample.
 
     Parameters
@@ -460,12 +461,7 @@ class OnlineIdentifier:
     """
 
     def __init__(self, model: Chain, dt: float, method: str = "robust", **options: Any) -> None:
-        if not (np.isfinite(dt) and dt > 0):
-            raise InputError(f"dt must be a positive number of seconds, got {dt!r}")
-        self.model = model
-        self.dt = float(dt)
-        self.method = method
-        self.options = check_options(method, options)
+        super().__init__(model, dt, method, check_options(method, options))
         self.equations = model.equations()
         self._prior = prior_sizes(model, self.options.get("nominal"))
         # robust: samples a parameter's error must stay small before it is published
@@ -522,18 +518,9 @@ class OnlineIdentifier:
         for st in self._states:
             st.clear()
 
-    @property
-    def parameter_names(self) -> tuple[str, ...]:
-        """Public parameter names of the model, in output order."""
-        return tuple(self.model.parameters)
-
     def update(self, x: float | np.ndarray, f: float | np.ndarray) -> Estimate:
         """Consume one sample of displacements ``x`` and forces ``f``; return the estimate."""
-        x = np.atleast_1d(np.asarray(x, dtype=float))
-        f = np.atleast_1d(np.asarray(f, dtype=float))
-        if x.shape != (self.model.n_dof,) or f.shape != (self.model.n_forces,):
-            raise InputError(f"{self.model.name}: update needs {self.model.n_dof} displacement(s) and "
-                             f"{self.model.n_forces} force(s), got {x.size} and {f.size}")
+        x, f = self.checked_sample(x, f)
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(f))):
             raise InputError(f"{self.model.name}: sample {self._received + 1} is not finite (x={x}, f={f})")
         self._received += 1

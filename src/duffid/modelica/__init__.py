@@ -9,7 +9,14 @@ lives in ``fmus/common``.
 """
 from __future__ import annotations
 
-from ..errors import ModelicaExportError
+from ..errors import MissingDependencyError, ModelicaExportError
+
+try:
+    import pymoca  # noqa: F401  (the optional dependency of this package)
+except ImportError as _missing:  # pragma: no cover - exercised in a subprocess by the tests
+    raise MissingDependencyError("the Modelica export needs pymoca 0.12.0, an optional dependency: "
+                                 "pip install 'duffid[modelica]'") from _missing
+
 from .causalize import OdeModel, causalize
 from .flat_model import FlatModel, Variable, flatten_model
 

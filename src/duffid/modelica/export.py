@@ -15,22 +15,19 @@ integrator for co-simulation, FMU state) wraps it. Events, ``when``, algorithms 
 constructs outside the continuous subset raise :class:`ModelicaExportError` naming the
 construct, class and line.
 
-:func:`build_all` and the ``duffid build-fmus`` subcommand (:func:`add_cli`,
-:func:`run_cli`) build every example plant as ``<Name>.fmu`` (FMI 2.0) and
-``<Name>_fmi3.fmu`` (FMI 3.0). If OpenModelica's ``omc`` is on PATH,
+:func:`build_all` and the ``duffid build-fmus`` subcommand (:mod:`duffid.cli.build_fmus`) build
+every example plant as ``<Name>.fmu`` (FMI 2.0) and ``<Name>_fmi3.fmu`` (FMI 3.0). If OpenModelica's ``omc`` is on PATH,
 :func:`export_fmu_omc` offers the alternative export through OpenModelica (optional).
 """
 from __future__ import annotations
 
-import argparse
 import shutil
 import subprocess
-import sys
 import tempfile
 from pathlib import Path
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Iterable, Mapping, Sequence
 
-from ..assets import modelica_library
+from ..assets import EXAMPLE_PLANTS, modelica_library
 from ..errors import InputError, ModelicaExportError
 from ..fmu.fmi_xml import FmuInfo, build_description, model_description_fmi2, model_description_fmi3
 from ..fmu.package import COMMON_FILES, build_fmu_archive, token_from
@@ -40,7 +37,7 @@ from .flat_model import flatten_model
 from .table import variable_table
 
 __all__ = [
-    "EXAMPLE_PLANTS",
+    "EXAMPLE_PLANTS",  # (from duffid.assets)
     "KINDS",
     "ModelicaExportError",
     "library_path",
@@ -48,14 +45,9 @@ __all__ = [
     "export_fmu",
     "export_fmu_omc",
     "build_all",
-    "add_cli",
-    "run_cli",
     "DEFAULT_TOLERANCE",
 ]
 
-#: Example plants of ``Duffid.Examples`` built by :func:`build_all`.
-EXAMPLE_PLANTS: tuple[str, ...] = ("Oscillator1DOF", "Oscillator2DOF", "ChainNDOF", "DuffingCircuit",
-                                   "SaturatingCircuit")
 #: FMU interface kinds: Model Exchange, Co-Simulation or both in one FMU.
 KINDS: tuple[str, ...] = ("both", "me", "cs")
 #: Co-simulation tolerance without fmi2SetupExperiment / fmi3EnterInitializationMode.
@@ -234,29 +226,3 @@ def build_all(out_dir: Path | str = Path("build/fmus"), plants: Sequence[str] = 
         for version in (2, 3):
             written.append(_write_fmu(ode, out_dir, version, "both", DEFAULT_TOLERANCE, None))
     return written
-
-
-def add_cli(subparsers: Any) -> argparse.ArgumentParser:
-    """Add the ``build-fmus`` subcommand to the ``duffid`` parser's subparsers; returns it."""
-    p = subparsers.add_parser("build-fmus", help="build the example plant FMUs (FMI 2.0 and 3.0, with sources)",
-                              description="Build every Modelica example plant of modelica/Duffid as "
-                                          "<Name>.fmu (FMI 2.0) and <Name>_fmi3.fmu (FMI 3.0).")
-    p.add_argument("--out", type=Path, default=Path("build/fmus"), help="output folder (default build/fmus/)")
-    p.add_argument("--plant", action="append", choices=EXAMPLE_PLANTS, default=None,
-                   help="build only this plant (repeatable)")
-    return p
-
-
-def run_cli(args: argparse.Namespace) -> int:
-    """Run ``build-fmus``: print one line per FMU written and return the exit status.
-
-    Export errors (:class:`ModelicaExportError`) are printed to stderr with exit status 2.
-    """
-    try:
-        paths = build_all(args.out, tuple(args.plant) if getattr(args, "plant", None) else EXAMPLE_PLANTS)
-    except ModelicaExportError as exc:
-        print(f"duffid build-fmus: error: {exc}", file=sys.stderr)
-        return 2
-    for path in paths:
-        print(path)
-    return 0

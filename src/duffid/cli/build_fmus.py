@@ -1,0 +1,47 @@
+"""``duffid build-fmus``: every FMU duffid makes (the Modelica example plants, the estimator
+FMUs in C and pythonfmu, the controller FMUs and the 1-DOF loop as a container FMU)."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from ..assets import EXAMPLE_PLANTS
+
+__all__ = ["add_parser", "run"]
+
+
+def add_parser(sub: Any) -> argparse.ArgumentParser:
+    """Add the ``build-fmus`` subcommand."""
+    p = sub.add_parser("build-fmus", help="build the example plant FMUs (FMI 2.0 and 3.0, with sources)",
+                       description="Build every Modelica example plant as <Name>.fmu (FMI 2.0) and "
+                                   "<Name>_fmi3.fmu (FMI 3.0), the estimator FMUs DuffingEstimator{1,2}.fmu, "
+                                   "_fmi3.fmu (C) and _python.fmu (pythonfmu), the controller FMUs "
+                                   "AdaptiveController{1,2}.fmu and the whole 1-DOF loop as the container FMU "
+                                   "ClosedLoop1DOF.fmu.")
+    p.add_argument("--out", type=Path, default=Path("build/fmus"), help="output folder (default build/fmus/)")
+    p.add_argument("--plant", action="append", choices=EXAMPLE_PLANTS, default=None,
+                   help="build only this plant (repeatable)")
+    p.add_argument("--no-estimators", action="store_true",
+                   help="build the plant FMUs only (no estimators, controllers or ClosedLoop1DOF)")
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    """Plant FMUs (Modelica export), then the estimator and controller FMUs and the loop; one
+    line per FMU written."""
+    from ..modelica.export import build_all  # pymoca: an optional dependency, loaded when used
+
+    for path in build_all(args.out, tuple(args.plant) if args.plant else EXAMPLE_PLANTS):
+        print(path)
+    if args.no_estimators or args.plant:
+        return 0
+    from ..control.closed_loop import build_closed_loop_fmu, mark_fmus_current
+    from ..control.controller_fmu import build_controller_fmus
+    from ..fmu.estimator import build_estimator_fmus
+
+    for path in [*build_estimator_fmus(args.out), *build_controller_fmus(args.out)]:
+        print(path)
+    mark_fmus_current(args.out)
+    print(build_closed_loop_fmu(args.out))
+    return 0

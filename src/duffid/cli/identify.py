@@ -1,0 +1,160 @@
+"""``duffid identify``: a model's parameters from a record, published only where the record
+supports them."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..errors import InputError
+from ..identification.engine import METHODS
+from ..identification.options import ONLINE_METHODS, add_arguments, options_from_arguments
+from ..identification.trust import OFFSETS, identify
+from .common import (
+    add_file_arguments,
+    add_model_arguments,
+    model_from_arguments,
+    positive_float,
+    read_record,
+    window_value,
+)
+
+__all__ = ["add_parser", "run", "result_text", "bare_offset"]
+
+
+def add_parser(sub: Any) -> argparse.ArgumentParser:
+    """Add the ``identify`` subcommand."""
+    p = sub.add_parser("identify", help="identify a model's parameters from a CSV or .mat record")
+    p.add_argument("file", type=Path, help="record: CSV (t, f, x or t, f1.., x1..) or .mat")
+    add_model_arguments(p)
+    p.add_argument("--method", choices=METHODS, default=None,
+                   help="robust (default), paper, or a buffered basis; with --equation: paper (default) or a basis")
+    p.add_argument("--equation", default=None, metavar="TEXT",
+                   help='model equation, e.g. "m*der(x,2) + b*der(x) + k*x + kp*x^3 = f": names that are '
+                        "columns of the file are signals, all other names unknown parameters")
+    g = p.add_argument_group("robust method options")
+    g.add_argument("--window", type=window_value, default=None,
+                   help="window length in s (robust: or auto, the default; buffered: default 0.25)")
+    add_arguments(g, "robust", ("window_periods", "max_window", "forgetting", "rows", "n_rows", "settle"))
+    g.add_argument("--max-uncertainty", type=positive_float, default=None,
+                   help="largest relative standard error of a published parameter (default 0.01)")
+    g.add_argument("--no-refine", action="store_true",
+                   help="do not refine by output-error least squares when the algebraic estimate leaves "
+                        "excited parameters undetermined (faster; fewer values published)")
+    g = p.add_argument_group("paper method options")
+    add_arguments(g, "paper", ("gamma",))
+    g.add_argument("--quadrature", choices=("adams3", "trapezoid", "gauss", "simpson"), default=None,
+                   help="paper: adams3 (default) or trapezoid; buffered coefficients: gauss (default), "
+                        "simpson or trapezoid")
+    add_arguments(g, "paper", ("sign_in_numerator",))
+    g = p.add_argument_group("options of both online methods (robust and paper)")
+    add_arguments(g, "robust", ("max_condition", "min_time"))
+    g = p.add_argument_group("buffered methods (legendre, chebyshev, block-pulse, haar)")
+    g.add_argument("--terms", type=int, default=None, help="basis functions per window")
+    g.add_argument("--every", type=int, default=None, help="samples between re-identifications (default: a window)")
+    g.add_argument("--form", choices=("per-dof", "matrix"), default=None, help="per-DOF or matrix form (eqs. 36-37)")
+    g.add_argument("--repeated", choices=("power", "exact"), default=None,
+                   help="repeated integration: powers of P (paper) or the exact matrix")
+    g.add_argument("--accumulate", action="store_true", help="least squares over all windows so far")
+    add_file_arguments(p)
+    p.add_argument("--deadband", type=float, default=None, help="Coulomb: |dx| below which the velocity sign is held")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--plot", type=Path, default=None, help="write estimates vs time to this PNG")
+
+    return p
+
+
+_BUFFERED_NAMES = {"window": "window", "terms": "n_terms", "every": "every", "quadrature": "quadrature",
+                   "form": "form", "repeated": "repeated", "max_uncertainty": "max_uncertainty", "deadband": "deadband"}
+
+
+def _method_options(args: argparse.Namespace, method: str) -> dict[str, Any]:
+    """The options given on the command line that ``method`` takes."""
+    if method in ONLINE_METHODS:
+        return options_from_arguments(args, method)
+    options = {option: getattr(args, arg) for arg, option in _BUFFERED_NAMES.items() if getattr(args, arg) is not None}
+    if options.get("window") == "auto":
+        raise InputError("--window auto applies to the robust method; give the buffered window in seconds")
+    if args.accumulate:
+        options["accumulate"] = True
+    return options
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``duffid identify``: read, identify, check, print (table or ``--json``), plot."""
+    record = read_record(args)
+    method = args.method or ("paper" if args.equation else "robust")
+    options = _method_options(args, method)
+    if args.equation is not None:
+        if args.offset is not None:
+            raise InputError("--offset applies to the named models; with --equation write the offset into the "
+                             "equation (e.g. '... + c = f', or x - x0 in place of x)")
+        if args.no_refine:
+            raise InputError("--no-refine applies to the named models; equation models are not refined")
+        from ..identification.equation import identify_equation
+        result = identify_equation(record, args.equation, method, **options)
+    else:
+        result = identify(record, model_from_arguments(args, record.n_dof), method, offsets=args.offset,
+                          refine=not args.no_refine, **options)
+    if args.plot is not None:
+        from ..apps.plots import plot_estimates
+        plot_estimates(result, args.plot)
+    if args.json:
+        print(result.to_json())
+        return 0
+    print(f"{record.source}: {record.n_samples} samples, dt {record.dt:g} s, model {result.model}, method {method}")
+    print(result_text(result))
+    return 0
+
+
+def result_text(result: Any) -> str:
+    """The identification as the CLI prints it: values only where published, with status and
+    uncertainty, the fit figures and the notes (the same facts as the JSON)."""
+    a = result.assessment
+    lines = [f"  {'parameter':>10} {'value':>13}  {'status':<12} {'uncertainty':>11}"]
+    for name, value in result.parameters.items():
+        shown = f"{value:.6g}" if np.isfinite(value) else "-"
+        if a is None:
+            lines.append(f"  {name:>10} {shown:>13}  {'unchecked':<12}")
+            continue
+        u = a.uncertainty.get(name, float("nan"))
+        lines.append(f"  {name:>10} {shown:>13}  {a.status[name]:<12} "
+                     f"{(f'{100 * u:.2g} %' if np.isfinite(u) else '-'):>11}")
+    if a is None:
+        lines.append("  not checked against the record (equation models are not checked yet): "
+                     "treat these values as unverified")
+        return "\n".join(lines)
+    fit = a.fit
+    lines.append(f"  identified: {'yes' if result.is_identified else 'no (not every parameter is published)'}")
+    sim, noise = fit.get("simulation_nrmse"), fit.get("noise_nrmse")
+    if sim is not None and np.isfinite(sim):
+        lines.append(f"  fit: the identified model misses the measured displacement by {100 * sim:.3g} % RMS "
+                     f"(measurement noise {100 * noise:.2g} %); {fit['samples_per_period']:.3g} samples per period"
+                     + (f" after upsampling x{fit['upsampled']}" if fit["upsampled"] > 1 else ""))
+    offsets = fit.get("offsets") or {}
+    if offsets:
+        shown = []
+        for name, entry in offsets.items():
+            value, error = entry.get("value"), entry.get("standard_error")
+            text = f"{value:.6g}" if value is not None and np.isfinite(value) else "-"
+            if error is not None and np.isfinite(error):
+                text += f" (standard error {error:.2g})"
+            shown.append(f"{name} = {text} {entry.get('status', '')}")
+        lines.append("  offsets (what the sensors read at zero force and displacement): " + ", ".join(shown))
+    for note in a.notes:
+        lines.append(f"  - {note}")
+    return "\n".join(lines)
+
+
+def bare_offset(argv: Sequence[str]) -> list[str]:
+    """``argv`` with a bare ``--offset`` written before an existing file (``--offset rec.csv``, as
+    scripts wrote it before the flag took a KIND) spelled ``--offset=force``."""
+    out = list(argv)
+    for i, item in enumerate(out[:-1]):
+        following = out[i + 1]
+        if item == "--offset" and following not in OFFSETS and not following.startswith("-") \
+                and Path(following).exists():
+            out[i] = "--offset=force"
+    return out
