@@ -31,10 +31,13 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/cosim.py
 	$(BIN)/python benchmarks/trust.py
 
-# files generated from one source: the C option table from duffid.identification.options
+# files generated from one source: the C tables of the estimator options and the controller
+# parameters, from duffid.identification.options and duffid.control.settings
 generated: $(STAMP)
 	$(BIN)/python -c 'from duffid.identification.options import c_header; print(c_header(), end="")' \
 		> fmus/estimator/duffid_options.h
+	$(BIN)/python -c 'from duffid.control.settings import c_header; print(c_header(), end="")' \
+		> fmus/controller/duffid_ctrl_params.h
 
 clean:
 	rm -rf $(VENV) out build *.egg-info src/*.egg-info

@@ -25,51 +25,52 @@ static int bad(char *msg, size_t size, const char *name, const char *rule, doubl
     return DUFFID_CTRL_ERR_CONFIG;
 }
 
+/* The checks of the parameter table (duffid_ctrl_params.h, generated from
+ * duffid.control.settings.PARAMETERS): a REAL is finite and obeys its rule, an INT is in its
+ * range; then the nominal values (finite, masses positive) and the excitation limit. */
+#define CTRL_RULE_FINITE 0
+#define CTRL_RULE_POSITIVE 1
+#define CTRL_RULE_NON_NEGATIVE 2
+
+static int check_real(const char *name, double v, int rule, const char *text, char *msg, size_t size)
+{
+    if (!isfinite(v)) return bad(msg, size, name, "must be finite", v);
+    if ((rule == CTRL_RULE_POSITIVE && !(v > 0.0)) || (rule == CTRL_RULE_NON_NEGATIVE && !(v >= 0.0)))
+        return bad(msg, size, name, text, v);
+    return DUFFID_CTRL_OK;
+}
+
+static int check_int(const char *name, int v, int lo, int hi, const char *text, char *msg, size_t size)
+{
+    if (v < lo || v > hi) return bad(msg, size, name, text, (double)v);
+    return DUFFID_CTRL_OK;
+}
+
 int duffid_ctrl_check(const duffid_ctrl_config *cfg, char *msg, size_t msg_size)
 {
     static const char *const names1[] = {"m_nominal", "b_nominal", "k_nominal", "kp_nominal"};
     static const char *const names2[] = {"m1_nominal", "b1_nominal", "k1_nominal", "kp1_nominal",
                                          "b2_nominal", "k2_nominal", "kp2_nominal", "m2_nominal"};
-    const struct { const char *name; double value; } finite[] = {
-        {"sample_period", cfg->sample_period}, {"excitation_amplitude", cfg->excitation_amplitude},
-        {"chirp_f0", cfg->chirp_f0}, {"chirp_f1", cfg->chirp_f1}, {"chirp_duration", cfg->chirp_duration},
-        {"min_excitation", cfg->min_excitation}, {"settle_time", cfg->settle_time},
-        {"settle_tolerance", cfg->settle_tolerance}, {"K1", cfg->K[0]}, {"K2", cfg->K[1]},
-        {"L1", cfg->L[0]}, {"L2", cfg->L[1]}, {"reference_bandwidth", cfg->reference_bandwidth},
-        {"force_limit", cfg->force_limit}, {"fixed_switch_time", cfg->switch_time}};
-    const struct { const char *name; double value; } positive[] = {
-        {"sample_period", cfg->sample_period}, {"force_limit", cfg->force_limit},
-        {"reference_bandwidth", cfg->reference_bandwidth}, {"settle_tolerance", cfg->settle_tolerance},
-        {"chirp_duration", cfg->chirp_duration}};
-    const struct { const char *name; double value; } non_negative[] = {
-        {"chirp_f0", cfg->chirp_f0}, {"chirp_f1", cfg->chirp_f1}, {"min_excitation", cfg->min_excitation},
-        {"settle_time", cfg->settle_time}};
-    size_t i;
-    int n;
+    int i, n, rc;
     if (cfg->dofs != 1 && cfg->dofs != 2) return bad(msg, msg_size, "dofs", "must be 1 or 2", cfg->dofs);
-    if (cfg->mode != 0 && cfg->mode != 1)
-        return bad(msg, msg_size, "mode", "must be 0 or 1 (adaptive/fixed)", cfg->mode);
-    if (cfg->excitation != 0 && cfg->excitation != 1)
-        return bad(msg, msg_size, "excitation", "must be 0 or 1 (step/chirp)", cfg->excitation);
-    if (cfg->reference_model != 0 && cfg->reference_model != 1)
-        return bad(msg, msg_size, "reference_model", "must be 0 or 1 (filter/derivatives)", cfg->reference_model);
-    if (cfg->differentiator_samples < 3 || cfg->differentiator_samples > DUFFID_CTRL_MAX_SAMPLES)
-        return bad(msg, msg_size, "differentiator_samples", "must be an integer in 3 .. 64",
-                   cfg->differentiator_samples);
+#define CTRL_CHECK_REAL(field, name, rule, lo, hi, text) \
+    rc = check_real(#name, cfg->field, CTRL_RULE_##rule, text, msg, msg_size);
+#define CTRL_CHECK_INT(field, name, rule, lo, hi, text) rc = check_int(#name, cfg->field, lo, hi, text, msg, msg_size);
+#define CTRL_CHECK_BOOL(field, name, rule, lo, hi, text) rc = DUFFID_CTRL_OK;
+#define CTRL_CHECK(kind, field, NAME, name, rule, lo, hi, text) \
+    CTRL_CHECK_##kind(field, name, rule, lo, hi, text) if (rc != DUFFID_CTRL_OK) return rc;
+    DUFFID_CTRL_PARAMETERS(CTRL_CHECK)
+#undef CTRL_CHECK
+#undef CTRL_CHECK_BOOL
+#undef CTRL_CHECK_INT
+#undef CTRL_CHECK_REAL
     n = cfg->dofs == 1 ? 4 : 8;
-    for (i = 0; i < sizeof finite / sizeof finite[0]; i++)
-        if (!isfinite(finite[i].value)) return bad(msg, msg_size, finite[i].name, "must be finite", finite[i].value);
-    for (i = 0; i < (size_t)n; i++) {
+    for (i = 0; i < n; i++) {
         const char *name = cfg->dofs == 1 ? names1[i] : names2[i];
         if (!isfinite(cfg->nominal[i])) return bad(msg, msg_size, name, "must be finite", cfg->nominal[i]);
         if (name[0] == 'm' && !(cfg->nominal[i] > 0.0))
             return bad(msg, msg_size, name, "must be positive", cfg->nominal[i]);
     }
-    for (i = 0; i < sizeof positive / sizeof positive[0]; i++)
-        if (!(positive[i].value > 0.0)) return bad(msg, msg_size, positive[i].name, "must be positive", positive[i].value);
-    for (i = 0; i < sizeof non_negative / sizeof non_negative[0]; i++)
-        if (!(non_negative[i].value >= 0.0))
-            return bad(msg, msg_size, non_negative[i].name, "must not be negative", non_negative[i].value);
     if (fabs(cfg->excitation_amplitude) > cfg->force_limit) {
         if (msg != NULL && msg_size > 0)
             snprintf(msg, msg_size, "excitation_amplitude %.17g exceeds force_limit %.17g",

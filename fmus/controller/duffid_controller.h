@@ -15,6 +15,8 @@
 
 #include <stddef.h>
 
+#include "duffid_ctrl_params.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif

@@ -43,27 +43,17 @@ static void make_config(const Instance *inst, duffid_ctrl_config *cfg)
     int i;
     memset(cfg, 0, sizeof *cfg);
     cfg->dofs = N_DOF;
-    cfg->mode = (int)v[CONTROLLER_VR_MODE];
-    cfg->sample_period = v[CONTROLLER_VR_SAMPLE_PERIOD];
-    cfg->excitation = (int)v[CONTROLLER_VR_EXCITATION];
-    cfg->excitation_amplitude = v[CONTROLLER_VR_EXCITATION_AMPLITUDE];
-    cfg->chirp_f0 = v[CONTROLLER_VR_CHIRP_F0];
-    cfg->chirp_f1 = v[CONTROLLER_VR_CHIRP_F1];
-    cfg->chirp_duration = v[CONTROLLER_VR_CHIRP_DURATION];
-    cfg->min_excitation = v[CONTROLLER_VR_MIN_EXCITATION];
-    cfg->settle_time = v[CONTROLLER_VR_SETTLE_TIME];
-    cfg->settle_tolerance = v[CONTROLLER_VR_SETTLE_TOLERANCE];
-    cfg->K[0] = v[CONTROLLER_VR_K1];
-    cfg->K[1] = v[CONTROLLER_VR_K2];
-    cfg->L[0] = v[CONTROLLER_VR_L1];
-    cfg->L[1] = v[CONTROLLER_VR_L2];
-    cfg->reference_bandwidth = v[CONTROLLER_VR_REFERENCE_BANDWIDTH];
-    cfg->reference_model = (int)v[CONTROLLER_VR_REFERENCE_MODEL];
-    cfg->force_limit = v[CONTROLLER_VR_FORCE_LIMIT];
-    cfg->differentiator_samples = (int)v[CONTROLLER_VR_DIFFERENTIATOR_SAMPLES];
-    cfg->freeze = v[CONTROLLER_VR_FREEZE] != 0.0;
+    /* every scalar parameter of the table (duffid_ctrl_params.h), then the nominal values */
+#define CTRL_READ_REAL(field, NAME) cfg->field = v[CONTROLLER_VR_##NAME];
+#define CTRL_READ_INT(field, NAME) cfg->field = (int)v[CONTROLLER_VR_##NAME];
+#define CTRL_READ_BOOL(field, NAME) cfg->field = v[CONTROLLER_VR_##NAME] != 0.0;
+#define CTRL_READ(kind, field, NAME, name, rule, lo, hi, text) CTRL_READ_##kind(field, NAME)
+    DUFFID_CTRL_PARAMETERS(CTRL_READ)
+#undef CTRL_READ
+#undef CTRL_READ_BOOL
+#undef CTRL_READ_INT
+#undef CTRL_READ_REAL
     for (i = 0; i < N_PARAMS; i++) cfg->nominal[i] = v[CONTROLLER_VR_NOMINAL + i];
-    cfg->switch_time = v[CONTROLLER_VR_FIXED_SWITCH_TIME];
 }
 
 /* (Re)starts the controller from the parameters at the start time; nonzero (logged) on

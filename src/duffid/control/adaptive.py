@@ -73,6 +73,7 @@ reference model 30 rad/s (triple pole), 10 N step excitation, force limit 20 N, 
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
@@ -81,29 +82,17 @@ import numpy as np
 from ..errors import InputError, OptionError
 from ..identification.engine import OnlineIdentifier
 from ..models.chain import Chain, Duffing1, Duffing2, DuffingCircuit
+from .settings import MAX_DIFFERENTIATOR_SAMPLES, PARAMETERS, SETTINGS, coded
+from .settings import check_parameters as check_settings
 
 __all__ = ["ControllerDesign", "design", "mismatched", "controller_parameters", "AdaptiveController",
-           "run", "closed_loop", "PARAMETER_NAMES", "SETTINGS", "MAX_DIFFERENTIATOR_SAMPLES",
+           "run", "closed_loop", "PARAMETER_NAMES", "SETTINGS", "MAX_DIFFERENTIATOR_SAMPLES", "check_parameters",
            "DEFAULT_SIGNS"]
 
 #: Parameters the law uses, in the estimator's output order, per number of DOFs.
 PARAMETER_NAMES = {1: ("m", "b", "k", "kp"), 2: ("m1", "b1", "k1", "kp1", "b2", "k2", "kp2", "m2")}
-#: Largest ``differentiator_samples`` (the C core's fixed buffer; keeps its sums exact).
-MAX_DIFFERENTIATOR_SAMPLES = 64
 #: Default sign of each parameter's error in :func:`mismatched` (by name without digits).
 DEFAULT_SIGNS = {"m": 1.0, "b": -1.0, "k": -1.0, "kp": 1.0, "L": 1.0, "R": -1.0, "C": 1.0, "a": 1.0}
-#: Controller settings and their defaults (see :func:`controller_parameters`).
-SETTINGS: dict[str, Any] = {
-    "mode": "adaptive", "excitation": "step", "excitation_amplitude": 10.0, "chirp_f0": 1.0,
-    "chirp_f1": 20.0, "chirp_duration": 2.0, "min_excitation": 0.2, "settle_time": 0.05,
-    "settle_tolerance": 0.002, "force_limit": 20.0, "differentiator_samples": 10, "freeze": True,
-    "nominal": None, "switch_time": 1.0, "reference_model": "filter",
-}
-_MODES = {"adaptive": 0, "fixed": 1}
-_EXCITATIONS = {"step": 0, "chirp": 1}
-_REFERENCE_MODELS = {"filter": 0, "derivatives": 1}
-#: Integer parameters and the meaning of their codes (0, 1).
-_CODES = {"mode": _MODES, "excitation": _EXCITATIONS, "reference_model": _REFERENCE_MODELS}
 _DT_RTOL = 1e-9       # a step size may differ from sample_period by this much (relative)
 _SWITCH_RTOL = 1e-6   # mode 1 switches when t_{k+1} >= switch_time - 1e-6 h
 
@@ -312,53 +301,24 @@ def controller_parameters(design: ControllerDesign, *, dofs: int = 1, **settings
         if set(given) != set(nominal):
             raise InputError(f"nominal needs exactly the parameters {list(nominal)}, got {sorted(given)}")
         nominal = {name: float(given[name]) for name in nominal}
-    mode, excitation, reference_model = (
-        _CODES[name].get(s[name], s[name]) if isinstance(s[name], str) else s[name] for name in _CODES)
-    params: dict[str, Any] = {
-        "mode": mode, "sample_period": float(design.sample_period), "excitation": excitation,
-        "excitation_amplitude": float(s["excitation_amplitude"]), "chirp_f0": float(s["chirp_f0"]),
-        "chirp_f1": float(s["chirp_f1"]), "chirp_duration": float(s["chirp_duration"]),
-        "min_excitation": float(s["min_excitation"]), "settle_time": float(s["settle_time"]),
-        "settle_tolerance": float(s["settle_tolerance"]), "K1": float(design.K[0]), "K2": float(design.K[1]),
-        "L1": float(design.L[0]), "L2": float(design.L[1]),
-        "reference_bandwidth": float(design.reference_bandwidth), "reference_model": reference_model,
-        "force_limit": float(s["force_limit"]),
-        "differentiator_samples": s["differentiator_samples"], "freeze": bool(s["freeze"]),
-        **{f"{name}_nominal": value for name, value in nominal.items()},
-        "fixed_switch_time": float(s["switch_time"]),
-    }
+    from_design = {"sample_period": design.sample_period, "K1": design.K[0], "K2": design.K[1],
+                   "L1": design.L[0], "L2": design.L[1], "reference_bandwidth": design.reference_bandwidth}
+    params: dict[str, Any] = {}
+    for p in PARAMETERS:  # in FMU order; the nominal values go after freeze
+        if p.name == "fixed_switch_time":
+            params.update({f"{name}_nominal": value for name, value in nominal.items()})
+        value = from_design[p.name] if p.setting is None else coded(p.setting, s[p.setting])
+        params[p.name] = float(value) if p.kind == "real" and isinstance(value, numbers.Real) else \
+            bool(value) if p.kind == "bool" else value
     check_parameters(params, dofs)
     return params
 
 
 def check_parameters(params: Mapping[str, Any], dofs: int) -> None:
-    """Raise ValueError (naming the parameter) unless ``params`` is a valid parameter set;
-    the C core's ``duffid_ctrl_check`` applies the same rules."""
-    def bad(name: str, rule: str) -> ValueError:
-        return ValueError(f"parameter {name} {rule}, got {params[name]!r}")
-
-    for name, codes in _CODES.items():
-        if params[name] not in (0, 1) or isinstance(params[name], bool):
-            raise bad(name, "must be 0 or 1 (" + "/".join(codes) + ")")
-    n = params["differentiator_samples"]
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 3 <= n <= MAX_DIFFERENTIATOR_SAMPLES:
-        raise bad("differentiator_samples", f"must be an integer in 3 .. {MAX_DIFFERENTIATOR_SAMPLES}")
-    for name, value in params.items():
-        if name not in (*_CODES, "differentiator_samples", "freeze") and \
-                not math.isfinite(float(value)):
-            raise bad(name, "must be finite")
-    for name in ("sample_period", "force_limit", "reference_bandwidth", "settle_tolerance", "chirp_duration"):
-        if not params[name] > 0.0:
-            raise bad(name, "must be positive")
-    for name in ("chirp_f0", "chirp_f1", "min_excitation", "settle_time"):
-        if not params[name] >= 0.0:
-            raise bad(name, "must not be negative")
-    if abs(params["excitation_amplitude"]) > params["force_limit"]:
-        raise InputError(f"excitation_amplitude {params['excitation_amplitude']!r} exceeds force_limit "
-                         f"{params['force_limit']!r}")
-    for name in PARAMETER_NAMES[dofs]:
-        if name.startswith("m") and not params[f"{name}_nominal"] > 0.0:
-            raise bad(f"{name}_nominal", "must be positive")
+    """Raise :class:`~duffid.errors.InputError` (naming the parameter) unless ``params`` is a
+    valid parameter set of ``AdaptiveController<dofs>``; the C core's ``duffid_ctrl_check``
+    applies the same table (:mod:`duffid.control.settings`)."""
+    check_settings(params, dofs, PARAMETER_NAMES[dofs])
 
 
 # ---------------------------------------------------------------------- the controller

@@ -44,6 +44,7 @@ from ..errors import InputError
 from ..fmu.c_model import build_c_model_fmu
 from ..fmu.variables import FmuVariable
 from .adaptive import PARAMETER_NAMES, controller_parameters, design
+from .settings import PARAMETERS
 
 __all__ = ["build_controller_fmus", "build_controller_fmu", "controller_variables", "CONTROLLER_FMU_NAMES",
            "TYPES"]
@@ -51,34 +52,14 @@ __all__ = ["build_controller_fmus", "build_controller_fmu", "controller_variable
 #: DOFs -> model identifier (FMI 3 files get a ``_fmi3`` suffix).
 CONTROLLER_FMU_NAMES = {1: "AdaptiveController1", 2: "AdaptiveController2"}
 #: Variables that are not Float64.
-TYPES = {"identified": "Boolean", "phase": "Integer", "saturated": "Boolean", "mode": "Integer",
-         "excitation": "Integer", "differentiator_samples": "Integer", "freeze": "Boolean",
-         "reference_model": "Integer"}
-_FILES = ("duffid_controller.c", "duffid_controller.h", "fmu_model_controller.c")
+TYPES = {"identified": "Boolean", "phase": "Integer", "saturated": "Boolean",
+         **{p.name: "Boolean" if p.kind == "bool" else "Integer" for p in PARAMETERS if p.kind != "real"}}
+_FILES = ("duffid_controller.c", "duffid_controller.h", "duffid_ctrl_params.h", "fmu_model_controller.c")
 _UNITS = {"m": "kg", "b": "N.s/m", "k": "N/m", "kp": "N/m3"}
-#: Parameters: (name, unit, description), in value-reference order (then the nominal values and fixed_switch_time).
-_PARAMETERS = (
-    ("mode", None, "0 adaptive, 1 fixed (baseline on the nominal parameters from fixed_switch_time)"),
-    ("sample_period", "s", "sampling period; every communication step must equal it"),
-    ("excitation", None, "0 step, 1 linear chirp"),
-    ("excitation_amplitude", "N", "amplitude of the excitation (at most force_limit)"),
-    ("chirp_f0", "Hz", "chirp start frequency"),
-    ("chirp_f1", "Hz", "chirp end frequency (kept after chirp_duration)"),
-    ("chirp_duration", "s", "chirp sweep duration"),
-    ("min_excitation", "s", "shortest excitation before an adaptive switch"),
-    ("settle_time", "s", "time the estimates must stay within settle_tolerance"),
-    ("settle_tolerance", "1", "relative change that restarts settling"),
-    ("K1", "1/s2", "feedback gain on the position error"),
-    ("K2", "1/s", "feedback gain on the velocity error"),
-    ("L1", "1", "observer gain on the position"),
-    ("L2", "1/s", "observer gain on the velocity"),
-    ("reference_bandwidth", "rad/s", "triple pole of the reference model"),
-    ("reference_model", None, "0 filter: track the triple-pole model driven by r; 1 derivatives: track r "
-                              "(with r_dot, r_ddot) after a triple-pole transient from the switch"),
-    ("force_limit", "N", "largest force magnitude"),
-    ("differentiator_samples", None, "samples of the least-squares quadratic differentiator (3 .. 64)"),
-    ("freeze", None, "true: keep the estimates of the switch; false: follow finite estimates while identified"),
-)
+#: Parameters: (name, unit, description), in value-reference order (then the nominal values
+#: and fixed_switch_time), from the schema of duffid.control.settings.
+_PARAMETERS = tuple((p.name, p.unit, p.description) for p in PARAMETERS if p.name != "fixed_switch_time")
+_SWITCH = next(p for p in PARAMETERS if p.name == "fixed_switch_time")
 
 
 def _unit(name: str) -> str:
@@ -133,7 +114,7 @@ def controller_variables(dofs: int) -> tuple[list[FmuVariable], dict[str, int]]:
     for name in names:
         add(f"{name}_nominal", "parameter", start[f"{name}_nominal"], _unit(name), f"{name} of the fixed mode",
             "NOMINAL")
-    add("fixed_switch_time", "parameter", start["fixed_switch_time"], "s", "switch time of the fixed mode")
+    add(_SWITCH.name, "parameter", start[_SWITCH.name], _SWITCH.unit, _SWITCH.description)
     return table, groups
 
 
