@@ -15,8 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from duffid.control.adaptive import controller_parameters, design
+from duffid.control.adaptive import controller_parameters
 from duffid.control.closed_loop import ensure_fmus
+from duffid.control.design import design
 from duffid.cosim.system import CosimError, System
 
 

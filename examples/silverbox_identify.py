@@ -16,7 +16,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from duffid.analysis.silverbox import choose_settings, identify_silverbox, load_silverbox, plot_silverbox
+from duffid.analysis.silverbox import choose_settings, identify_silverbox, load_silverbox
+from duffid.apps.plots import plot_silverbox
 from duffid.data.record import RecordError
 
 

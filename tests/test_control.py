@@ -11,15 +11,9 @@ import pytest
 control = pytest.importorskip("control")
 
 from duffid import Duffing1, Duffing2, DuffingCircuit, OnlineIdentifier  # noqa: E402
-from duffid.control.adaptive import (  # noqa: E402
-    SETTINGS,
-    AdaptiveController,
-    closed_loop,
-    controller_parameters,
-    design,
-    mismatched,
-    run,
-)
+from duffid.control.adaptive import SETTINGS, AdaptiveController, controller_parameters  # noqa: E402
+from duffid.control.design import design, mismatched  # noqa: E402
+from duffid.control.python_loop import closed_loop, run  # noqa: E402
 
 H = 1e-3
 

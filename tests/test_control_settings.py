@@ -14,8 +14,9 @@ from fmu_helpers import start_fmi2  # noqa: E402
 
 from duffid.assets import fmu_sources  # noqa: E402
 from duffid.control import settings as schema  # noqa: E402
-from duffid.control.adaptive import SETTINGS, check_parameters, controller_parameters, design  # noqa: E402
+from duffid.control.adaptive import SETTINGS, check_parameters, controller_parameters  # noqa: E402
 from duffid.control.controller_fmu import TYPES, build_controller_fmu, controller_variables  # noqa: E402
+from duffid.control.design import design  # noqa: E402
 from duffid.errors import InputError  # noqa: E402
 
 H = 1e-3

@@ -22,8 +22,9 @@ from fmpy.validation import validate_fmu  # noqa: E402
 from fmu_helpers import start_fmi2  # noqa: E402
 
 from duffid import Duffing1, Duffing2, Step, simulate  # noqa: E402
-from duffid.control.adaptive import AdaptiveController, controller_parameters, design, mismatched  # noqa: E402
+from duffid.control.adaptive import AdaptiveController, controller_parameters  # noqa: E402
 from duffid.control.controller_fmu import TYPES, build_controller_fmu, build_controller_fmus  # noqa: E402
+from duffid.control.design import design, mismatched  # noqa: E402
 
 if shutil.which("gcc") is None:
     pytest.skip("gcc is needed to build the C FMUs", allow_module_level=True)

@@ -11,7 +11,8 @@ Co-simulation of FMUs (:class:`System`, :mod:`duffid.cosim.system`), the adaptiv
 (:class:`AdaptiveController`, :func:`design`, :mod:`duffid.control.adaptive`) and the closed loops
 of the main job (:mod:`duffid.control.closed_loop`, :mod:`duffid.apps.demo`).
 """
-from .control.adaptive import AdaptiveController, design
+from .control.adaptive import AdaptiveController
+from .control.design import design
 from .cosim.system import System
 from .data.record import Record
 from .data.signals import Chirp, Multisine, Step, from_spec

@@ -8,10 +8,11 @@ from typing import Mapping
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure
 
+from ..analysis.silverbox import ARROW_NO_EXTRAPOLATION, FS, SKIP, TEST_RECORDS, SilverboxResult
 from ..data.record import Record  # noqa: E402
 from ..identification.engine import Identification  # noqa: E402
 
-__all__ = ["plot_estimates", "plot_record", "plot_hilbert", "plot_eta_vs_amplitude", "plot_closed_loop"]
+__all__ = ["plot_estimates", "plot_record", "plot_hilbert", "plot_eta_vs_amplitude", "plot_closed_loop", "plot_silverbox"]
 
 
 def plot_estimates(result: Identification, path: str | os.PathLike[str], *,
@@ -222,5 +223,53 @@ def plot_closed_loop(result, path: str | os.PathLike[str], *, title: str | None 
         ax.axvline(result.switch_time, color="g", lw=0.8, alpha=0.7)
         ax.grid(alpha=0.3)
     fig.suptitle(title or f"{case.title}\nswitch to control at {result.switch_time:.3f} s (green)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def plot_silverbox(result: SilverboxResult, path: str | os.PathLike[str]) -> None:
+    """Measured vs simulated output and the simulation errors, per test record (PNG).
+
+    Columns: ``arrow_full`` (its no-extrapolation part ends at the dashed line) and
+    ``multisine_test``. Rows: the whole record, a 0.25 s zoom around the largest error
+    and the simulation errors of each method.
+    """
+    names = [n for n in TEST_RECORDS if n != "arrow_no_extrapolation"]
+    fig = Figure(figsize=(7 * len(names), 8.5))
+    axes = fig.subplots(3, len(names), squeeze=False)
+    methods = [m for m in ("algebraic", "refined") if m in result.simulations[names[0]]]
+    for col, name in enumerate(names):
+        sims = result.simulations[name]
+        measured = 1e3 * sims["measured"]
+        t = np.arange(len(measured)) / FS
+        best = methods[-1]
+        errors = {m: 1e3 * sims[m] - measured for m in methods}
+        for err in errors.values():
+            err[:SKIP] = np.nan
+        whole, zoom, bottom = axes[:, col]
+        whole.plot(t, measured, lw=0.4, color="k", label="measured")
+        whole.plot(t, 1e3 * sims[best], lw=0.4, color="C1", alpha=0.6, label=f"simulated ({best})")
+        centre = int(np.nanargmax(np.abs(errors[best])))
+        span = slice(max(centre - int(0.125 * FS), 0), centre + int(0.125 * FS))
+        zoom.plot(t[span], measured[span], lw=1.2, color="k", label="measured")
+        for i, method in enumerate(methods):
+            zoom.plot(t[span], 1e3 * sims[method][span], lw=0.9, ls="--", color=f"C{i}", label=method)
+            rms = result.rms_mV[name][method]
+            bottom.plot(t, errors[method], lw=0.4, color=f"C{i}", alpha=0.8,
+                        label=f"{method}: RMS {rms:.3f} mV" if rms is not None else method)
+        whole.axvspan(t[span][0], t[span][-1], color="C3", alpha=0.3)
+        if name == "arrow_full":
+            for ax in (whole, bottom):
+                ax.axvline(ARROW_NO_EXTRAPOLATION / FS, color="gray", ls="--", lw=0.8)
+        whole.set_title(name)
+        whole.set_ylabel("output V2 [mV]")
+        zoom.set_ylabel("zoom: largest error [mV]")
+        bottom.set_ylabel("simulation error [mV]")
+        bottom.set_xlabel("t [s]")
+        zoom.set_xlabel("t [s]")
+        for ax in (whole, zoom, bottom):
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=8, loc="upper left")
+    fig.suptitle("Silverbox: simulated vs measured output (dashed: end of the no-extrapolation part)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -7,7 +7,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from ..analysis.silverbox import DATA_FILE, default_data_dir, identify_silverbox, plot_silverbox
+from ..analysis.silverbox import DATA_FILE, default_data_dir, identify_silverbox
+from ..apps.plots import plot_silverbox
 
 __all__ = ["add_parser", "run"]
 

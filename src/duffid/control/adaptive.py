@@ -43,7 +43,7 @@ In both modes the reference model (or ``z``) advances by one RK4 step per sample
 ``mode`` 1 (*fixed*) is the baseline: the same law on the ``*_nominal`` parameters,
 switching at ``switch_time``.
 
-:func:`design` computes the gains ``K`` and ``L`` with python-control once, on the ZOH
+:func:`~duffid.control.design.design` computes the gains ``K`` and ``L`` with python-control once, on the ZOH
 discretisation of the double integrator; :func:`controller_parameters` turns a design and
 settings into the parameter values of the C FMUs ``AdaptiveController1/2``
 (:mod:`duffid.control.controller_fmu`), which :class:`AdaptiveController` mirrors operation for
@@ -54,8 +54,8 @@ are the samples at ``t_k``; its output ``f`` is the force applied over
 ``[t_{k+1}, t_{k+2})``. The output of :meth:`AdaptiveController.initialize` is the force over
 ``[t_0, t_1)``.
 
-Results (:func:`closed_loop`, ``h`` = 1 ms, 4 s, RMS of ``x - r`` from one second after
-the switch on; baseline: fixed mode on :func:`mismatched` ``(truth, 0.3)`` from the same
+Results (:func:`~duffid.control.python_loop.closed_loop`, ``h`` = 1 ms, 4 s, RMS of ``x - r`` from one second after
+the switch on; baseline: fixed mode on :func:`~duffid.control.design.mismatched` ``(truth, 0.3)`` from the same
 switch time; ``reference_model="derivatives"``): 1-DOF paper plant, 10 N step,
 ``r`` = 4 mm + 3 mm sin 2 pi t + 1 mm sin 6 pi t: 1.4 um against 0.28 mm; two-mass chain,
 10 N step, 3 mm + 2 mm sin 2 pi t + 1 mm sin 5 pi t: 1.5 um against 0.18 mm;
@@ -74,187 +74,22 @@ from __future__ import annotations
 
 import math
 import numbers
-from dataclasses import dataclass
-from typing import Any, Callable, Mapping, Sequence
-
-import numpy as np
+from typing import Any, Mapping
 
 from ..errors import InputError, OptionError
-from ..identification.engine import OnlineIdentifier
-from ..models.chain import Chain, Duffing1, Duffing2, DuffingCircuit
+from ..models.chain import Duffing1, Duffing2
+from .design import ControllerDesign
+from .design import design as _design
 from .settings import MAX_DIFFERENTIATOR_SAMPLES, PARAMETERS, SETTINGS, coded
 from .settings import check_parameters as check_settings
 
-__all__ = ["ControllerDesign", "design", "mismatched", "controller_parameters", "AdaptiveController",
-           "run", "closed_loop", "PARAMETER_NAMES", "SETTINGS", "MAX_DIFFERENTIATOR_SAMPLES", "check_parameters",
-           "DEFAULT_SIGNS"]
+__all__ = ["controller_parameters", "AdaptiveController", "PARAMETER_NAMES", "SETTINGS", "MAX_DIFFERENTIATOR_SAMPLES",
+           "check_parameters"]
 
 #: Parameters the law uses, in the estimator's output order, per number of DOFs.
 PARAMETER_NAMES = {1: ("m", "b", "k", "kp"), 2: ("m1", "b1", "k1", "kp1", "b2", "k2", "kp2", "m2")}
-#: Default sign of each parameter's error in :func:`mismatched` (by name without digits).
-DEFAULT_SIGNS = {"m": 1.0, "b": -1.0, "k": -1.0, "kp": 1.0, "L": 1.0, "R": -1.0, "C": 1.0, "a": 1.0}
 _DT_RTOL = 1e-9       # a step size may differ from sample_period by this much (relative)
 _SWITCH_RTOL = 1e-6   # mode 1 switches when t_{k+1} >= switch_time - 1e-6 h
-
-
-# ---------------------------------------------------------------------- design
-@dataclass(frozen=True)
-class ControllerDesign:
-    """Gains of the law and of the observer for one sampling period.
-
-    Attributes
-    ----------
-    K : ndarray (2,)
-        State feedback ``w = x_d'' - K1 (x^ - x_d) - K2 (v^ - x_d')``.
-    L : ndarray (2,)
-        Observer correction ``[x^, v^] += L (x_k - x^)``.
-    sample_period : float
-        ``h`` [s].
-    reference_bandwidth : float
-        Triple pole of the reference model [rad/s].
-    method : str
-        ``"place"`` or ``"lqr"``.
-    poles : ndarray
-        Eigenvalues of ``Phi - Gamma K`` (discrete, closed loop of the double integrator).
-    observer_poles : ndarray
-        Eigenvalues of ``Phi (I - L C)`` (discrete, predicted-estimate error).
-    """
-
-    K: np.ndarray
-    L: np.ndarray
-    sample_period: float
-    reference_bandwidth: float
-    method: str
-    poles: np.ndarray
-    observer_poles: np.ndarray
-
-
-def _positive(name: str, value: float) -> float:
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a number, got {value!r}") from None
-    if not (math.isfinite(value) and value > 0.0):
-        raise InputError(f"{name} must be a finite positive number, got {value!r}")
-    return value
-
-
-def _s_poles(bandwidth: float, damping: float) -> np.ndarray:
-    """Continuous poles of natural frequency ``bandwidth`` and damping ``damping``."""
-    if damping >= 1.0:  # real poles: w * (-zeta +- sqrt(zeta^2 - 1)); a double pole at zeta = 1
-        root = math.sqrt(damping * damping - 1.0)
-        return np.array([bandwidth * (-damping + root), bandwidth * (-damping - root)]) if root > 0 else \
-            np.array([-bandwidth, -bandwidth * (1.0 + 1e-6)])
-    root = math.sqrt(1.0 - damping * damping)
-    return np.array([bandwidth * complex(-damping, root), bandwidth * complex(-damping, -root)])
-
-
-def design(sample_period: float, *, method: str = "place", bandwidth: float = 60.0, damping: float = 0.9,
-           observer_bandwidth: float = 250.0, observer_damping: float | None = None,
-           Q: Sequence[Sequence[float]] | None = None, R: float | None = None,
-           reference_bandwidth: float = 30.0) -> ControllerDesign:
-    """Design the feedback and observer gains with python-control.
-
-    The law cancels damping and stiffness, so the design model is the double integrator
-    ``x'' = w`` (independent of the estimates), discretised with a zero-order hold at
-    ``sample_period`` (``control.c2d``).
-
-    Parameters
-    ----------
-    sample_period : float
-        ``h`` [s].
-    method : {"place", "lqr"}
-        ``"place"``: ``control.place`` with the continuous poles of ``bandwidth`` and
-        ``damping`` mapped by ``exp(s h)``; ``"lqr"``: ``control.dlqr`` with ``Q`` and ``R``.
-    bandwidth, damping : float
-        Closed-loop natural frequency [rad/s] and damping ratio (``"place"``; with
-        ``"lqr"``, ``bandwidth`` sets the default weights).
-    observer_bandwidth, observer_damping : float
-        Poles of the observer error (``control.place`` on the dual system); the damping
-        defaults to ``damping``.
-    Q, R : array_like, float
-        LQR weights on ``(x - x_d, v - x_d')`` and ``w``; default ``diag(bandwidth^4, 0)``
-        and 1 (in continuous time: natural frequency ``bandwidth``, damping 0.71).
-    reference_bandwidth : float
-        Triple pole of the reference model [rad/s].
-
-    Returns
-    -------
-    ControllerDesign
-    """
-    import control
-
-    h = _positive("sample_period", sample_period)
-    if method not in ("place", "lqr"):
-        raise InputError(f"method must be 'place' or 'lqr', got {method!r}")
-    bandwidth = _positive("bandwidth", bandwidth)
-    damping = _positive("damping", damping)
-    observer_bandwidth = _positive("observer_bandwidth", observer_bandwidth)
-    observer_damping = damping if observer_damping is None else _positive("observer_damping", observer_damping)
-    reference_bandwidth = _positive("reference_bandwidth", reference_bandwidth)
-    for name, value in (("bandwidth", bandwidth), ("observer_bandwidth", observer_bandwidth),
-                        ("reference_bandwidth", reference_bandwidth)):
-        if value * h > 1.0:
-            raise InputError(f"{name} {value} rad/s is too fast for sample_period {h} s "
-                             f"(needs {name} * sample_period <= 1)")
-    if method == "place" and (Q is not None or R is not None):
-        raise InputError("Q and R are the weights of method='lqr'; method='place' uses bandwidth and damping")
-    plant = control.c2d(control.ss([[0.0, 1.0], [0.0, 0.0]], [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]]), h, "zoh")
-    Phi, Gamma, C = np.asarray(plant.A), np.asarray(plant.B), np.asarray(plant.C)
-    if method == "place":
-        K = np.asarray(control.place(Phi, Gamma, np.exp(_s_poles(bandwidth, damping) * h))).ravel()
-    else:
-        Qm = np.diag([bandwidth**4, 0.0]) if Q is None else np.asarray(Q, dtype=float)
-        Rm = np.array([[1.0 if R is None else float(R)]])
-        if Qm.shape != (2, 2) or not np.all(np.isfinite(Qm)) or not np.allclose(Qm, Qm.T):
-            raise InputError(f"Q must be a finite symmetric 2x2 matrix, got {Q!r}")
-        if np.min(np.linalg.eigvalsh(Qm)) < 0.0:
-            raise InputError("Q must be positive semidefinite")
-        if not (np.isfinite(Rm[0, 0]) and Rm[0, 0] > 0.0):
-            raise InputError(f"R must be a finite positive number, got {R!r}")
-        K = np.asarray(control.dlqr(plant, Qm, Rm)[0]).ravel()
-    # observer: the error of the predicted estimate obeys e+ = Phi (I - L C) e = (Phi - M C) e
-    # with M = Phi L; place the eigenvalues of Phi - M C on the dual (Phi', C') and solve L.
-    M = np.asarray(control.place(Phi.T, C.T, np.exp(_s_poles(observer_bandwidth, observer_damping) * h))).T
-    L = np.linalg.solve(Phi, M).ravel()
-    poles = np.linalg.eigvals(Phi - Gamma @ K[None, :])
-    observer_poles = np.linalg.eigvals(Phi @ (np.eye(2) - L[:, None] @ C))
-    return ControllerDesign(K=K, L=L, sample_period=h, reference_bandwidth=reference_bandwidth, method=method,
-                            poles=poles, observer_poles=observer_poles)
-
-
-_design = design  # the function, for the methods whose argument is named design
-
-
-def mismatched(parameters: Mapping[str, float], fraction: float,
-               signs: Mapping[str, float] | None = None) -> dict[str, float]:
-    """Parameters wrong by ``fraction``: ``p (1 + sign_p fraction)``.
-
-    The default signs (:data:`DEFAULT_SIGNS`, by name without trailing digits) are
-    ``m +, b -, k -, kp +`` (circuit ``L +, R -, C +, a +``): heavier, less damped, softer
-    in the linear term and more cubic, not a scaling of all parameters (which the law's
-    feedback would see as a mere gain error). ``signs`` overrides any of them (by full
-    or base name; values -1, 0 or +1).
-    """
-    fraction = float(fraction)
-    if not (math.isfinite(fraction) and -1.0 < fraction < 1.0):
-        raise InputError(f"fraction must be in (-1, 1), got {fraction!r}")
-    out = {}
-    for name, value in parameters.items():
-        base = name.rstrip("0123456789")
-        sign = None
-        for key in (name, base):
-            if signs is not None and key in signs:
-                sign = float(signs[key])
-                break
-        if sign is None:
-            if base not in DEFAULT_SIGNS:
-                raise InputError(f"no default sign for parameter {name!r}; give it in signs")
-            sign = DEFAULT_SIGNS[base]
-        if sign not in (-1.0, 0.0, 1.0):
-            raise InputError(f"sign of {name} must be -1, 0 or +1, got {sign!r}")
-        out[name] = float(value) * (1.0 + sign * fraction)
-    return out
 
 
 def _nominal_defaults(dofs: int) -> dict[str, float]:
@@ -267,7 +102,7 @@ def controller_parameters(design: ControllerDesign, *, dofs: int = 1, **settings
     Parameters
     ----------
     design : ControllerDesign
-        Gains and sample period (:func:`design`).
+        Gains and sample period (:func:`~duffid.control.design.design`).
     dofs : {1, 2}
         The plant: 1-DOF Duffing (or circuit), or the two-mass chain (tracks ``x1``).
     **settings
@@ -600,151 +435,3 @@ class AdaptiveController:
             self._ref = [rp[i] + self._z[i] for i in range(3)]
         self._law(h)
         return self._finish(f_k)
-
-
-def run(controller: AdaptiveController, t: Sequence[float], inputs: Mapping[str, Any],
-        t0: float | None = None) -> dict[str, np.ndarray]:
-    """Drive ``controller`` with input arrays sampled at ``t`` (uniform step).
-
-    Parameters
-    ----------
-    controller : AdaptiveController
-    t : sequence of float
-        Sample times ``t_0 .. t_{n-1}``, passed to :meth:`AdaptiveController.step` as
-        given, with the step ``sample_period``.
-    inputs : mapping
-        Input name -> array of n values (``identified`` as 0/1 or bool); a scalar is
-        held; ``r_dot`` and ``r_ddot`` may be left out (0).
-    t0 : float, optional
-        Start time (default ``t[0]``).
-
-    Returns
-    -------
-    dict
-        ``time`` (n + 1 values: t0, then ``t_k + h``) and every output: row 0 at
-        initialisation, row k + 1 after the sample at ``t_k``.
-    """
-    t = np.asarray(t, dtype=float)
-    h = controller.parameters["sample_period"]
-    rows = [controller.initialize(float(t[0]) if t0 is None else t0)]
-    columns = {name: np.broadcast_to(np.asarray(inputs[name], dtype=float), t.shape)
-               for name in controller.input_names if name in inputs}
-    for k, tk in enumerate(t):
-        rows.append(controller.step(float(tk), h, {name: columns[name][k] for name in columns}))
-    out = {"time": np.concatenate([[float(t[0]) if t0 is None else float(t0)], t + h])}
-    for name in controller.output_names:
-        out[name] = np.array([row[name] for row in rows], dtype=float)
-    return out
-
-
-# ---------------------------------------------------------------------- closed loop
-def _controller_estimates(model: Chain, parameters: Mapping[str, float]) -> dict[str, float]:
-    """Identifier estimates under the controller's names (circuit: m = L, b = R, k = 1/C, kp = a)."""
-    if isinstance(model, DuffingCircuit):
-        c = parameters["C"]
-        k = 1.0 / c if math.isfinite(c) and c != 0.0 else math.nan
-        return {"m": parameters["L"], "b": parameters["R"], "k": k, "kp": parameters["a"]}
-    return dict(parameters)
-
-
-def _reference_signals(reference: Any) -> Callable[[float], tuple[float, float, float]]:
-    """t -> (r, r_dot, r_ddot) from the ``reference`` argument of :func:`closed_loop`."""
-    if isinstance(reference, (tuple, list)):
-        if len(reference) != 3 or not all(callable(f) for f in reference):
-            raise OptionError("a reference sequence must hold three callables (r, r_dot, r_ddot)")
-        return lambda t: (float(reference[0](t)), float(reference[1](t)), float(reference[2](t)))
-    if not callable(reference):
-        raise OptionError(f"reference must be callable or three callables, got {reference!r}")
-    derivative = getattr(reference, "derivative", None)
-    if callable(derivative):
-        return lambda t: (float(reference(t)), float(derivative(t, 1)), float(derivative(t, 2)))
-    return lambda t: (float(reference(t)), 0.0, 0.0)
-
-
-def closed_loop(plant: Chain, controller: AdaptiveController, reference: Any,
-                t_end: float, *, identifier: Any = None, measurement: Callable[[np.ndarray], np.ndarray] | None = None,
-                rtol: float = 1e-10, atol: float = 1e-14) -> dict[str, np.ndarray]:
-    """Plant, online identifier and controller in a loop, all in Python (no FMUs).
-
-    Each sample ``k``: the plant's positions ``x_k`` (through ``measurement``, e.g.
-    quantisation) and the controller's ``f_sample`` (the mean of the forces applied before
-    and after ``t_k``: the zero-order-hold staircase as a sample) go to the identifier; its estimates, ``x_k`` and the reference's ``r``, ``r'``, ``r''`` at
-    ``t_k`` to the controller, whose output is the force over ``[t_{k+1}, t_{k+2})`` (the
-    co-simulation's one-sample delay); the plant is integrated over ``[t_k, t_{k+1})`` with ``f_k`` held (DOP853).
-
-    Parameters
-    ----------
-    plant : Chain
-        The true plant (``Duffing1``, ``Duffing2`` or ``DuffingCircuit`` with any values).
-    controller : AdaptiveController
-    reference : callable or (callable, callable, callable)
-        ``r(t)`` for x (2-DOF: x1). Its derivatives (the inputs ``r_dot``, ``r_ddot``,
-        which ``reference_model`` "derivatives" tracks) come from a method
-        ``derivative(t, order)`` when it has one (e.g.
-        :class:`duffid.control.closed_loop.SineReference`), or give the three callables
-        ``(r, r_dot, r_ddot)``; otherwise they are 0.
-    t_end : float
-        Duration [s].
-    identifier : OnlineIdentifier, optional
-        Default ``OnlineIdentifier(<the plant's structure>, h)`` (no prior sizes: pass an
-        identifier with ``nominal=...`` for a term the loop barely excites).
-    measurement : callable, optional
-        Maps the true positions to the measured ones (default: exact).
-
-    Returns
-    -------
-    dict
-        ``t`` (n), ``x_true`` (n, dofs), the controller's inputs at each sample (``identified``, the estimates
-        ``<name>_hat``, ...) and its outputs valid at ``t_k`` (``x_ref``, ``phase``,
-        ``saturated``, ``f`` = the force over [t_k, t_{k+1}), ...: those of the step
-        at ``t_{k-1}``).
-    """
-    from scipy.integrate import solve_ivp
-
-
-    h = controller.parameters["sample_period"]
-    n_dof = plant.n_dof
-    if n_dof != controller.dofs:
-        raise InputError(f"the plant has {n_dof} DOFs, the controller {controller.dofs}")
-    if identifier is None:
-        structure = DuffingCircuit() if isinstance(plant, DuffingCircuit) else \
-            (Duffing1() if n_dof == 1 else Duffing2())
-        identifier = OnlineIdentifier(structure, dt=h)
-    n = int(round(t_end / h)) + 1
-    t = np.arange(n) * h
-    state = np.zeros(2 * n_dof)
-    signals = _reference_signals(reference)
-    out = controller.initialize(0.0)
-    log: dict[str, list] = {name: [] for name in ("x_true", *controller.input_names, *controller.output_names)}
-
-    def rhs(_time: float, y: np.ndarray, force: float) -> np.ndarray:
-        return np.concatenate([y[n_dof:], plant.acceleration(y[:n_dof], y[n_dof:], np.array([force]))])
-
-    for k in range(n):
-        x_true = state[:n_dof].copy()
-        x_meas = x_true if measurement is None else np.asarray(measurement(x_true), dtype=float)
-        f = out["f"]
-        est = identifier.update(x_meas, [out["f_sample"]])  # the staircase's sample at t_k
-        r = signals(float(t[k]))
-        inputs = {"r": r[0], "r_dot": r[1], "r_ddot": r[2], "identified": est.identified,
-                  **{f"{name}_hat": value for name, value in _controller_estimates(plant, est.parameters).items()}}
-        if n_dof == 1:
-            inputs["x"] = float(x_meas[0])
-        else:
-            inputs["x1"], inputs["x2"] = float(x_meas[0]), float(x_meas[1])
-        log["x_true"].append(x_true)
-        for name in controller.input_names:
-            log[name].append(inputs[name])
-        for name in controller.output_names:  # the outputs valid over [t_k, t_{k+1})
-            log[name].append(out[name])
-        out = controller.step(float(t[k]), h, inputs)
-        if k + 1 < n:
-            sol = solve_ivp(rhs, (t[k], t[k + 1]), state, method="DOP853", rtol=rtol, atol=atol, args=(f,))
-            if not sol.success:
-                raise RuntimeError(f"plant integration failed at t = {t[k]}: {sol.message}")
-            state = sol.y[:, -1]
-            if np.max(np.abs(state[:n_dof])) > 1.0:
-                raise RuntimeError(f"the plant left its range at t = {t[k + 1]} (|x| > 1 m)")
-    result = {name: np.asarray(values, dtype=float) for name, values in log.items()}
-    result["t"] = t
-    return result

@@ -17,7 +17,7 @@ which stands for that staircase as a sample to O(h^2) (the command itself would 
 half a step: 0.3 % on m and 13 % on kp under a 6 N chirp). The controller excites the plant with a force step until the
 estimator reports identified and the estimates have settled, then switches bumplessly to
 the certainty-equivalence law. The baseline is the same law on nominal parameters that
-are wrong by a set fraction (:func:`duffid.control.adaptive.mismatched`), switching at the same
+are wrong by a set fraction (:func:`duffid.control.design.mismatched`), switching at the same
 time, without an estimator.
 
 :func:`run_loop` runs one case both ways and returns a :class:`LoopResult` with the
@@ -40,7 +40,8 @@ from ..assets import asset_path
 from ..cosim.system import Result, System
 from ..errors import InputError
 from ..models.chain import PAPER_DUFFING1, PAPER_DUFFING2, Duffing2
-from .adaptive import controller_parameters, design, mismatched
+from .adaptive import controller_parameters
+from .design import design, mismatched
 
 __all__ = ["SineReference", "LoopCase", "LoopResult", "loop_cases", "ensure_fmus", "loop_system",
            "run_loop", "summary_lines", "mark_fmus_current", "closed_loop_case",

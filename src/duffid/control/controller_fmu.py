@@ -43,7 +43,8 @@ from ..assets import fmu_sources
 from ..errors import InputError
 from ..fmu.c_model import build_c_model_fmu
 from ..fmu.variables import FmuVariable
-from .adaptive import PARAMETER_NAMES, controller_parameters, design
+from .adaptive import PARAMETER_NAMES, controller_parameters
+from .design import design
 from .settings import PARAMETERS
 
 __all__ = ["build_controller_fmus", "build_controller_fmu", "controller_variables", "CONTROLLER_FMU_NAMES",
