@@ -103,7 +103,7 @@ def test_matrix_form_of_the_two_dof_chain(two_dof_exact):
 
 def test_velocity_signs_follow_the_online_rule():
     x = np.array([[0.0], [0.1], [0.1], [0.05], [0.05 + 1e-9], [0.2]])
-    online = _Channels((Channel("sign_velocity", 0),), deadband=1e-6)
+    online = _Channels((Channel("sign_velocity", 0),), deadband=1e-6, dt=1e-3)
     expected = [online.evaluate(xi, np.zeros(1))[0] for xi in x]
     np.testing.assert_array_equal(velocity_signs(x, 1e-6)[:, 0], expected)
 

@@ -1445,6 +1445,13 @@ static void count_up(int64_t *counter, int64_t limit)
     }
 }
 
+/* Chain.is_physical: a mass positive, a damping not negative (canonical index i) */
+static int is_physical(const duffid_estimator *est, int i, double v)
+{
+    const int kind = i < 4 * est->n_dof ? i % 4 : -1;
+    return kind == P_M ? v > 0.0 : (kind == P_B ? v >= 0.0 : 1);
+}
+
 static void publish(duffid_estimator *est, long window, duffid_output *out)
 {
     const int np = est->n_params;
@@ -1457,7 +1464,7 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
         for (i = 0; i < np; i++) {
             double v = est->canon[est->canon_of_public[i]];
             est->held[i] = v;
-            ok &= is_finite(v);
+            ok &= is_finite(v) && is_physical(est, est->canon_of_public[i], v);
         }
         ok = ok && good;
         worst = DNAN;
@@ -1477,8 +1484,7 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
             }
             worst = max_builtin(worst, relative);
             {
-                const int kind = i < 4 * est->n_dof ? i % 4 : -1;
-                const int physical = kind == P_M ? v > 0.0 : (kind == P_B ? v >= 0.0 : 1);
+                const int physical = is_physical(est, i, v);
                 const int excited = est->canon_share[i] >= DUFFID_MIN_SHARE || est->nominal[i] > 0.0;
                 small = good && excited && physical && relative <= est->cfg.max_uncertainty;
                 large = !(good && physical && relative <= DUFFID_LOSS_FACTOR * est->cfg.max_uncertainty);

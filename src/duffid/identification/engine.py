@@ -76,48 +76,71 @@ _MIN_SAMPLES = 8
 
 # ---------------------------------------------------------------------- channels
 class _Channels:
-    """Evaluates the distinct channels of all equations, including sgn(velocity)."""
+    """Evaluates the distinct channels of all equations: sgn(velocity) from position
+    increments, and a model's own expression channels (an equation model's channel
+    function of x, f, t and the signs of velocity) at the sample's time."""
 
-    def __init__(self, channels: tuple[Channel, ...], deadband: float) -> None:
+    def __init__(self, channels: tuple[Channel, ...], deadband: float, dt: float,
+                 expressions: Any = None) -> None:
         self.channels = channels
         self.deadband = float(deadband)
-        self._sign_dofs = [c.index for c in channels if c.kind == "sign_velocity"]
+        self.dt = dt
+        self.expressions = expressions
+        n_x = max([c.index + 1 for c in channels if c.kind in ("x", "deflection", "sign_velocity")] + [0])
+        if expressions is not None:
+            n_x = max(n_x, expressions.n_dof)
+        self._signed = expressions is not None or any(c.kind == "sign_velocity" for c in channels)
+        self._n_x = n_x
         self.reset()
 
     def reset(self) -> None:
         self._last_x: np.ndarray | None = None
-        self._sign = np.zeros(len(self._sign_dofs))
+        self._sign = np.zeros(self._n_x)
+        self._n = -1
 
     def evaluate(self, x: np.ndarray, f: np.ndarray) -> np.ndarray:
-        if self._sign_dofs:
+        self._n += 1
+        if self._signed:
             if self._last_x is not None:
-                dx = x[self._sign_dofs] - self._last_x[self._sign_dofs]
+                dx = x - self._last_x
                 moving = np.abs(dx) > self.deadband
                 self._sign = np.where(moving, np.sign(dx), self._sign)
             self._last_x = x.copy()
+        values = None if self.expressions is None else self.expressions.channel_values(x, f, self._n * self.dt,
+                                                                                        self._sign)
         out = np.empty(len(self.channels))
-        signs = iter(self._sign)
         for i, c in enumerate(self.channels):
-            out[i] = next(signs) if c.kind == "sign_velocity" else c.evaluate(x, f)
+            if c.kind == "sign_velocity":
+                out[i] = self._sign[c.index]
+            elif c.kind == "expression":
+                out[i] = values[c.index]
+            else:
+                out[i] = c.evaluate(x, f)
         return out
 
 
 class _Assembly:
-    """Maps kernel entries ``E[row, order, channel]`` to ``A`` (rows x unknowns) and ``D``."""
+    """Maps kernel entries ``E[row, order, channel]`` to ``A`` (rows x unknowns) and ``D``;
+    the equations of a joint block (:attr:`Equation.parts` > 1) each give their rows."""
 
     def __init__(self, equation: Equation, channels: tuple[Channel, ...], max_order: int) -> None:
         n_ch = len(channels)
         self.unknowns = equation.unknowns
-        self.lhs = np.zeros(((max_order + 1) * n_ch, len(equation.unknowns)))
-        self.rhs = np.zeros((max_order + 1) * n_ch)
+        parts = equation.parts
+        self.lhs = np.zeros((parts, (max_order + 1) * n_ch, len(equation.unknowns)))
+        self.rhs = np.zeros((parts, (max_order + 1) * n_ch))
         for term in equation.lhs:
-            self.lhs[term.order * n_ch + channels.index(term.channel), equation.unknowns.index(term.unknown)] += term.sign
+            self.lhs[term.part, term.order * n_ch + channels.index(term.channel),
+                     equation.unknowns.index(term.unknown)] += term.sign
         for term in equation.rhs:
-            self.rhs[term.order * n_ch + channels.index(term.channel)] += term.sign
+            self.rhs[term.part, term.order * n_ch + channels.index(term.channel)] += term.sign
 
     def __call__(self, E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         flat = E.reshape(E.shape[:-2] + (-1,))
-        return flat @ self.lhs, flat @ self.rhs
+        if len(self.lhs) == 1:
+            return flat @ self.lhs[0], flat @ self.rhs[0]
+        return (np.concatenate([flat @ lhs for lhs in self.lhs], axis=-2),
+                np.concatenate([flat @ rhs for rhs in self.rhs], axis=-1))
 
 
 # ---------------------------------------------------------------------- outliers
@@ -333,15 +356,6 @@ def _next_status(status: str, settled: int, unsettled: int, settle: int, good: b
     return lost if status == lost else STATUSES[0]
 
 
-def _physical(name: str, value: float) -> bool:
-    """A mass must be positive and a damping coefficient not negative (a passive plant)."""
-    if name[0] == "m" and name[1:].isdigit():
-        return value > 0
-    if name[0] == "b" and name[1:].isdigit():
-        return value >= 0
-    return True
-
-
 def prior_sizes(model: Chain, nominal: Mapping[str, float] | None) -> dict[str, float]:
     """Canonical sizes from the optional prior ``nominal`` (the option of that name, by
     public name); ValueError for a name the model does not have."""
@@ -471,8 +485,16 @@ class OnlineIdentifier(Identifier):
             for c in eq.channels:
                 channels.setdefault(c, None)
         self.channels = tuple(channels)
-        self._channels = _Channels(self.channels, self.options["deadband"])
+        self._channels = _Channels(self.channels, self.options["deadband"], self.dt,
+                                   model if any(c.kind == "expression" for c in self.channels) else None)
+        self._sources = {k: model.share_sources(k) for k in model.canonical_parameters()}
+        self._period_names = model.period_parameters()
         self._guard = _OutlierGuard(model.n_dof)
+        joint = [eq for eq in self.equations if eq.parts > 1]
+        if method == "paper" and joint:
+            raise InputError(f"{model.name}: the paper method solves each equation alone, and "
+                             f"{', '.join(joint[0].unknowns)} are shared by {joint[0].parts} equations solved "
+                             "together: use the robust method or a buffered basis (legendre, ...)")
         max_order = max(eq.max_order for eq in self.equations)
         self._states = [_EquationState(eq, _Assembly(eq, self.channels, max_order)) for eq in self.equations]
         o = self.options
@@ -571,7 +593,8 @@ class OnlineIdentifier(Identifier):
         if self.method == "paper":
             # the paper's estimator outputs its estimate from the start (faithful)
             self._held = self.model.from_canonical(canonical)
-            ok = self._window_ok(cond, window_samples) and all(np.isfinite(v) for v in canonical.values())
+            ok = self._window_ok(cond, window_samples) and all(
+                np.isfinite(v) and self.model.is_physical(k, v) for k, v in canonical.items())
             status = {k: STATUSES[1] if ok else STATUSES[0] for k in self._held}
             return Estimate(self.n * self.dt, dict(self._held), ok, cond, np.nan, window_samples * self.dt,
                             dict(self._held), status)
@@ -593,7 +616,7 @@ class OnlineIdentifier(Identifier):
             # without a prior, a term that carries almost nothing of the force balance is not
             # published online however small its error looks (e.g. the mass at low frequency)
             excited = share[k] >= MIN_SHARE or self._prior.get(k, 0.0) > 0
-            physical = _physical(k, v)
+            physical = self.model.is_physical(k, v)
             small = good and excited and physical and relative <= self.options["max_uncertainty"]
             large = not (good and physical and relative <= LOSS_FACTOR * self.options["max_uncertainty"])
             self._steady[k] = self._steady[k] + 1 if small else 0
@@ -632,12 +655,9 @@ class OnlineIdentifier(Identifier):
         out = {}
         for name in canonical:
             found = []
-            for j, st in enumerate(self._states):
-                key = name if j in self.model.forced else f"{name}/m{j + 1}"
-                if key in st.equation.unknowns:
-                    found.append(float(st.share[st.equation.unknowns.index(key)]))
-                elif name == f"m{j + 1}" and j not in self.model.forced:
-                    found.append(float(st.rhs_share))
+            for j, key in self._sources[name]:
+                st = self._states[j]
+                found.append(float(st.rhs_share if key is None else st.share[st.equation.unknowns.index(key)]))
             found = [v for v in found if np.isfinite(v)]
             out[name] = max(found) if found else np.nan
         return out
@@ -677,11 +697,9 @@ class OnlineIdentifier(Identifier):
                                        self.options["window_periods"])
 
     def _window_known(self) -> bool:
-        """Every mass and linear stiffness steady (its standard error small for ``settle``
-        s), every other parameter steady or not excited: the natural periods are known."""
-        def needed(name: str) -> bool:
-            return (name[0] == "m" and name[1:].isdigit()) or (name[0] == "k" and name.endswith("_1"))
-        return all(self._steady[k] >= self._settle or (self._status[k] == STATUSES[2] and not needed(k))
+        """Every parameter that sets a natural period (masses, linear stiffnesses) steady (its
+        standard error small for ``settle`` s), every other parameter steady or not excited."""
+        return all(self._steady[k] >= self._settle or (self._status[k] == STATUSES[2] and k not in self._period_names)
                    for k in self._steady)
 
     # -------------------------------------------------------------- paper
@@ -788,7 +806,7 @@ def auto_window(model: Chain, canonical: Mapping[str, float], dt: float, current
     """
     try:
         omega = model.linear_natural_frequencies(canonical)
-    except (KeyError, np.linalg.LinAlgError, ZeroDivisionError):
+    except (KeyError, ValueError, np.linalg.LinAlgError, ZeroDivisionError):
         return capacity
     omega = omega[np.isfinite(omega) & (omega > 0)]
     if not len(omega):
@@ -797,60 +815,11 @@ def auto_window(model: Chain, canonical: Mapping[str, float], dt: float, current
     return int(min(max(samples, current), capacity))
 
 
-def combine_equations(model: Chain, solutions: list[dict[str, float]],
+def combine_equations(model: Any, solutions: list[dict[str, float]],
                       errors: list[dict[str, float]] | None = None) -> tuple[dict[str, float], dict[str, float]]:
-    """Canonical parameters (and their relative standard errors) from per-equation solutions.
-
-    A forced DOF's equation gives absolute values; an unforced DOF's equation gives values
-    divided by its mass ``m_i``, found from a linear stiffness known on an absolute scale in
-    a neighbouring equation. Each element's parameters are taken from the lowest-index
-    equation with a known scale. Relative errors of products add in quadrature.
-    """
-    n = model.n_dof
-    errors = errors if errors is not None else [{k: np.nan for k in sol} for sol in solutions]
-    # scale[i] = (m_i or 1 for a forced DOF, its relative error)
-    scale: list[tuple[float, float] | None] = [(1.0, 0.0) if i in model.forced else None for i in range(n)]
-
-    def lookup(j: int, name: str) -> tuple[float, float] | None:
-        key = name if j in model.forced else f"{name}/m{j + 1}"
-        if key not in solutions[j] or scale[j] is None:
-            return None
-        s, es = scale[j]
-        return s * solutions[j][key], float(np.hypot(es, errors[j][key]))
-
-    progress = True
-    while progress and any(s is None for s in scale):
-        progress = False
-        for i in range(n):
-            if scale[i] is not None:
-                continue
-            for e in (i + 1, i + 2):  # left and right element of mass i (1-based elements)
-                key = f"k{e}_1/m{i + 1}"
-                if key not in solutions[i] or solutions[i][key] == 0:
-                    continue
-                for j in (e - 2, e - 1):  # the equations that contain element e
-                    absolute = lookup(j, f"k{e}_1") if j != i and 0 <= j < n else None
-                    if absolute is not None:
-                        scale[i] = (absolute[0] / solutions[i][key],
-                                    float(np.hypot(absolute[1], errors[i][key])))
-                        progress = True
-                        break
-                if scale[i] is not None:
-                    break
-    values: dict[str, float] = {}
-    rse: dict[str, float] = {}
-    for name in model.canonical_parameters():
-        found = None
-        if name.startswith("m") and name[1:].isdigit():
-            i = int(name[1:]) - 1
-            found = (solutions[i][name], errors[i][name]) if i in model.forced else scale[i]
-        else:
-            for j in range(n):
-                found = lookup(j, name)
-                if found is not None:
-                    break
-        values[name], rse[name] = found if found is not None else (np.nan, np.inf)
-    return values, rse
+    """Canonical parameters (and their relative standard errors) from the solutions of the
+    model's equations (:meth:`~duffid.models.chain.Chain.combine_solutions`)."""
+    return model.combine_solutions(solutions, errors)
 
 
 # ---------------------------------------------------------------------- results

@@ -119,38 +119,6 @@ def upsample(values: np.ndarray, factor: int, *, method: str = "bandlimited") ->
 
 
 # ---------------------------------------------------------------------- dynamics
-def _chain_acceleration(model: Chain, p: Mapping[str, Any], x: Sequence[Any], v: Sequence[Any],
-                        f: Sequence[Any], friction_velocity: float) -> list[Any]:
-    """Accelerations of a chain, written element by element (works on CasADi symbols).
-
-    ``m_i x_i'' + F_i + fc_i tanh(x_i' / v_f) - F_{i+1} + c_i = f_i`` with the element
-    force ``F_i = b_i y_i' + sum_j k_i_j y_i^j`` and deflection ``y_i = x_i - x_{i-1}``:
-    the structure of :meth:`~duffid.models.chain.Chain.equations` (offsets included).
-    """
-    n = model.n_dof
-    forces = []
-    for i in range(n):
-        y = x[i] - x[i - 1] if i else x[i]
-        ydot = v[i] - v[i - 1] if i else v[i]
-        element = p[f"b{i + 1}"] * ydot
-        for j in model.orders:
-            element = element + p[f"k{i + 1}_{j}"] * y**j
-        forces.append(element)
-    acc = []
-    for i in range(n):
-        net = -forces[i]
-        if i + 1 < n:
-            net = net + forces[i + 1]
-        if i in model.forced:
-            net = net + f[model.forced.index(i)]
-        if model.coulomb is not None:
-            net = net - p[f"fc{i + 1}"] * ca.tanh(v[i] / friction_velocity)
-        if model.offset:
-            net = net - p[f"c{i + 1}"]
-        acc.append(net / p[f"m{i + 1}"])
-    return acc
-
-
 def canonical_from_public(model: Chain, values: Mapping[str, float]) -> dict[str, float]:
     """Canonical parameters (``m1``, ``b1``, ``k1_3``, ``c1``, ...) from public or canonical ones.
 
@@ -251,7 +219,7 @@ class OdeSimulator:
             xs = [state[i] for i in range(n)]
             vs = [state[n + i] for i in range(n)]
             fs = [force[i] for i in range(nf)]
-            acc = _chain_acceleration(self.model, named, xs, vs, fs, self.friction_velocity)
+            acc = self.model.symbolic_acceleration(named, xs, vs, fs, self.friction_velocity)
             return ca.vertcat(*vs, *acc)
 
         u0, uh, u1 = u[:nf], u[nf:2 * nf], u[2 * nf:]

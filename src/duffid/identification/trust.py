@@ -389,49 +389,11 @@ def isolated_outliers(x: np.ndarray) -> list[tuple[int, int, float]]:
 
 
 # ---------------------------------------------------------------------- force balance
-def term_shares(model: Chain, canonical: Mapping[str, float], x: np.ndarray, f: np.ndarray,
+def term_shares(model: Any, canonical: Mapping[str, float], x: np.ndarray, f: np.ndarray,
                 dt: float) -> dict[str, float]:
-    """Share of each canonical parameter's term in the force balance of the DOFs it acts on.
-
-    The terms (``m x''``, ``b y'``, ``k_j y^j``, ``fc sgn(v)``, ``c``) are evaluated on a
-    smooth displacement ``x`` (e.g. the identified model's simulation) with central
-    differences for the derivatives; a term's share is its RMS over the RMS of the
-    quadratic sum of all terms on that DOF (largest over the DOFs it acts on).
-    """
-    x = np.asarray(x, dtype=float).reshape(len(x), -1)
-    n_dof = x.shape[1]
-    v = np.gradient(x, dt, axis=0, edge_order=2)
-    a = np.gradient(v, dt, axis=0, edge_order=2)
-    zeros = np.zeros((len(x), 1))
-    y = x - np.concatenate([zeros, x[:, :-1]], axis=1)
-    yd = v - np.concatenate([zeros, v[:, :-1]], axis=1)
-    terms: dict[str, tuple[np.ndarray, tuple[int, ...]]] = {}
-    for i in range(n_dof):
-        acts = (i,) if i == 0 else (i, i - 1)     # element i joins DOF i-1 and DOF i
-        for name, value in canonical.items():
-            if name == f"m{i + 1}":
-                terms[name] = (value * a[:, i], (i,))
-            elif name == f"b{i + 1}":
-                terms[name] = (value * yd[:, i], acts)
-            elif name.startswith(f"k{i + 1}_"):
-                power = int(name.split("_", 1)[1])
-                terms[name] = (value * y[:, i] ** power, acts)
-            elif name == f"fc{i + 1}":
-                terms[name] = (value * np.sign(v[:, i]), (i,))
-            elif name == f"c{i + 1}":
-                terms[name] = (np.full(len(x), value), (i,))
-    balance = np.zeros(n_dof)
-    for series, dofs in terms.values():
-        for d in dofs:
-            balance[d] += float(np.mean(series**2))
-    force = np.asarray(f, dtype=float).reshape(len(f), -1)
-    for j in range(min(force.shape[1], n_dof)):
-        balance[j] += float(np.mean(force[:, j] ** 2))
-    out = {}
-    for name, (series, dofs) in terms.items():
-        rms = math.sqrt(float(np.mean(series**2)))
-        out[name] = max(rms / math.sqrt(balance[d]) if balance[d] > 0 else math.nan for d in dofs)
-    return out
+    """Share of each canonical parameter's term in the force balance of the equations it acts
+    in, on a smooth displacement ``x`` (:meth:`~duffid.models.chain.Chain.term_shares`)."""
+    return model.term_shares(canonical, x, f, dt)
 
 
 # ---------------------------------------------------------------------- assessment
@@ -561,14 +523,14 @@ def _force_varies(record: Record) -> bool:
     return bool(np.all(np.std(f, axis=0) > FORCE_VARIATION * np.abs(np.mean(f, axis=0))) and np.any(np.std(f, axis=0) > 0))
 
 
-def _refusal(record: Record, values: Mapping[str, float], spp: float, highest: float) -> str | None:
+def _refusal(record: Record, model: Chain, values: Mapping[str, float], spp: float, highest: float) -> str | None:
     """Why the record cannot support any value before the model is even simulated (None: it may)."""
     still = [i + 1 for i in range(record.n_dof) if not np.std(record.x[:, i]) > 0]
     if still:
         return (f"the displacement (column{'s' if len(still) > 1 else ''} x{', x'.join(map(str, still))}) "
                 f"does not vary over the record: check the column order (force and displacement "
                 f"swapped?) and that the sensor was recording")
-    if not np.any(np.abs(record.f) > 0):
+    if model.needs_force() and not np.any(np.abs(record.f) > 0):
         return ("the force is zero throughout the record (a free decay): only ratios such as b/m, k/m "
                 "and kp/m are determined by such a record, not the parameters themselves; record the "
                 "force, or identify a model whose equations are divided by the mass")
@@ -611,6 +573,20 @@ def _offset_check(values: Mapping[str, float], uncertainty: Mapping[str, float],
                      f"({shown}; offsets {found}): the record shows a sensor offset or a bias; identify "
                      f"with {hint}")
     return moved
+
+
+def _unphysical(model: Chain, canonical: Mapping[str, float]) -> str | None:
+    """What is not physical about the identified values (None: nothing): a mass or inertia
+    that is not positive, a damping that is negative (the model's own rules,
+    ``model.is_physical``)."""
+    bad = {public: v for public, v in model.from_canonical(canonical).items()
+           if np.isfinite(v) and not model.is_physical(model.canonical_name(public), canonical[model.canonical_name(public)])}
+    if not bad:
+        return None
+    found = ", ".join(f"{k} = {v:.4g}" for k, v in bad.items())
+    return (f"the estimator found {found}, which is not physical (a mass or inertia must be positive and a "
+            f"damping must not be negative in a passive plant): nothing is published; check the sign "
+            f"conventions of force and displacement, the columns, and that the model fits the plant")
 
 
 def _public_shares(model: Chain, shares: Mapping[str, float]) -> dict[str, float]:
@@ -667,6 +643,8 @@ def _c_model(model: Chain) -> Chain | None:
 
     if isinstance(model, (Duffing1, Duffing2)):
         return model
+    if not isinstance(model, Chain):
+        return None
     structure = (model.n_dof, model.coulomb is None, tuple(model.forced), tuple(model.orders or ()))
     if structure not in ((1, True, (0,), (1, 3)), (2, True, (0,), (1, 3))):
         return None
@@ -943,7 +921,7 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
     status = {k: "uncertain" for k in names}
     uncertainty = {k: math.nan for k in names}
     share = {k: math.nan for k in names}
-    refusal = _refusal(record, values, spp, max((v for v in (content, natural) if np.isfinite(v)), default=math.nan))
+    refusal = _refusal(record, model, values, spp, max((v for v in (content, natural) if np.isfinite(v)), default=math.nan))
     if refusal is not None:
         notes.append(refusal)
         fit.update({"simulation_nrmse": math.nan, "noise_nrmse": math.nan, "explained": False})
@@ -964,8 +942,9 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
         share = {**share, **_public_shares(model, shares)}
         if displacement_offset:  # only the cubic term tells x0 from a force bias
             share[DISPLACEMENT_OFFSET] = shares.get(f"k1_{max(model.orders)}", math.nan)
-    if problem is not None:
-        notes.append(problem)
+    unphysical = _unphysical(model, canonical)
+    if problem is not None or unphysical is not None:
+        notes.extend(n for n in (unphysical, problem) if n is not None)
         return Assessment(status, uncertainty, share, fit, notes, values)
     uncertainty = _bootstrap_uncertainty(record, values, noise, rerun, replicates, seed, progress)
     bias = BALANCE_FLOOR + QUADRATURE_BIAS / spp**4
@@ -1109,22 +1088,17 @@ def _refinement(record: Record, model: Chain, values: Mapping[str, float], uncer
 
 def _with_offsets(model: Chain) -> Chain:
     """``model`` with an unknown constant force on each DOF (``c1``, ``c2``, ...)."""
-    import dataclasses
-
-    if model.offset:
-        return model
-    if type(model) is Chain:
-        return dataclasses.replace(model, offset=True)
-    return type(model)(**model.parameters, offset=True)  # the named models (Duffing1, ...)
+    return model.with_offset()
 
 
 def _canonical(model: Chain, public: Mapping[str, float]) -> dict[str, float] | None:
     """Canonical values from public ones (None if a needed value is missing)."""
 
     try:
-        return canonical_from_public(model, {k: v for k, v in public.items() if k != DISPLACEMENT_OFFSET})
+        canonical = canonical_from_public(model, {k: v for k, v in public.items() if k != DISPLACEMENT_OFFSET})
     except (ValueError, KeyError, ZeroDivisionError):
         return None
+    return canonical
 
 
 # ---------------------------------------------------------------------- sensor offsets
@@ -1140,13 +1114,18 @@ def _offset_kind(model: Chain, offsets: str | None) -> str | None:
 
 
 def _carries_displacement_offset(model: Chain) -> bool:
-    """Whether a displacement offset of ``model`` can be identified (one DOF, orders 1 and 3)."""
-    return model.n_dof == 1 and tuple(model.orders or ()) == (1, 3)
+    """Whether a displacement offset of ``model`` can be identified (a chain of one DOF, orders 1 and 3)."""
+    return isinstance(model, Chain) and model.n_dof == 1 and tuple(model.orders or ()) == (1, 3)
 
 
 def _displacement_chain(model: Chain) -> Chain:
     """The chain identified for a displacement offset: ``model``'s (one DOF, orders 1 and 3)
     with stiffness orders 1, 2, 3 and a constant force."""
+    if not isinstance(model, Chain):
+        raise InputError("a displacement-sensor offset of an equation model is written into the equation "
+                         "(x - x0 in place of x makes it nonlinear in x0: write the polynomial in x with its own "
+                         "coefficients, e.g. k1*x + k2*x^2 + k3*x^3 + c = f); --offset force adds a constant "
+                         "force per equation")
     if not _carries_displacement_offset(model):
         raise InputError(f"a displacement-sensor offset is identified for one-DOF models with a linear and a "
                          f"cubic spring (duffing1, circuit, chain --n-dof 1 --orders 1,3), not {model.name} with "
@@ -1253,9 +1232,8 @@ def _offset_scales(record: Record, model: Chain, names: list[str]) -> dict[str, 
     """Spread of the signal each offset among ``names`` is judged against: the force's RMS
     for ``c1``, ..., the displacement's standard deviation for ``x0``."""
     out = {}
-    if model.offset:
-        rms = float(np.sqrt(np.mean(record.f**2)))
-        out.update({f"c{i + 1}": rms for i in range(model.n_dof) if f"c{i + 1}" in names})
+    rms = float(np.sqrt(np.mean(record.f**2))) if record.f.size else 0.0
+    out.update({k: rms for k in model.offset_parameters() if k in names})
     if DISPLACEMENT_OFFSET in names:
         out[DISPLACEMENT_OFFSET] = float(np.std(record.x[:, 0]))
     return out

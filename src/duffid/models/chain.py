@@ -25,9 +25,12 @@ For identification, every model exposes :meth:`Chain.equations`: one
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Mapping, Sequence
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
 
+import casadi as ca
 import numpy as np
 
 from ..errors import InputError
@@ -60,20 +63,25 @@ class Channel:
 
     Parameters
     ----------
-    kind : {"x", "deflection", "force", "sign_velocity", "one"}
+    kind : {"x", "deflection", "force", "sign_velocity", "one", "expression"}
         ``x``: displacement of DOF ``index``; ``deflection``: ``(x_i - x_{i-1})**power``
         of element ``index``; ``force``: force input ``index``; ``sign_velocity``: sign of
         the velocity of DOF ``index`` (taken from position increments by the identifier);
-        ``one``: the constant 1 (offset term).
+        ``one``: the constant 1 (offset term); ``expression``: channel ``index`` of a
+        model's own channel function (an equation model's, see
+        :class:`~duffid.models.equation_model.EquationModel`).
     index : int
-        0-based DOF, element or force index.
+        0-based DOF, element, force or expression index.
     power : int
         Power of a deflection channel.
+    text : str
+        Readable name of an expression channel.
     """
 
     kind: str
     index: int = 0
     power: int = 1
+    text: str = field(default="", compare=False)
 
     def evaluate(self, x: np.ndarray, f: np.ndarray) -> np.ndarray:
         """Evaluate the channel on samples ``x`` (..., nx) and ``f`` (..., nf)."""
@@ -101,17 +109,24 @@ class Channel:
             return f"f{i}"
         if self.kind == "sign_velocity":
             return f"sgn(v{i})"
+        if self.kind == "expression":
+            return self.text
         return "1"
 
 
 @dataclass(frozen=True)
 class Term:
-    """``sign * unknown * d^order/dt^order channel`` in an equation (unknown None: known)."""
+    """``sign * unknown * d^order/dt^order channel`` in an equation (unknown None: known).
+
+    ``part`` numbers the equations of a joint block (equations that share unknowns and are
+    solved together: each part contributes its own rows); 0 for a single equation.
+    """
 
     unknown: str | None
     channel: Channel
     order: int = 0
     sign: float = 1.0
+    part: int = 0
 
 
 @dataclass(frozen=True)
@@ -140,6 +155,11 @@ class Equation:
     def max_order(self) -> int:
         """Highest derivative order of any term."""
         return max(t.order for t in self.lhs + self.rhs)
+
+    @property
+    def parts(self) -> int:
+        """Equations in this block (1 unless several equations are solved together)."""
+        return 1 + max(t.part for t in self.lhs + self.rhs)
 
 
 def _positive(name: str, value: float) -> float:
@@ -307,6 +327,182 @@ class Chain:
                 rhs = (Term(None, Channel("x", i), 2, -1.0),)
             eqs.append(Equation(i, tuple(unknowns), tuple(lhs), tuple(rhs)))
         return tuple(eqs)
+
+
+    # ------------------------------------------------------------------ identification
+    # What the identifiers and the checks of duffid.identification need to know about a
+    # model's structure; an equation model (duffid.models.equation_model) answers the same.
+    def combine_solutions(self, solutions: list[dict[str, float]], errors: list[dict[str, float]] | None = None
+                          ) -> tuple[dict[str, float], dict[str, float]]:
+        """Canonical parameters (and their relative standard errors) from per-equation solutions.
+
+        A forced DOF's equation gives absolute values; an unforced DOF's equation gives values
+        divided by its mass ``m_i``, found from a linear stiffness known on an absolute scale in
+        a neighbouring equation. Each element's parameters are taken from the lowest-index
+        equation with a known scale. Relative errors of products add in quadrature.
+        """
+        n = self.n_dof
+        errors = errors if errors is not None else [{k: np.nan for k in sol} for sol in solutions]
+        # scale[i] = (m_i or 1 for a forced DOF, its relative error)
+        scale: list[tuple[float, float] | None] = [(1.0, 0.0) if i in self.forced else None for i in range(n)]
+
+        def lookup(j: int, name: str) -> tuple[float, float] | None:
+            key = name if j in self.forced else f"{name}/m{j + 1}"
+            if key not in solutions[j] or scale[j] is None:
+                return None
+            s, es = scale[j]
+            return s * solutions[j][key], float(np.hypot(es, errors[j][key]))
+
+        progress = True
+        while progress and any(s is None for s in scale):
+            progress = False
+            for i in range(n):
+                if scale[i] is not None:
+                    continue
+                for e in (i + 1, i + 2):  # left and right element of mass i (1-based elements)
+                    key = f"k{e}_1/m{i + 1}"
+                    if key not in solutions[i] or solutions[i][key] == 0:
+                        continue
+                    for j in (e - 2, e - 1):  # the equations that contain element e
+                        absolute = lookup(j, f"k{e}_1") if j != i and 0 <= j < n else None
+                        if absolute is not None:
+                            scale[i] = (absolute[0] / solutions[i][key],
+                                        float(np.hypot(absolute[1], errors[i][key])))
+                            progress = True
+                            break
+                    if scale[i] is not None:
+                        break
+        values: dict[str, float] = {}
+        rse: dict[str, float] = {}
+        for name in self.canonical_parameters():
+            found = None
+            if name.startswith("m") and name[1:].isdigit():
+                i = int(name[1:]) - 1
+                found = (solutions[i][name], errors[i][name]) if i in self.forced else scale[i]
+            else:
+                for j in range(n):
+                    found = lookup(j, name)
+                    if found is not None:
+                        break
+            values[name], rse[name] = found if found is not None else (np.nan, np.inf)
+        return values, rse
+
+    def share_sources(self, name: str) -> list[tuple[int, str | None]]:
+        """Where canonical parameter ``name`` shows in the equations: ``(equation, unknown)``
+        pairs, the unknown None where it is the equation's right-hand side (an unforced
+        DOF's mass)."""
+        out: list[tuple[int, str | None]] = []
+        for j, eq in enumerate(self.equations()):
+            key = name if j in self.forced else f"{name}/m{j + 1}"
+            if key in eq.unknowns:
+                out.append((j, key))
+            elif name == f"m{j + 1}" and j not in self.forced:
+                out.append((j, None))
+        return out
+
+    def is_physical(self, name: str, value: float) -> bool:
+        """A mass must be positive and a damping coefficient not negative (a passive plant)."""
+        if name[0] == "m" and name[1:].isdigit():
+            return value > 0
+        if name[0] == "b" and name[1:].isdigit():
+            return value >= 0
+        return True
+
+    def period_parameters(self) -> tuple[str, ...]:
+        """The canonical parameters that set the natural periods (masses, linear stiffnesses)."""
+        return tuple(k for k in self.canonical_parameters()
+                     if (k[0] == "m" and k[1:].isdigit()) or (k[0] == "k" and k.endswith("_1")))
+
+    def offset_parameters(self) -> dict[str, int]:
+        """Constant-force offset parameters and the 0-based equation each acts in."""
+        return {f"c{i + 1}": i for i in range(self.n_dof)} if self.offset else {}
+
+    def with_offset(self) -> "Chain":
+        """The same model with an unknown constant force per DOF (``c1``, ``c2``, ...)."""
+        if self.offset:
+            return self
+        if type(self) is Chain:
+            return dataclasses.replace(self, offset=True)
+        return type(self)(**self.parameters, offset=True)  # type: ignore[call-arg]
+
+    def needs_force(self) -> bool:
+        """Whether the parameters' scale comes from the force (a record without force gives ratios only)."""
+        return True
+
+    def symbolic_acceleration(self, p: Mapping[str, Any], x: Sequence[Any], v: Sequence[Any],
+                              f: Sequence[Any], friction_velocity: float) -> list[Any]:
+        """Accelerations of a chain, written element by element (works on CasADi symbols).
+
+        ``m_i x_i'' + F_i + fc_i tanh(x_i' / v_f) - F_{i+1} + c_i = f_i`` with the element
+        force ``F_i = b_i y_i' + sum_j k_i_j y_i^j`` and deflection ``y_i = x_i - x_{i-1}``:
+        the structure of :meth:`~duffid.models.chain.Chain.equations` (offsets included).
+        """
+        n = self.n_dof
+        forces = []
+        for i in range(n):
+            y = x[i] - x[i - 1] if i else x[i]
+            ydot = v[i] - v[i - 1] if i else v[i]
+            element = p[f"b{i + 1}"] * ydot
+            for j in self.orders:
+                element = element + p[f"k{i + 1}_{j}"] * y**j
+            forces.append(element)
+        acc = []
+        for i in range(n):
+            net = -forces[i]
+            if i + 1 < n:
+                net = net + forces[i + 1]
+            if i in self.forced:
+                net = net + f[self.forced.index(i)]
+            if self.coulomb is not None:
+                net = net - p[f"fc{i + 1}"] * ca.tanh(v[i] / friction_velocity)
+            if self.offset:
+                net = net - p[f"c{i + 1}"]
+            acc.append(net / p[f"m{i + 1}"])
+        return acc
+
+    def term_shares(self, canonical: Mapping[str, float], x: np.ndarray, f: np.ndarray,
+                    dt: float) -> dict[str, float]:
+        """Share of each canonical parameter's term in the force balance of the DOFs it acts on.
+
+        The terms (``m x''``, ``b y'``, ``k_j y^j``, ``fc sgn(v)``, ``c``) are evaluated on a
+        smooth displacement ``x`` (e.g. the identified model's simulation) with central
+        differences for the derivatives; a term's share is its RMS over the RMS of the
+        quadratic sum of all terms on that DOF (largest over the DOFs it acts on).
+        """
+        x = np.asarray(x, dtype=float).reshape(len(x), -1)
+        n_dof = x.shape[1]
+        v = np.gradient(x, dt, axis=0, edge_order=2)
+        a = np.gradient(v, dt, axis=0, edge_order=2)
+        zeros = np.zeros((len(x), 1))
+        y = x - np.concatenate([zeros, x[:, :-1]], axis=1)
+        yd = v - np.concatenate([zeros, v[:, :-1]], axis=1)
+        terms: dict[str, tuple[np.ndarray, tuple[int, ...]]] = {}
+        for i in range(n_dof):
+            acts = (i,) if i == 0 else (i, i - 1)     # element i joins DOF i-1 and DOF i
+            for name, value in canonical.items():
+                if name == f"m{i + 1}":
+                    terms[name] = (value * a[:, i], (i,))
+                elif name == f"b{i + 1}":
+                    terms[name] = (value * yd[:, i], acts)
+                elif name.startswith(f"k{i + 1}_"):
+                    power = int(name.split("_", 1)[1])
+                    terms[name] = (value * y[:, i] ** power, acts)
+                elif name == f"fc{i + 1}":
+                    terms[name] = (value * np.sign(v[:, i]), (i,))
+                elif name == f"c{i + 1}":
+                    terms[name] = (np.full(len(x), value), (i,))
+        balance = np.zeros(n_dof)
+        for series, dofs in terms.values():
+            for d in dofs:
+                balance[d] += float(np.mean(series**2))
+        force = np.asarray(f, dtype=float).reshape(len(f), -1)
+        for j in range(min(force.shape[1], n_dof)):
+            balance[j] += float(np.mean(force[:, j] ** 2))
+        out = {}
+        for name, (series, dofs) in terms.items():
+            rms = math.sqrt(float(np.mean(series**2)))
+            out[name] = max(rms / math.sqrt(balance[d]) if balance[d] > 0 else math.nan for d in dofs)
+        return out
 
     # ------------------------------------------------------------------ dynamics
     def with_parameters(self, **values: float) -> "Chain":
