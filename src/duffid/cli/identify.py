@@ -30,7 +30,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("file", type=Path, help="record: CSV (t, f, x or t, f1.., x1..) or .mat")
     add_model_arguments(p)
     p.add_argument("--method", choices=METHODS, default=None,
-                   help="robust (default), paper, or a buffered basis; with --equation: paper (default) or a basis")
+                   help="robust (default), paper, or a buffered basis (the same for --equation)")
     p.add_argument("--equation", default=None, metavar="TEXT",
                    help='model equation, e.g. "m*der(x,2) + b*der(x) + k*x + kp*x^3 = f": names that are '
                         "columns of the file are signals, all other names unknown parameters")
@@ -85,16 +85,16 @@ def _method_options(args: argparse.Namespace, method: str) -> dict[str, Any]:
 def run(args: argparse.Namespace) -> int:
     """Run ``duffid identify``: read, identify, check, print (table or ``--json``), plot."""
     record = read_record(args)
-    method = args.method or ("paper" if args.equation else "robust")
+    method = args.method or "robust"
     options = _method_options(args, method)
     if args.equation is not None:
-        if args.offset is not None:
-            raise InputError("--offset applies to the named models; with --equation write the offset into the "
-                             "equation (e.g. '... + c = f', or x - x0 in place of x)")
-        if args.no_refine:
-            raise InputError("--no-refine applies to the named models; equation models are not refined")
+        if args.offset not in (None, "force"):
+            raise InputError(f"--offset {args.offset} applies to the named models; with --equation write the "
+                             "offset into the equation (e.g. '... + c = f'), or --offset force to add a constant "
+                             "to each equation")
         from ..identification.equation import identify_equation
-        result = identify_equation(record, args.equation, method, **options)
+        result = identify_equation(record, args.equation, method, offsets=args.offset, refine=not args.no_refine,
+                                   **options)
     else:
         result = identify(record, model_from_arguments(args, record.n_dof), method, offsets=args.offset,
                           refine=not args.no_refine, **options)
@@ -123,8 +123,7 @@ def result_text(result: Any) -> str:
         lines.append(f"  {name:>10} {shown:>13}  {a.status[name]:<12} "
                      f"{(f'{100 * u:.2g} %' if np.isfinite(u) else '-'):>11}")
     if a is None:
-        lines.append("  not checked against the record (equation models are not checked yet): "
-                     "treat these values as unverified")
+        lines.append("  not checked against the record: treat these values as unverified")
         return "\n".join(lines)
     fit = a.fit
     lines.append(f"  identified: {'yes' if result.is_identified else 'no (not every parameter is published)'}")

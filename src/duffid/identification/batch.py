@@ -8,6 +8,7 @@ from typing import Any
 from ..data.record import Record
 from ..errors import InputError
 from ..models.chain import Chain
+from ..models.equation_model import EquationModel
 from .buffered import identify_buffered
 from .engine import METHODS, Identification, OnlineIdentifier, check_record
 from .options import ONLINE_METHODS
@@ -15,7 +16,7 @@ from .options import ONLINE_METHODS
 __all__ = ["estimate"]
 
 
-def estimate(record: Record, model: Chain, method: str = "robust", **options: Any) -> Identification:
+def estimate(record: Record, model: Chain | EquationModel, method: str = "robust", **options: Any) -> Identification:
     """Run an estimator over a record and return what it reported (nothing is checked).
 
     The online methods feed the record sample by sample through
@@ -30,7 +31,7 @@ def estimate(record: Record, model: Chain, method: str = "robust", **options: An
     ----------
     record : Record
         Forces and displacements, evenly sampled.
-    model : Chain
+    model : Chain or EquationModel
         Model structure.
     method : {"robust", "paper", "legendre", "chebyshev", "block-pulse", "haar"}
         Estimator: online (``robust``, ``paper``) or buffered with the named basis.
@@ -51,6 +52,7 @@ def estimate(record: Record, model: Chain, method: str = "robust", **options: An
     check_record(record, model)
     if method in ONLINE_METHODS:
         return OnlineIdentifier(model, record.dt, method, **options).identify_record(record)
-    result = identify_buffered(record, model, method, **options)
+    structure = model.regression() if isinstance(model, EquationModel) else model
+    result = identify_buffered(record, structure, method, **options)
     result.estimates = dict(result.parameters)
     return result

@@ -313,9 +313,11 @@ def _to_sx(node: _Node, sig: Signals, symbols: dict[str, ca.SX], names: list[str
             return cols[node.name]
         if node.name in sig.columns:
             raise EquationError(f"column {node.name!r} cannot appear in an equation ({text!r})")
-        if re.fullmatch(r"[fx]\d*", node.name):
-            raise EquationError(f"{node.name!r} in {text!r} looks like a signal but is not a column of the record "
-                                f"({', '.join(sig.columns)}); rename the parameter if it is one")
+        if re.fullmatch(r"[fxFX]\d*|[tT]", node.name):
+            case = (f" (names are case-sensitive: did you mean {node.name.lower()!r}?)"
+                    if node.name.lower() in sig.columns else "")
+            raise EquationError(f"{node.name!r} is not a column: columns are {', '.join(sig.columns)}{case}; "
+                                f"in {text!r} (rename it if it is a parameter)")
         if node.name not in symbols:
             symbols[node.name] = ca.SX.sym(node.name)
         if node.name not in names:
@@ -494,6 +496,12 @@ class DerivedRegressor:
         ``channels(x, f, t, sgn) -> g``; ``bank(x, f, t, sgn, tau) -> u`` (inputs of the
         integrators); ``rows(Y) -> A1, D1, A2, D2, ...`` with ``Y[k, b]`` the ``k``-fold
         integral of bank input ``b`` (``k = 0``: the input itself).
+    residuals : tuple of casadi.SX
+        ``lhs - rhs`` of each equation in the signal symbols (``signals``) and the parameters.
+    symbols : dict
+        Parameter name -> its CasADi symbol.
+    channel_exprs : tuple of casadi.SX
+        The channels ``g`` as expressions of the signal symbols.
     """
 
     equations: tuple[str, ...]
@@ -509,6 +517,9 @@ class DerivedRegressor:
     channel_function: ca.Function
     bank_function: ca.Function
     rows_function: ca.Function
+    residuals: tuple[ca.SX, ...] = ()
+    symbols: dict[str, ca.SX] | None = None
+    channel_exprs: tuple[ca.SX, ...] = ()
 
     def c_code(self, name: str = "duffid_regressor") -> str:
         """C source of the three functions (CasADi code generation)."""
@@ -643,7 +654,8 @@ def derive_regressor(residuals: Sequence[ca.SX], parameters: Sequence[Sequence[c
         rows = tuple(int(r) for r in n_rows)
     if len(rows) != len(unknowns) or any(r < 1 for r in rows):
         raise InputError(f"n_rows must give one positive count per equation, got {n_rows!r}")
-    return _build(texts, tuple(names_order), tuple(unknowns), tuple(terms), order, rows, ctx)
+    return _build(texts, tuple(names_order), tuple(unknowns), tuple(terms), order, rows, ctx,
+                  tuple(residuals), dict(unique))
 
 
 class _Context:
@@ -809,7 +821,7 @@ def _merge(pieces: list[tuple[int, int, float]]) -> list[tuple[int, int, float]]
     return [(o, c, v) for (o, c), v in total.items() if v != 0.0]
 
 
-def _build(texts, parameters, unknowns, terms, order, rows, ctx: _Context) -> DerivedRegressor:
+def _build(texts, parameters, unknowns, terms, order, rows, ctx: _Context, residuals, symbols) -> DerivedRegressor:
     s = ctx.sig
     n = order
     depth = n + max(rows) - 1
@@ -847,4 +859,5 @@ def _build(texts, parameters, unknowns, terms, order, rows, ctx: _Context) -> De
         out_names += [f"A{e + 1}", f"D{e + 1}"]
     rows_function = ca.Function("duffid_rows", [Y], outputs, ["Y"], out_names)
     return DerivedRegressor(texts, parameters, unknowns, n, tuple(ctx.labels), terms, rows, bank, depth, s,
-                            channel_function, bank_function, rows_function)
+                            channel_function, bank_function, rows_function, residuals, symbols,
+                            tuple(ctx.exprs))
