@@ -2,12 +2,15 @@
 #include "fmu_instance.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #define SNAPSHOT_MAGIC 0x44554646u /* "DUFF" */
+/* Format of the FMU state (part of its identity: a state of another format is refused). */
+#define SNAPSHOT_FORMAT "duffid-fmu-state-2"
 #define MAX_STEPS_PER_CALL 1000000UL
 
 /* ------------------------------------------------------------------ logging */
@@ -688,14 +691,50 @@ FmuStatus fmu_do_step(Instance *inst, const char *function, double current_time,
 
 /* ------------------------------------------------------------------ FMU state */
 
+/* A snapshot (and its serialized form: the same bytes) is checked in full before it is used:
+ * the header (magic, kind, counts, sizes), a checksum over every byte after it, the FMU's
+ * identity (model identifier, instantiation token and SNAPSHOT_FORMAT), the glue's own fields
+ * (mode, times, tolerance, the variables' types and finiteness) and the model's invariants
+ * (ModelInfo.check_state). A snapshot that fails is refused with an error message and the
+ * instance is left as it was. Layout: see SNAPSHOT_CHECKSUM_OFFSET in fmu_instance.h. */
 typedef struct Snapshot {
     unsigned magic;
     unsigned kind;
+    unsigned long long checksum;   /* fmu_state_checksum of the bytes after this field */
+    unsigned long long identity;   /* fmu_state_checksum of identifier, token and format */
     unsigned long long n_vars, n_states, size, model_bytes;
     int mode, stop_time_defined;
     double time, start_time, stop_time, tolerance, h_next;
     double data[1]; /* n_vars values, n_states error scales, then model_bytes of model data */
 } Snapshot;
+
+typedef char snapshot_layout_check[(offsetof(Snapshot, checksum) == SNAPSHOT_CHECKSUM_OFFSET &&
+                                    offsetof(Snapshot, identity) == SNAPSHOT_CHECKSUM_OFFSET + 8) ? 1 : -1];
+
+unsigned long long fmu_state_checksum(unsigned long long hash, const void *bytes, size_t size)
+{
+    const unsigned char *p = (const unsigned char *)bytes;
+    size_t i;
+    for (i = 0; i < size; i++) {
+        hash ^= p[i];
+        hash *= 1099511628211ULL; /* FNV-1a, 64 bits */
+    }
+    return hash;
+}
+
+static unsigned long long identity_of(const ModelInfo *m)
+{
+    unsigned long long h = FMU_STATE_CHECKSUM_SEED;
+    h = fmu_state_checksum(h, m->model_identifier, strlen(m->model_identifier) + 1);
+    h = fmu_state_checksum(h, m->instantiation_token, strlen(m->instantiation_token) + 1);
+    return fmu_state_checksum(h, SNAPSHOT_FORMAT, sizeof SNAPSHOT_FORMAT);
+}
+
+static unsigned long long checksum_of(const Snapshot *s)
+{
+    const char *from = (const char *)s + SNAPSHOT_CHECKSUM_OFFSET + 8;
+    return fmu_state_checksum(FMU_STATE_CHECKSUM_SEED, from, (size_t)s->size - (SNAPSHOT_CHECKSUM_OFFSET + 8));
+}
 
 static size_t snapshot_size(const ModelInfo *m, unsigned long long model_bytes)
 {
@@ -707,13 +746,69 @@ static size_t model_state_size(const Instance *inst)
     return inst->model->state_size != NULL ? inst->model->state_size(inst) : 0;
 }
 
+/* The header: magic, kind and sizes (enough to know how many bytes the snapshot has). */
 static int snapshot_valid(Instance *inst, const char *function, const Snapshot *s, size_t size)
 {
     const ModelInfo *m = inst->model;
     if (s == NULL || size < sizeof(Snapshot) || s->magic != SNAPSHOT_MAGIC || s->n_vars != m->n_vars ||
-        s->n_states != m->n_states || s->size != snapshot_size(m, s->model_bytes) || size < s->size ||
-        s->kind != (unsigned)inst->kind) {
-        log_error(inst, "%s: not an FMU state of this FMU", function);
+        s->n_states != m->n_states || s->model_bytes > (unsigned long long)size ||
+        s->size != snapshot_size(m, s->model_bytes) || size < s->size || s->kind != (unsigned)inst->kind ||
+        (m->state_size == NULL && s->model_bytes != 0)) {
+        log_error(inst, "%s: not an FMU state of this FMU (header)", function);
+        return 0;
+    }
+    return 1;
+}
+
+static int is_single_mode(int mode)
+{
+    return mode > 0 && mode <= MODE_ERROR && (mode & (mode - 1)) == 0;
+}
+
+/* Everything: header, checksum, identity, the glue's fields and the model's invariants. */
+static int snapshot_usable(Instance *inst, const char *function, const Snapshot *s, size_t size)
+{
+    const ModelInfo *m = inst->model;
+    const double *vars = s->data, *scales = s->data + m->n_vars;
+    char reason[256];
+    size_t i;
+    if (!snapshot_valid(inst, function, s, size)) return 0;
+    if (s->checksum != checksum_of(s)) {
+        log_error(inst, "%s: the FMU state is corrupted (checksum mismatch); rejected", function);
+        return 0;
+    }
+    if (s->identity != identity_of(m)) {
+        log_error(inst, "%s: the FMU state was saved by another FMU or build (not %s, token %s, format %s); "
+                  "rejected", function, m->model_identifier, m->instantiation_token, SNAPSHOT_FORMAT);
+        return 0;
+    }
+    reason[0] = '\0';
+    if (!is_single_mode(s->mode) || s->mode == MODE_ERROR)
+        snprintf(reason, sizeof reason, "mode %d is not a state of the FMI state machine", s->mode);
+    else if ((s->stop_time_defined != 0 && s->stop_time_defined != 1) || !isfinite(s->time) ||
+             !isfinite(s->start_time) || (s->stop_time_defined && !isfinite(s->stop_time)) ||
+             !(s->tolerance > 0.0 && isfinite(s->tolerance)) || !(s->h_next >= 0.0 && isfinite(s->h_next)))
+        snprintf(reason, sizeof reason, "time, stop time, tolerance or step size out of range");
+    for (i = 0; reason[0] == '\0' && i < m->n_vars; i++) {
+        int type = m->types != NULL ? m->types[i] : VARTYPE_FLOAT64;
+        double v = vars[i];
+        int restricted = m->causality[i] == CAUSALITY_PARAMETER || m->causality[i] == CAUSALITY_INPUT ||
+                         m->causality[i] == CAUSALITY_INDEPENDENT;
+        if ((type == VARTYPE_INTEGER && !(v == floor(v) && fabs(v) <= 2147483647.0)) ||
+            (type == VARTYPE_BOOLEAN && v != 0.0 && v != 1.0) ||
+            (restricted && !isfinite(v) && !may_be_non_finite(m, i)))
+            snprintf(reason, sizeof reason, "variable %s = %g is not a valid value", m->names[i], v);
+    }
+    for (i = 0; reason[0] == '\0' && i < m->n_states; i++)
+        if (!(scales[i] >= 0.0 && isfinite(scales[i])))
+            snprintf(reason, sizeof reason, "error scale %g of state %s is not valid", scales[i],
+                     m->names[m->state_vr[i]]);
+    if (reason[0] == '\0' && m->check_state != NULL &&
+        m->check_state(inst, (const void *)(scales + m->n_states), (size_t)s->model_bytes, reason,
+                       sizeof reason) != 0 && reason[0] == '\0')
+        snprintf(reason, sizeof reason, "the model data is not valid");
+    if (reason[0] != '\0') {
+        log_error(inst, "%s: the FMU state is inconsistent (%s); rejected", function, reason);
         return 0;
     }
     return 1;
@@ -742,6 +837,7 @@ FmuStatus fmu_get_state(Instance *inst, const char *function, void **state)
     }
     s->magic = SNAPSHOT_MAGIC;
     s->kind = (unsigned)inst->kind;
+    s->identity = identity_of(m);
     s->n_vars = m->n_vars;
     s->n_states = m->n_states;
     s->model_bytes = model_bytes;
@@ -756,6 +852,7 @@ FmuStatus fmu_get_state(Instance *inst, const char *function, void **state)
     memcpy(s->data, inst->vars, m->n_vars * sizeof(double));
     memcpy(s->data + m->n_vars, inst->yscale, m->n_states * sizeof(double));
     if (model_bytes > 0) m->save_state(inst, (void *)(s->data + m->n_vars + m->n_states));
+    s->checksum = checksum_of(s);
     *state = s;
     return FMU_OK;
 }
@@ -765,7 +862,7 @@ FmuStatus fmu_set_state(Instance *inst, const char *function, const void *state)
     const ModelInfo *m = inst->model;
     const Snapshot *s = (const Snapshot *)state;
     if (fmu_null_arg(inst, function, "FMUState", state, 1)) return FMU_ERROR;
-    if (!snapshot_valid(inst, function, s, s->size)) return FMU_ERROR;
+    if (!snapshot_usable(inst, function, s, (size_t)s->size)) return FMU_ERROR;
     if (m->load_state != NULL &&
         m->load_state(inst, (const void *)(s->data + m->n_vars + m->n_states), (size_t)s->model_bytes) != 0) {
         log_error(inst, "%s: the model data of the FMU state could not be restored", function);
@@ -831,17 +928,21 @@ FmuStatus fmu_deserialize(Instance *inst, const char *function, const char *byte
         fmu_null_arg(inst, function, "FMUState", state, 1))
         return FMU_ERROR;
     if (size < sizeof(Snapshot)) {
-        log_error(inst, "%s: not an FMU state of this FMU", function);
+        log_error(inst, "%s: not an FMU state of this FMU (%lu bytes)", function, (unsigned long)size);
         return FMU_ERROR;
     }
     memcpy(&header, bytes, sizeof header);
     if (!snapshot_valid(inst, function, &header, size)) return FMU_ERROR;
-    copy = malloc((size_t)header.size);
+    copy = malloc((size_t)header.size); /* aligned for the checks of the model data */
     if (copy == NULL) {
         log_error(inst, "%s: out of memory", function);
         return FMU_ERROR;
     }
     memcpy(copy, bytes, (size_t)header.size);
+    if (!snapshot_usable(inst, function, (const Snapshot *)copy, (size_t)header.size)) {
+        free(copy);
+        return FMU_ERROR;
+    }
     if (*state != NULL) free(*state);
     *state = copy;
     return FMU_OK;

@@ -125,6 +125,14 @@ FmuStatus fmu_serialize(Instance *inst, const char *function, const void *state,
 FmuStatus fmu_deserialize(Instance *inst, const char *function, const char *bytes, size_t size,
                           void **state);
 
+/* The checksum of FMU states: 64-bit FNV-1a of `size` bytes continuing from `hash` (start with
+ * FMU_STATE_CHECKSUM_SEED). A serialized state holds at byte SNAPSHOT_CHECKSUM_OFFSET (8) the
+ * checksum of all its bytes from SNAPSHOT_CHECKSUM_OFFSET + 8 to the end (so a test host can
+ * reseal a state it changed, to reach the invariant checks behind the checksum). */
+#define FMU_STATE_CHECKSUM_SEED 14695981039346656037ULL
+#define SNAPSHOT_CHECKSUM_OFFSET 8
+unsigned long long fmu_state_checksum(unsigned long long hash, const void *bytes, size_t size);
+
 #ifdef __cplusplus
 }
 #endif

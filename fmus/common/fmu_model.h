@@ -64,6 +64,12 @@ typedef void (*ModelFreeData)(struct Instance *inst);
 typedef size_t (*ModelStateSize)(const struct Instance *inst);
 typedef void (*ModelSaveState)(const struct Instance *inst, void *bytes);
 typedef int (*ModelLoadState)(struct Instance *inst, const void *bytes, size_t size);
+/* Checks model data of an FMU state before anything is restored: every invariant the model
+ * relies on (counts, indices, buffer positions, sizes); 0 when usable, else nonzero with the
+ * reason in msg. load_state is called only on data that passed (and must then succeed but
+ * for lack of memory, leaving the instance unchanged then). */
+typedef int (*ModelCheckState)(const struct Instance *inst, const void *bytes, size_t size, char *msg,
+                               size_t msg_size);
 
 typedef struct ModelInfo {
     const char *model_identifier;
@@ -93,6 +99,7 @@ typedef struct ModelInfo {
     const unsigned char *non_finite;   /* per variable, 1: may be set to and hold NaN/Inf (an input
                                         * such as an estimate "not yet known"); NULL: none. Every
                                         * other input or parameter is rejected when not finite. */
+    ModelCheckState check_state;       /* required when state_size is set */
 } ModelInfo;
 
 /* Interfaces of ModelInfo.interfaces. */
@@ -102,7 +109,8 @@ typedef struct ModelInfo {
 /* The fields of the ModelInfo of a discrete-time co-simulation model with model data
  * (the estimator and controller FMUs): its tables <prefix>_names, _start, _causality,
  * _variability, _settable_start and _types come from the generated config header, and
- * the model defines evaluate, do_step, free_data, state_size, save_state and load_state.
+ * the model defines evaluate, do_step, free_data, state_size, save_state, load_state and
+ * check_state.
  * Use as  const ModelInfo fmu_model_info = { DUFFID_DISCRETE_MODEL_FIELDS(...), ... };  */
 #define DUFFID_DISCRETE_MODEL_FIELDS(prefix, identifier, token, count) \
     .model_identifier = (identifier), .instantiation_token = (token), .n_vars = (count), \
@@ -111,7 +119,8 @@ typedef struct ModelInfo {
     .n_states = 0, .state_vr = NULL, .derivative_vr = NULL, .n_work = 0, .n_iwork = 0, \
     .evaluate = evaluate, .do_step = do_step, .default_tolerance = 1e-8, \
     .interfaces = INTERFACE_CO_SIMULATION, .free_data = free_data, .state_size = state_size, \
-    .save_state = save_state, .load_state = load_state, .non_finite_outputs = 1, \
+    .save_state = save_state, .load_state = load_state, .check_state = check_state, \
+    .non_finite_outputs = 1, \
     .types = prefix##_types
 
 /* The model compiled into this FMU (defined by the model's own source file). */

@@ -13,6 +13,7 @@
  * (duffid_ctrl): the FMU state holds a byte copy of it.
  */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -146,6 +147,40 @@ static void save_state(const Instance *inst, void *bytes)
         memcpy(bytes, inst->model_data, sizeof(CtrlData));
     else
         memset(bytes, 0, sizeof(CtrlData));
+}
+
+/* Every invariant of the model data of an FMU state: a valid configuration of this FMU's
+ * size, buffer position and count within the differentiator's samples, flags 0/1. */
+static int check_state(const Instance *inst, const void *bytes, size_t size, char *msg, size_t msg_size)
+{
+    CtrlData d;
+    const duffid_ctrl *c = &d.ctrl;
+    (void)inst;
+    if (size != sizeof d) {
+        snprintf(msg, msg_size, "model data of %lu bytes, expected %lu", (unsigned long)size,
+                 (unsigned long)sizeof d);
+        return 1;
+    }
+    memcpy(&d, bytes, sizeof d);
+    if (d.started != 0 && d.started != 1) {
+        snprintf(msg, msg_size, "flag started = %d", d.started);
+        return 1;
+    }
+    if (!d.started && !c->initialized) return 0; /* nothing restored is used before a restart */
+    if (c->cfg.dofs != N_DOF || duffid_ctrl_check(&c->cfg, msg, msg_size) != DUFFID_CTRL_OK) {
+        if (msg_size > 0 && msg[0] == '\0') snprintf(msg, msg_size, "configuration");
+        return 1;
+    }
+    if (c->n_params != N_PARAMS || c->head < 0 || c->head >= c->cfg.differentiator_samples || c->count < 0 ||
+        c->count > c->cfg.differentiator_samples || (c->have_ref != 0 && c->have_ref != 1) ||
+        (c->phase != 0 && c->phase != 1) || (c->saturated != 0 && c->saturated != 1) ||
+        (c->initialized != 0 && c->initialized != 1) || (d.out.phase != 0 && d.out.phase != 1) ||
+        (d.out.saturated != 0 && d.out.saturated != 1)) {
+        snprintf(msg, msg_size, "n_params %d, head %d, count %d of %d samples, or a flag out of range", c->n_params,
+                 c->head, c->count, c->cfg.differentiator_samples);
+        return 1;
+    }
+    return 0;
 }
 
 static int load_state(Instance *inst, const void *bytes, size_t size)

@@ -640,6 +640,106 @@ duffid_estimator *duffid_relocate(void *memory)
     return est;
 }
 
+/* The checks of duffid_check_state: a structural field equal to a fresh estimator's, a
+ * count within bounds (each failure names the field). */
+#define STATE_SAME(field) \
+    if (memcmp(&est->field, &fresh->field, sizeof est->field) != 0) { bad = #field; goto done; }
+#define STATE_RANGE(value, lo, hi) \
+    if (!((value) >= (lo) && (value) <= (hi))) { bad = #value; goto done; }
+
+int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_size)
+{
+    const duffid_estimator *est = (const duffid_estimator *)memory;
+    duffid_estimator *fresh = NULL;
+    duffid_config cfg;
+    const char *bad = NULL;
+    void *scratch;
+    int64_t n, limit = (int64_t)1 << 52; /* sample indices far beyond any record, no overflow */
+    int i, rc;
+    if (memory == NULL || ((uintptr_t)memory & (ALIGNMENT - 1u)) != 0 || size < sizeof *est) {
+        set_msg(msg, msg_size, "estimator memory of %lu bytes is not an estimator", (unsigned long)size);
+        return DUFFID_ERR_ARGUMENT;
+    }
+    memcpy(&cfg, &est->cfg, sizeof cfg);
+    rc = duffid_check_config(&cfg, msg, msg_size);
+    if (rc != DUFFID_OK) {
+        return rc;
+    }
+    if (size < duffid_memory_size(&cfg) - ALIGNMENT) {
+        set_msg(msg, msg_size, "estimator memory of %lu bytes, its configuration needs %lu", (unsigned long)size,
+                (unsigned long)(duffid_memory_size(&cfg) - ALIGNMENT));
+        return DUFFID_ERR_ARGUMENT;
+    }
+    scratch = malloc(duffid_memory_size(&cfg));
+    if (scratch == NULL || duffid_init(&fresh, scratch, duffid_memory_size(&cfg), &cfg, msg, msg_size) != DUFFID_OK) {
+        free(scratch);
+        set_msg(msg, msg_size, "out of memory for the check of an estimator state");
+        return DUFFID_ERR_ARGUMENT;
+    }
+    /* structure: everything duffid_init derives from the configuration */
+    STATE_SAME(n_dof) STATE_SAME(n_forces) STATE_SAME(n_params) STATE_SAME(n_ch) STATE_SAME(n_eq)
+    STATE_SAME(ch) STATE_SAME(canon_of_public) STATE_SAME(nominal) STATE_SAME(settle_count)
+    STATE_SAME(capacity) STATE_SAME(auto_window) STATE_SAME(n_rows) STATE_SAME(degree) STATE_SAME(lam)
+    STATE_SAME(sqrt_lam) STATE_SAME(row_a) STATE_SAME(row_b) STATE_SAME(raw_b) STATE_SAME(coef)
+    STATE_SAME(expo) STATE_SAME(norm) STATE_SAME(norm_power) STATE_SAME(d_scale) STATE_SAME(t_ref)
+    STATE_SAME(shift)
+    for (i = 0; i < est->n_eq; i++) {
+        STATE_SAME(eq[i].dof) STATE_SAME(eq[i].forced) STATE_SAME(eq[i].n_unk) STATE_SAME(eq[i].param)
+        STATE_SAME(eq[i].ch) STATE_SAME(eq[i].order) STATE_SAME(eq[i].sign) STATE_SAME(eq[i].rhs_ch)
+        STATE_SAME(eq[i].rhs_order) STATE_SAME(eq[i].rhs_sign) STATE_SAME(eq[i].reg.n_in)
+        STATE_SAME(eq[i].reg.depth) STATE_SAME(eq[i].det.n_in) STATE_SAME(eq[i].det.depth)
+        STATE_RANGE(est->eq[i].reg.count, 0, 2)
+        STATE_RANGE(est->eq[i].det.count, 0, 2)
+    }
+    /* counts, indices and buffer positions */
+    n = est->n;
+    STATE_RANGE(n, -1, limit)
+    STATE_RANGE(est->received, n, n + 1)
+    STATE_RANGE(est->window_fixed, 0, 1)
+    STATE_RANGE(est->g_count, 0, est->received + 1)
+    STATE_RANGE(est->pending, 0, 1)
+    STATE_RANGE(est->p_k, 0, limit)
+    STATE_RANGE(est->outliers, 0, est->received + 1)
+    STATE_RANGE(est->outlier_column, -1, est->n_dof - 1)
+    for (i = 0; i < DUFFID_MAX_DOF; i++) {
+        STATE_RANGE(est->p_suspect[i], 0, 1)
+    }
+    for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
+        STATE_RANGE(est->status[i], DUFFID_STATUS_UNCERTAIN, DUFFID_STATUS_LOST)
+        STATE_RANGE(est->last.status[i], DUFFID_STATUS_UNCERTAIN, DUFFID_STATUS_LOST)
+        STATE_RANGE(est->steady[i], 0, limit)
+        STATE_RANGE(est->anchored[i], -1, limit)
+        STATE_RANGE(est->settled[i], 0, limit)
+        STATE_RANGE(est->unsettled[i], 0, limit)
+    }
+    STATE_RANGE(est->last.n_parameters, 0, DUFFID_MAX_PARAMS)
+    STATE_RANGE(est->last.identified, 0, 1)
+    STATE_RANGE(est->last.outliers, 0, est->received + 1)
+    STATE_RANGE(est->last.outlier_column, -1, est->n_dof - 1)
+    if (cfg.method == DUFFID_ROBUST) {
+        const long N = est->capacity;
+        STATE_RANGE(est->target, 1, N)
+        STATE_RANGE(est->start, 0, n + 1)
+        STATE_RANGE(n - est->start, -1, (int64_t)N)
+        STATE_RANGE(est->shadow_from, est->start, n + 1)
+        STATE_RANGE(est->poly_L, -1, N)
+        STATE_RANGE(est->corr_L, -1, N)
+        STATE_RANGE(est->corr_n, 0, MAX_CORR)
+        for (i = 0; i < est->corr_n; i++) {
+            STATE_RANGE(est->corr_off[i], 0, est->corr_L)
+        }
+    }
+done:
+    free(scratch);
+    if (bad != NULL) {
+        set_msg(msg, msg_size, "estimator field %s out of range", bad);
+        return DUFFID_ERR_ARGUMENT;
+    }
+    return DUFFID_OK;
+}
+#undef STATE_SAME
+#undef STATE_RANGE
+
 int duffid_create(duffid_estimator **out, const duffid_config *cfg, char *msg, size_t msg_size)
 {
     size_t size;

@@ -164,6 +164,12 @@ int duffid_init(duffid_estimator **est, void *memory, size_t size, const duffid_
  * how FMU states are restored: copying the memory block is the estimator's state. */
 duffid_estimator *duffid_relocate(void *memory);
 
+/* Check a byte copy of an estimator's memory (8-byte aligned, size bytes, as adopted by
+ * duffid_relocate) before adopting it: a valid configuration, the structure duffid_init
+ * builds for it, and every count, index and buffer position within its bounds. DUFFID_OK,
+ * else an error code and a message naming the field. Allocates one scratch estimator. */
+int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_size);
+
 /* Same, with one malloc; release with duffid_destroy. */
 int duffid_create(duffid_estimator **est, const duffid_config *cfg, char *msg, size_t msg_size);
 void duffid_destroy(duffid_estimator *est);

@@ -27,6 +27,7 @@
  */
 #include <math.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -274,6 +275,48 @@ static void save_state(const Instance *inst, void *bytes)
     }
     memcpy(bytes, &h, sizeof h);
     if (h.est_bytes > 0) memcpy((char *)bytes + sizeof h, d->est, (size_t)h.est_bytes);
+}
+
+/* Every invariant of the model data of an FMU state (the header here, the estimator memory
+ * by duffid_check_state); nothing is changed. */
+static int check_state(const Instance *inst, const void *bytes, size_t size, char *msg, size_t msg_size)
+{
+    EstState h;
+    int i;
+    (void)inst;
+    if (size < sizeof h) {
+        snprintf(msg, msg_size, "model data of %lu bytes is too short", (unsigned long)size);
+        return 1;
+    }
+    memcpy(&h, bytes, sizeof h);
+    if (h.est_bytes != (unsigned long long)(size - sizeof h)) {
+        snprintf(msg, msg_size, "estimator memory of %llu bytes in %lu bytes of model data", h.est_bytes,
+                 (unsigned long)size);
+        return 1;
+    }
+    if ((h.started != 0 && h.started != 1) || (h.have_out != 0 && h.have_out != 1) ||
+        (!h.started && (h.est_bytes != 0 || h.have_out))) {
+        snprintf(msg, msg_size, "flags started = %d, have_out = %d with %llu bytes of estimator", h.started,
+                 h.have_out, h.est_bytes);
+        return 1;
+    }
+    if (!h.started) return 0;
+    if (h.cfg.model != ESTIMATOR_MODEL || !(h.dt > 0.0 && isfinite(h.dt)) || h.cfg.dt != h.dt ||
+        duffid_check_config(&h.cfg, msg, msg_size) != DUFFID_OK) {
+        if (msg_size > 0 && msg[0] == '\0') snprintf(msg, msg_size, "sampling period or configuration");
+        return 1;
+    }
+    for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
+        if (h.out.status[i] < DUFFID_STATUS_UNCERTAIN || h.out.status[i] > DUFFID_STATUS_LOST) {
+            snprintf(msg, msg_size, "status %d of parameter %d", h.out.status[i], i);
+            return 1;
+        }
+    }
+    if (h.out.outliers < 0 || (h.out.identified != 0 && h.out.identified != 1)) {
+        snprintf(msg, msg_size, "outliers %ld, identified %d", h.out.outliers, h.out.identified);
+        return 1;
+    }
+    return duffid_check_state((const char *)bytes + sizeof h, (size_t)h.est_bytes, msg, msg_size) != DUFFID_OK;
 }
 
 static int load_state(Instance *inst, const void *bytes, size_t size)

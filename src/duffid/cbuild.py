@@ -1,23 +1,38 @@
-"""The one C build helper: compiler discovery, flags and the platform names of FMU binaries.
+"""The one C build helper: compiler discovery, flags and the platforms of FMU binaries.
 
 Every C binary duffid makes (the estimator core loaded through ctypes, and every FMU:
 plants, estimators, controllers) is compiled by :func:`compile_shared_library` with
-the flags below, by the compiler :func:`find_compiler` finds.
+the flags below, by the compiler :func:`find_compiler` finds, for this machine or (FMUs)
+for any :data:`PLATFORMS` entry whose cross compiler is installed:
+
+========== ===================== ======================= ==================================
+platform   FMI 2 folder          FMI 3 folder            compiler (Debian package)
+========== ===================== ======================= ==================================
+linux64    ``linux64``           ``x86_64-linux``        cc / gcc (gcc)
+win64      ``win64``             ``x86_64-windows``      x86_64-w64-mingw32-gcc (gcc-mingw-w64-x86-64)
+aarch64-linux ``aarch64-linux``  ``aarch64-linux``       aarch64-linux-gnu-gcc (gcc-aarch64-linux-gnu)
+========== ===================== ======================= ==================================
+
+FMI 2 names no folder for 64-bit ARM; duffid uses the FMI 3 tuple ``aarch64-linux`` there too.
+Windows DLLs link the C runtime statically (``-static``): they import only Windows' own
+KERNEL32.dll and msvcrt.dll.
 """
 from __future__ import annotations
 
 import os
 import shutil
 import subprocess
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import Iterable, Sequence
 
 import fmpy
 
-from .errors import BuildError, CompilerNotFoundError
+from .errors import BuildError, CompilerNotFoundError, InputError
 
 __all__ = ["CFLAGS", "LIBRARY_FLAGS", "FMU_FLAGS", "find_compiler", "compile_shared_library",
-           "FMI2_PLATFORM", "FMI3_PLATFORM", "SHARED_LIBRARY_SUFFIX", "fmu_binary_path"]
+           "FMI2_PLATFORM", "FMI3_PLATFORM", "SHARED_LIBRARY_SUFFIX", "fmu_binary_path",
+           "Platform", "PLATFORMS", "HOST_PLATFORM", "resolve_platforms", "platform_compiler"]
 
 #: Flags of every C build: optimised, position independent, warnings are errors, and no
 #: fused multiply-adds, so the C code computes what its Python reference computes,
@@ -34,10 +49,127 @@ FMI3_PLATFORM = fmpy.platform_tuple
 SHARED_LIBRARY_SUFFIX = fmpy.sharedLibraryExtension
 
 
-def fmu_binary_path(model_identifier: str, fmi_version: int) -> str:
-    """Where an FMU for this host keeps its binary, e.g. ``binaries/linux64/X.so``."""
-    platform = FMI2_PLATFORM if fmi_version == 2 else FMI3_PLATFORM
-    return f"binaries/{platform}/{model_identifier}{SHARED_LIBRARY_SUFFIX}"
+@dataclass(frozen=True)
+class Platform:
+    """A target of FMU binaries.
+
+    Attributes
+    ----------
+    name : str
+        The name ``--platforms`` takes (``linux64``, ``win64``, ``aarch64-linux``).
+    fmi2 : str
+        Folder under ``binaries/`` in an FMI 2 FMU.
+    fmi3 : str
+        Folder under ``binaries/`` in an FMI 3 FMU (the FMI 3 platform tuple).
+    suffix : str
+        File suffix of its shared libraries.
+    compiler : str
+        The cross compiler (ignored for the platform of this machine: :func:`find_compiler`).
+    package : str
+        The Debian package that installs the compiler.
+    flags : tuple of str
+        Flags added to :data:`CFLAGS` for this platform.
+    runner : tuple of str
+        Command prefix that runs this platform's executables on an x86_64 Linux machine
+        (wine, qemu), empty for the host.
+    runner_package : str
+        The Debian package of the runner.
+    """
+
+    name: str
+    fmi2: str
+    fmi3: str
+    suffix: str
+    compiler: str
+    package: str
+    flags: tuple[str, ...] = ()
+    runner: tuple[str, ...] = ()
+    runner_package: str = ""
+
+    @property
+    def is_host(self) -> bool:
+        """Whether binaries of this platform load on this machine."""
+        return self.fmi3 == FMI3_PLATFORM
+
+    def folder(self, fmi_version: int) -> str:
+        """The folder under ``binaries/`` for FMI version ``fmi_version``."""
+        return self.fmi2 if fmi_version == 2 else self.fmi3
+
+
+_WINE = "/usr/lib/wine/wine64" if Path("/usr/lib/wine/wine64").exists() else "wine64"
+#: The platforms duffid builds FMU binaries for, by name.
+PLATFORMS: dict[str, Platform] = {
+    "linux64": Platform("linux64", "linux64", "x86_64-linux", ".so", "x86_64-linux-gnu-gcc", "gcc"),
+    "win64": Platform("win64", "win64", "x86_64-windows", ".dll", "x86_64-w64-mingw32-gcc",
+                      "gcc-mingw-w64-x86-64", flags=("-static", "-Wl,--no-insert-timestamp"),
+                      runner=(_WINE,), runner_package="wine64"),
+    "aarch64-linux": Platform("aarch64-linux", "aarch64-linux", "aarch64-linux", ".so", "aarch64-linux-gnu-gcc",
+                        "gcc-aarch64-linux-gnu (and libc6-dev-arm64-cross)",
+                        runner=("qemu-aarch64", "-L", "/usr/aarch64-linux-gnu"), runner_package="qemu-user"),
+}
+#: The platform of this machine (an entry of :data:`PLATFORMS`, or one made from fmpy's names).
+HOST_PLATFORM = next((p for p in PLATFORMS.values() if p.is_host),
+                     Platform(FMI2_PLATFORM, FMI2_PLATFORM, FMI3_PLATFORM, SHARED_LIBRARY_SUFFIX, "cc", "a C compiler"))
+
+
+def fmu_binary_path(model_identifier: str, fmi_version: int, platform: Platform | None = None) -> str:
+    """Where an FMU keeps its binary for ``platform`` (default: this machine's), e.g.
+    ``binaries/linux64/X.so``."""
+    platform = platform or HOST_PLATFORM
+    return f"binaries/{platform.folder(fmi_version)}/{model_identifier}{platform.suffix}"
+
+
+def platform_compiler(platform: Platform) -> str | None:
+    """The compiler for ``platform``: :func:`find_compiler`'s for this machine, else the cross
+    compiler when it is on PATH and can build (its C library is installed), else None."""
+    if platform.is_host:
+        return find_compiler()
+    path = shutil.which(platform.compiler)
+    if path is None:
+        return None
+    probe = subprocess.run([path, "-E", "-x", "c", "-", "-o", os.devnull], input="#include <math.h>\n",
+                           capture_output=True, text=True)
+    return path if probe.returncode == 0 else None
+
+
+def resolve_platforms(names: Iterable[str] | None = None) -> tuple[list[Platform], list[str]]:
+    """The platforms to build for and one line per requested platform that is skipped.
+
+    Parameters
+    ----------
+    names : iterable of str, optional
+        Names of :data:`PLATFORMS` (``"all"``: every one); default: every one.
+
+    Returns
+    -------
+    platforms : list of Platform
+        The requested platforms whose compiler works, this machine's first.
+    skipped : list of str
+        ``"skipping win64 binaries: x86_64-w64-mingw32-gcc not found (install the Debian
+        package gcc-mingw-w64-x86-64)"`` for each other one.
+
+    Raises
+    ------
+    InputError
+        For a name that is not a platform.
+    """
+    wanted = list(PLATFORMS) if names is None else [n for name in names for n in
+                                                     (PLATFORMS if name == "all" else [name])]
+    unknown = [n for n in wanted if n not in PLATFORMS and n != HOST_PLATFORM.name]
+    if unknown:
+        raise InputError(f"--platforms: unknown platform {', '.join(unknown)}; choose from "
+                         f"{', '.join(PLATFORMS)} or all")
+    chosen: list[Platform] = []
+    skipped: list[str] = []
+    for name in dict.fromkeys(wanted):
+        platform = PLATFORMS.get(name, HOST_PLATFORM)
+        if platform.is_host or platform_compiler(platform) is not None:
+            chosen.append(platform)
+        else:
+            skipped.append(f"skipping {name} binaries: {platform.compiler} not found or cannot compile "
+                           f"(install the Debian package {platform.package})")
+    chosen.sort(key=lambda p: not p.is_host)
+    return chosen, skipped
 
 
 def find_compiler(compiler: str | None = None) -> str:
@@ -61,21 +193,45 @@ def find_compiler(compiler: str | None = None) -> str:
 
 def compile_shared_library(sources: Sequence[str | os.PathLike[str]], output: str | os.PathLike[str], *,
                            include_dirs: Sequence[str | os.PathLike[str]] = (), flags: Sequence[str] = FMU_FLAGS,
-                           compiler: str | None = None) -> None:
+                           compiler: str | None = None, platform: Platform | None = None) -> None:
     """Compile ``sources`` into the shared library ``output`` with :data:`CFLAGS` + ``flags``.
+
+    Parameters
+    ----------
+    sources : sequence of path
+        The C files.
+    output : path
+        The library to write.
+    include_dirs : sequence of path
+        ``-I`` folders.
+    flags : sequence of str
+        Added to :data:`CFLAGS` (and the platform's own flags).
+    compiler : str, optional
+        The compiler for this machine (see :func:`find_compiler`).
+    platform : Platform, optional
+        Target; default: this machine. Another platform is built by its cross compiler.
 
     Raises
     ------
     CompilerNotFoundError
-        If no compiler is found.
+        If no compiler is found (for a cross platform: naming the Debian package).
     BuildError
         If compilation fails (the message holds the command and the compiler's output).
     """
-    cc = find_compiler(compiler)
+    platform = platform or HOST_PLATFORM
+    if platform.is_host:
+        cc = find_compiler(compiler)
+    else:
+        found = platform_compiler(platform)
+        if found is None:
+            raise CompilerNotFoundError(f"no {platform.name} cross compiler: {platform.compiler} not found or "
+                                        f"cannot compile (install the Debian package {platform.package})")
+        cc = found
+    base = [f for f in CFLAGS if not (platform.suffix == ".dll" and f == "-fPIC")]
     Path(output).parent.mkdir(parents=True, exist_ok=True)
-    command = [cc, *CFLAGS, *flags, *(f"-I{d}" for d in include_dirs), *(str(s) for s in sources),
+    command = [cc, *base, *platform.flags, *flags, *(f"-I{d}" for d in include_dirs), *(str(s) for s in sources),
                "-o", str(output), "-lm"]
     done = subprocess.run(command, capture_output=True, text=True)
     if done.returncode != 0:
-        raise BuildError(f"compiling {Path(output).name} failed:\n{' '.join(command)}\n"
+        raise BuildError(f"compiling {Path(output).name} for {platform.name} failed:\n{' '.join(command)}\n"
                          f"{(done.stdout + done.stderr).strip()}")

@@ -38,8 +38,10 @@ controller (buffers, observer, reference model, phase).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Sequence
 
 from ..assets import fmu_sources
+from ..cbuild import Platform
 from ..errors import InputError
 from ..fmu.c_model import build_c_model_fmu
 from ..fmu.variables import FmuVariable
@@ -119,8 +121,10 @@ def controller_variables(dofs: int) -> tuple[list[FmuVariable], dict[str, int]]:
     return table, groups
 
 
-def build_controller_fmu(dofs: int, out_dir: str | Path, fmi_version: int = 2, compiler: str | None = None) -> Path:
-    """Build ``AdaptiveController<dofs>.fmu`` (FMI 2) or ``..._fmi3.fmu`` (FMI 3) in ``out_dir``."""
+def build_controller_fmu(dofs: int, out_dir: str | Path, fmi_version: int = 2, compiler: str | None = None,
+                         platforms: Sequence[Platform] | None = None) -> Path:
+    """Build ``AdaptiveController<dofs>.fmu`` (FMI 2) or ``..._fmi3.fmu`` (FMI 3) in ``out_dir``
+    with binaries for ``platforms`` (default: this machine)."""
     table, groups = controller_variables(dofs)
     defines = {"DOFS": dofs, **{f"VR_{group}": vr for group, vr in groups.items()}}
     non_finite = [v.name for v in table if v.name.endswith("_hat") and v.causality == "input"]
@@ -128,12 +132,15 @@ def build_controller_fmu(dofs: int, out_dir: str | Path, fmi_version: int = 2, c
                              model_dir=fmu_sources("controller"), model_files=_FILES,
                              description=f"duffid adaptive controller ({dofs} DOF): excitation, online "
                                          "estimates, feedback linearisation",
-                             types=TYPES, defines=defines, non_finite=non_finite, compiler=compiler)
+                             types=TYPES, defines=defines, non_finite=non_finite, compiler=compiler,
+                             platforms=platforms)
 
 
-def build_controller_fmus(out_dir: str | Path = Path("build/fmus")) -> list[Path]:
+def build_controller_fmus(out_dir: str | Path = Path("build/fmus"),
+                          platforms: Sequence[Platform] | None = None) -> list[Path]:
     """Build ``AdaptiveController1``, ``AdaptiveController2`` (FMI 2.0) and their
-    ``_fmi3`` variants in ``out_dir`` (created); return the paths."""
+    ``_fmi3`` variants in ``out_dir`` (created), with binaries for ``platforms`` (default:
+    this machine); return the paths."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    return [build_controller_fmu(dofs, out_dir, version) for dofs in CONTROLLER_FMU_NAMES for version in (2, 3)]
+    return [build_controller_fmu(dofs, out_dir, version, platforms=platforms) for dofs in CONTROLLER_FMU_NAMES for version in (2, 3)]

@@ -12,8 +12,9 @@ from __future__ import annotations
 import math
 import xml.etree.ElementTree as ET
 from pathlib import Path
-from typing import Collection, Mapping
+from typing import Collection, Mapping, Sequence
 
+from ..cbuild import Platform
 from ..errors import InputError
 from .fmi_xml import FmuInfo, build_description, model_description_fmi2, model_description_fmi3
 from .package import COMMON_FILES, build_fmu_archive, token_from
@@ -95,13 +96,15 @@ def retype(description: bytes, fmi_version: int, types: Mapping[str, str]) -> by
 def build_c_model_fmu(out_dir: str | Path, identifier: str, fmi_version: int, table: list[FmuVariable], *,
                       prefix: str, model_dir: Path, model_files: tuple[str, ...], description: str,
                       types: Mapping[str, str], defines: Mapping[str, int | str],
-                      non_finite: Collection[str] = (), compiler: str | None = None) -> Path:
+                      non_finite: Collection[str] = (), compiler: str | None = None,
+                      platforms: Sequence[Platform] | None = None) -> Path:
     """Build ``<identifier>.fmu`` (FMI 2) or ``<identifier>_fmi3.fmu`` (FMI 3) in ``out_dir``.
 
     ``model_files`` (in ``model_dir``) are the model's sources, packed with the glue and
     the generated ``<prefix>_fmu_config.h`` (which also defines ``<PREFIX>_IDENTIFIER``
     and ``<PREFIX>_TOKEN``); the token is derived from the sources and the table, so
-    the same inputs give the same archive, byte for byte.
+    the same inputs give the same archive, byte for byte. ``platforms``: the binaries'
+    targets (default: this machine; see :func:`duffid.cbuild.resolve_platforms`).
     """
     if fmi_version not in (2, 3):
         raise InputError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
@@ -122,5 +125,6 @@ def build_c_model_fmu(out_dir: str | Path, identifier: str, fmi_version: int, ta
     else:
         xml = retype(model_description_fmi3(info, table), 3, types)
         extra = {**core, "buildDescription.xml": build_description(identifier, c_sources)}
-    build_fmu_archive(out, identifier, fmi_version, xml, {f"{prefix}_fmu_config.h": header}, extra, compiler)
+    build_fmu_archive(out, identifier, fmi_version, xml, {f"{prefix}_fmu_config.h": header}, extra, compiler,
+                      platforms)
     return out

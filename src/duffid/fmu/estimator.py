@@ -34,8 +34,10 @@ NaN unless published. To identify a record of ``n`` samples, simulate from ``t[0
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Sequence
 
 from ..assets import fmu_sources
+from ..cbuild import Platform
 from ..errors import InputError
 from ..identification.engine import status_codes
 from ..identification.options import ONLINE_METHODS, fmu_parameters
@@ -121,7 +123,7 @@ def estimator_variables(model_name: str) -> list[FmuVariable]:
 
 
 def build_estimator_fmu(model_name: str, out_dir: str | Path, fmi_version: int = 2,
-                        compiler: str | None = None) -> Path:
+                        compiler: str | None = None, platforms: Sequence[Platform] | None = None) -> Path:
     """Build one C estimator FMU.
 
     Parameters
@@ -134,6 +136,8 @@ def build_estimator_fmu(model_name: str, out_dir: str | Path, fmi_version: int =
         2 or 3.
     compiler : str
         C compiler; default: the one :func:`duffid.cbuild.find_compiler` finds.
+    platforms : sequence of Platform, optional
+        Targets of the binaries (default: this machine; see :func:`duffid.cbuild.resolve_platforms`).
 
     Returns
     -------
@@ -146,10 +150,11 @@ def build_estimator_fmu(model_name: str, out_dir: str | Path, fmi_version: int =
                              model_dir=fmu_sources("estimator"), model_files=_CORE_FILES,
                              description=f"duffid online algebraic identification of {model} (C estimator core)",
                              types=variable_types(model_name), defines={"MODEL": _CODES[model_name]},
-                             compiler=compiler)
+                             compiler=compiler, platforms=platforms)
 
 
-def build_estimator_fmus(out_dir: str | Path = Path("build/fmus"), *, python: bool = True) -> list[Path]:
+def build_estimator_fmus(out_dir: str | Path = Path("build/fmus"), *, python: bool = True,
+                         platforms: Sequence[Platform] | None = None) -> list[Path]:
     """Build the four C estimator FMUs and (``python=True``) the two pythonfmu fallbacks.
 
     Parameters
@@ -158,6 +163,8 @@ def build_estimator_fmus(out_dir: str | Path = Path("build/fmus"), *, python: bo
         Output folder (created).
     python : bool
         Also build ``DuffingEstimator{1,2}_python.fmu`` (needs pythonfmu).
+    platforms : sequence of Platform, optional
+        Targets of the C FMUs' binaries (default: this machine).
 
     Returns
     -------
@@ -166,7 +173,7 @@ def build_estimator_fmus(out_dir: str | Path = Path("build/fmus"), *, python: bo
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    paths = [build_estimator_fmu(name, out_dir, version) for name in C_FMU_NAMES for version in (2, 3)]
+    paths = [build_estimator_fmu(name, out_dir, version, platforms=platforms) for name in C_FMU_NAMES for version in (2, 3)]
     if python:
 
         paths += [build_python_fmu(name, out_dir) for name in C_FMU_NAMES]

@@ -6,12 +6,12 @@ import tempfile
 import uuid
 import zipfile
 from pathlib import Path
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import fmpy
 
 from ..assets import fmu_sources
-from ..cbuild import FMU_FLAGS, compile_shared_library, fmu_binary_path
+from ..cbuild import FMU_FLAGS, Platform, compile_shared_library, fmu_binary_path
 from ..errors import AssetError
 
 __all__ = ["fmi_include_dir", "write_zip", "token_from", "build_fmu_archive", "COMMON_FILES"]
@@ -54,11 +54,13 @@ def write_zip(files: Mapping[str, bytes], path: Path) -> None:
 
 def build_fmu_archive(path: Path, model_identifier: str, fmi_version: int, model_description: bytes,
                       generated: Mapping[str, str], extra_sources: Mapping[str, bytes] | None = None,
-                      compiler: str | None = None) -> None:
-    """Copy the glue and generated sources, compile, and pack ``path``.
+                      compiler: str | None = None, platforms: Sequence[Platform] | None = None) -> None:
+    """Copy the glue and generated sources, compile for each platform, and pack ``path``.
 
     ``generated`` maps file names (placed in ``sources/``) to C text; the glue files of
-    ``fmus/common`` are added for the FMI version.
+    ``fmus/common`` are added for the FMI version. ``platforms`` (default: this machine's)
+    are compiled by :func:`duffid.cbuild.compile_shared_library` (``compiler`` is this
+    machine's compiler); pick them with :func:`duffid.cbuild.resolve_platforms`.
     """
     common = fmu_sources("common")
     sources: dict[str, bytes] = {name: (common / name).read_bytes() for name in COMMON_FILES[fmi_version]}
@@ -70,10 +72,12 @@ def build_fmu_archive(path: Path, model_identifier: str, fmi_version: int, model
         src.mkdir()
         for name, data in sources.items():
             (src / name).write_bytes(data)
-        binary = Path(tmp) / Path(fmu_binary_path(model_identifier, fmi_version)).name
-        compile_shared_library([src / name for name in c_files], binary, include_dirs=[src, fmi_include_dir()],
-                               flags=FMU_FLAGS, compiler=compiler)
-        files = {"modelDescription.xml": model_description,
-                 fmu_binary_path(model_identifier, fmi_version): binary.read_bytes()}
+        files = {"modelDescription.xml": model_description}
+        for platform in platforms or [None]:
+            inside = fmu_binary_path(model_identifier, fmi_version, platform)
+            binary = Path(tmp) / inside
+            compile_shared_library([src / name for name in c_files], binary, include_dirs=[src, fmi_include_dir()],
+                                   flags=FMU_FLAGS, compiler=compiler, platform=platform)
+            files[inside] = binary.read_bytes()
         files.update({f"sources/{name}": data for name, data in sources.items()})
         write_zip(files, path)

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Iterable, Mapping, Sequence
 
 from ..assets import EXAMPLE_PLANTS, modelica_library
+from ..cbuild import Platform
 from ..errors import InputError, ModelicaExportError
 from ..fmu.fmi_xml import FmuInfo, build_description, model_description_fmi2, model_description_fmi3
 from ..fmu.package import COMMON_FILES, build_fmu_archive, token_from
@@ -136,7 +137,8 @@ def _check_options(fmi_version: int, kind: str, tolerance: float) -> None:
         raise InputError(f"tolerance must be positive, got {tolerance!r}")
 
 
-def _write_fmu(ode: OdeModel, out: Path, fmi_version: int, kind: str, tolerance: float, compiler: str | None) -> Path:
+def _write_fmu(ode: OdeModel, out: Path, fmi_version: int, kind: str, tolerance: float, compiler: str | None,
+               platforms: Sequence[Platform] | None = None) -> Path:
     """Generate, compile and pack the FMU of a translated model."""
     class_name = ode.flat.class_name
     identifier = _model_identifier(class_name)
@@ -161,7 +163,7 @@ def _write_fmu(ode: OdeModel, out: Path, fmi_version: int, kind: str, tolerance:
     else:
         description = model_description_fmi3(info, table)
         extra = {"buildDescription.xml": build_description(identifier, c_sources)}
-    build_fmu_archive(out, identifier, fmi_version, description, generated, extra, compiler)
+    build_fmu_archive(out, identifier, fmi_version, description, generated, extra, compiler, platforms)
     return out
 
 
@@ -198,7 +200,8 @@ def export_fmu_omc(mo_path: Path | str, class_name: str, out_dir: Path | str, fm
     return result
 
 
-def build_all(out_dir: Path | str = Path("build/fmus"), plants: Sequence[str] = EXAMPLE_PLANTS) -> list[Path]:
+def build_all(out_dir: Path | str = Path("build/fmus"), plants: Sequence[str] = EXAMPLE_PLANTS,
+              platforms: Sequence[Platform] | None = None) -> list[Path]:
     """Build every example plant as ``<Name>.fmu`` (FMI 2.0) and ``<Name>_fmi3.fmu`` (FMI 3.0).
 
     Both contain Model Exchange and Co-Simulation and their C sources.
@@ -209,6 +212,8 @@ def build_all(out_dir: Path | str = Path("build/fmus"), plants: Sequence[str] = 
         Output folder (created if missing).
     plants : sequence of str
         Names of classes in ``Duffid.Examples`` (default: all of :data:`EXAMPLE_PLANTS`).
+    platforms : sequence of Platform, optional
+        Targets of the binaries (default: this machine; see :func:`duffid.cbuild.resolve_platforms`).
 
     Returns
     -------
@@ -224,5 +229,5 @@ def build_all(out_dir: Path | str = Path("build/fmus"), plants: Sequence[str] = 
             raise InputError(f"unknown plant {name!r}; choose from {EXAMPLE_PLANTS}")
         ode = translate(library, f"Duffid.Examples.{name}")
         for version in (2, 3):
-            written.append(_write_fmu(ode, out_dir, version, "both", DEFAULT_TOLERANCE, None))
+            written.append(_write_fmu(ode, out_dir, version, "both", DEFAULT_TOLERANCE, None, platforms))
     return written
