@@ -21,9 +21,12 @@ def simulate_record(fmu, record, names, start_values=None):
     Never pass ``logger=`` to fmpy.simulate_fmu in tests: fmpy's native logger proxy keeps
     a pointer to that callback after it is freed, and a later FMU that logs crashes.
     """
+    start = dict(start_values or {})
+    if any(v.name == "sample_period" for v in fmpy.read_model_description(str(fmu)).modelVariables):
+        start.setdefault("sample_period", record.dt)  # a discrete-time FMU: one step per sample
     return fmpy.simulate_fmu(str(fmu), start_time=0.0, stop_time=record.n_samples * record.dt,
                              output_interval=record.dt, input=input_signals(record, names),
-                             start_values=start_values or {})
+                             start_values=start)
 
 
 def start_fmi2(path, tmp_path, messages, start=None, types=None, logging_on=False, name="instance"):

@@ -121,5 +121,26 @@ def test_cli_exports_the_container(loop_fmus, folder, capsys):
     fmu = folder / "loop.fmu"
     assert main(["cosim", str(path), "--export-container", str(fmu)]) == 0
     assert fmpy.validation.validate_fmu(str(fmu)) == []
-    names = {v.name: v.causality for v in fmpy.read_model_description(str(fmu)).modelVariables}
+    md = fmpy.read_model_description(str(fmu))
+    names = {v.name: v.causality for v in md.modelVariables}
     assert names["r"] == "input" and names["x"] == names["f"] == "output"
+    # the components' units travel with the container's variables, with their definitions
+    units = {v.name: v.unit for v in md.modelVariables}
+    assert (units["r"], units["x"], units["f"], units["controller.force_limit"]) == ("m", "m", "N", "N")
+    assert {"m", "N"} <= {u.name for u in md.unitDefinitions}
+    assert md.coSimulation.canHandleVariableCommunicationStepSize is False  # whole multiples of its step only
+
+
+def test_export_container_needs_an_interface(loop_fmus, folder, capsys):
+    config = _config(loop_fmus)
+    del config["container"]
+    path = _write(folder, config)
+    assert main(["cosim", str(path), "--export-container", str(folder / "loop.fmu")]) == 2
+    err = capsys.readouterr().err
+    assert "loop.json" in err and 'needs a "container" section' in err
+    assert not (folder / "loop.fmu").exists()
+    # an input driven from the file's input_csv that the container does not expose is not dropped
+    config = _config(loop_fmus, container={"outputs": {"x": "plant.x"}})
+    assert main(["cosim", str(_write(folder, config)), "--export-container", str(folder / "loop.fmu")]) == 2
+    assert "controller.r is driven by the system's external inputs" in capsys.readouterr().err
+    assert not (folder / "loop.fmu").exists()

@@ -22,7 +22,8 @@ from fmu_helpers import simulate_record, start_fmi2  # noqa: E402
 from rounding import identifier_spread  # noqa: E402
 
 from duffid import Duffing1, Duffing2, Record, measure  # noqa: E402
-from duffid.fmu.estimator import TYPES, build_estimator_fmu, build_estimator_fmus  # noqa: E402
+from duffid.fmu.estimator import build_estimator_fmu, build_estimator_fmus  # noqa: E402
+from duffid.fmu.estimator_table import TYPES  # noqa: E402
 from duffid.identification.batch import estimate  # noqa: E402
 from duffid.identification.engine import (
     STATUSES,  # noqa: E402
@@ -181,7 +182,66 @@ def test_changing_the_step_size_is_discarded_and_logged(instance, case_a):
     fmu.doStep(currentCommunicationPoint=20e-3, communicationStepSize=1e-3 * (1 + 1e-12))  # rounding: fine
     with pytest.raises(FMICallException, match="status 2"):  # fmi2Discard
         fmu.doStep(currentCommunicationPoint=21e-3, communicationStepSize=2e-3)
-    assert any(status == 3 and "differs from the sampling period" in text for status, _, text in messages)
+    assert any(status == 3 and "differs from the parameter sample_period 0.001" in text and
+               "a step of several periods is refused" in text for status, _, text in messages)
+
+
+@pytest.mark.parametrize("name", ["DuffingEstimator1.fmu", "DuffingEstimator1_fmi3.fmu"])
+def test_sample_period_is_a_parameter_and_the_default_experiment_step(fmus, name):
+    md = fmpy.read_model_description(str(fmus[name]))
+    period = next(v for v in md.modelVariables if v.name == "sample_period")
+    assert (period.causality, period.variability, period.unit) == ("parameter", "fixed", "s")
+    assert float(md.defaultExperiment.stepSize) == float(period.start) == 1e-3
+    assert md.coSimulation.canHandleVariableCommunicationStepSize is False
+    assert "pymoca" not in md.generationTool and "glue" in md.generationTool
+
+
+def test_a_first_step_other_than_sample_period_is_refused_with_both_values(fmus, tmp_path):
+    messages = []
+    fmu, vr = _start(fmus["DuffingEstimator1.fmu"], tmp_path, messages, {"sample_period": 2e-4})
+    try:
+        fmu.setReal([vr["x"], vr["f"]], [0.0, 1.0])
+        with pytest.raises(FMICallException, match="status 2"):
+            fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=1e-3)
+    finally:
+        fmu.freeInstance()
+    text = next(text for status, _, text in messages if status == 3)
+    assert "communicationStepSize 0.001 at t = 0 differs from the parameter sample_period 0.0002" in text
+    assert "several periods" in text  # 1 ms = 5 sample periods: the 4 samples between are unknown
+
+
+def test_fmpy_simulate_feeds_a_measured_csv_as_the_readme_says(fmus, tmp_path):
+    """The README's command: a 5 kHz record of a plant of another scale, through fmpy's CLI."""
+    import sys
+    from pathlib import Path
+
+    from duffid import simulate
+    from duffid.data.signals import Chirp
+    from duffid.identification.engine import OnlineIdentifier
+
+    truth = Duffing1(m=0.8, b=4.0, k=3.0e4, kp=2.0e8)
+    record = measure(simulate(truth, Chirp(20.0, 5.0, 60.0, 1.0), 1.0, 2e-4), snr_db=50, seed=11)
+    csv = tmp_path / "rec5k.csv"
+    np.savetxt(csv, np.column_stack([record.t, record.x[:, 0], record.f[:, 0]]), delimiter=",",
+               header="time,x,f", comments="", fmt="%.17g")
+    out = tmp_path / "est.csv"
+    stop = float(record.t[-1] + record.dt)
+    done = subprocess.run([str(Path(sys.executable).with_name("fmpy")), "simulate", str(fmus["DuffingEstimator1.fmu"]),
+                           "--input-file", str(csv), "--start-values", "sample_period", repr(record.dt),
+                           "--output-interval", repr(record.dt), "--stop-time", repr(stop), "--output-file",
+                           str(out)], capture_output=True, text=True)
+    assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
+    rows = np.genfromtxt(out, delimiter=",", names=True)
+    assert len(rows) == record.n_samples + 1  # the initial row, then one per sample
+    ident = OnlineIdentifier(Duffing1(), record.dt)
+    for k in range(record.n_samples):
+        estimate = ident.update(record.x[k], record.f[k])
+    assert estimate.identified and bool(rows["identified"][-1])
+    # the C FMU through fmpy's CLI gives the Python identifier's values, to the rounding spread
+    identifier_spread(Duffing1(), record).assert_final({p: rows[f"{p}_hat"][-1] for p in truth.parameters},
+                                                       estimate.parameters)
+    for p, value in truth.parameters.items():  # and, published, they are the plant's
+        assert abs(rows[f"{p}_hat"][-1] - value) <= 4 * estimate.uncertainty * abs(value) + 1e-3 * abs(value), p
 
 
 def test_non_finite_input_is_an_error_logged_with_logging_off(instance):
@@ -315,7 +375,7 @@ def test_fmi3_fmu_state_and_step_size(fmus, case_a, tmp_path):
     finally:
         fmu.freeInstance()
         other.freeInstance()
-    assert any(status == 3 and "differs from the sampling period" in text for status, _, text in messages)
+    assert any(status == 3 and "differs from the parameter sample_period" in text for status, _, text in messages)
 
 
 # ---------------------------------------------------------------------- C host, rebuild
@@ -358,7 +418,7 @@ def test_c_host_program_matches_python(fmus, case_a, tmp_path):
     done = subprocess.run([str(exe), str(binary), md.guid, unzipdir.as_uri(), str(case_a.dt), str(samples)],
                           capture_output=True, text=True, check=True)
     host = np.array([float(v) for v in done.stdout.split()])
-    result = simulate_record(fmus["DuffingEstimator1.fmu"], case_a, ["x", "f"])
+    result = simulate_record(fmus["DuffingEstimator1.fmu"], case_a, ["x", "f"], {"sample_period": 1e-3})  # the host's
     expected = np.array([result[f"{p}_hat"][-1] for p in Duffing1().parameters])
     np.testing.assert_array_equal(host, expected)
 

@@ -20,6 +20,7 @@ from fmpy.validation import validate_fmu  # noqa: E402
 from fmu_helpers import simulate_record, start_fmi2  # noqa: E402
 
 from duffid import Duffing1, Duffing2  # noqa: E402
+from duffid.fmu.estimator_table import DEFAULT_SAMPLE_PERIOD, estimator_variables  # noqa: E402
 from duffid.fmu.python_estimator import FMU_NAMES, build_python_fmu  # noqa: E402
 from duffid.identification.batch import estimate  # noqa: E402
 
@@ -65,6 +66,14 @@ def test_interface(fmus, model_name, inputs, outputs):
         assert variables[f"{name}_status"].type == "Integer"
     assert variables["method"].start == "robust" and float(variables["window"].start) == 0.0
     assert float(variables["gamma"].start) == 20.0 and float(variables["forgetting"].start) == 0.0
+    # the C FMU's table gives the units and the sample period: same values here
+    table = {v.name: v for v in estimator_variables(model_name)}
+    for v in md.modelVariables:
+        if v.type == "Real":
+            assert v.unit == table[v.name].unit, v.name
+    assert {u.name for u in md.unitDefinitions} == {v.unit for v in md.modelVariables if v.unit}
+    assert float(variables["sample_period"].start) == float(md.defaultExperiment.stepSize) == DEFAULT_SAMPLE_PERIOD
+    assert md.coSimulation.canHandleVariableCommunicationStepSize is False
 
 
 def test_case_a_gives_identify_answer(fmus, case_a):
@@ -127,7 +136,7 @@ def instance(fmus, tmp_path):
     fmu.freeInstance()
 
 
-def test_changing_the_step_size_is_an_error(instance):
+def test_changing_the_step_size_is_an_error(instance, capsys):
     fmu, vr = instance
     for k in range(20):
         fmu.setReal([vr["x"], vr["f"]], [1e-4 * k * k, 10.0])
@@ -136,6 +145,7 @@ def test_changing_the_step_size_is_an_error(instance):
     with pytest.raises(FMICallException, match="status 2"):  # fmi2Discard, terminated
         fmu.doStep(currentCommunicationPoint=21e-3, communicationStepSize=2e-3)
     assert fmu.getBooleanStatus(fmi2Terminated)
+    assert "differs from the parameter sample_period 0.001" in capsys.readouterr().err  # said without a logger
     with pytest.raises(FMICallException, match="status 2"):  # and it stays so
         fmu.doStep(currentCommunicationPoint=21e-3, communicationStepSize=1e-3)
 

@@ -16,14 +16,17 @@
  *   then 1                   outliers (Integer: isolated displacement outliers excluded)
  *   then N_OPTIONS           options (fixed parameters; codes are Integer, see below)
  *   then n_params            optional prior sizes <name>_nominal (0: none)
+ *   then 1                   sample_period [s]
  *
- * Semantics: each doStep(t, h) consumes one sample, the inputs set for time t, with h as
- * the sampling period. The first doStep fixes the period and builds the estimator (one
- * allocation; the options are read then: an option left at its start value keeps
- * duffid_default_config's default of the chosen method, exactly as identify() does); a
- * later step of another size (relative difference above 1e-9) fails with Discard and a
- * logged error. The estimator lives in one flat block of memory: the FMU state is a byte
- * copy of it (duffid_relocate fixes its internal pointers after a restore).
+ * Semantics: each doStep(t, h) consumes one sample, the inputs set for time t; h must
+ * equal the parameter sample_period (relative difference up to 1e-9), the record's
+ * sampling period. Any other step fails with Discard and a logged error naming both values,
+ * also a whole multiple of the period: the samples in between are not known to the FMU
+ * (holding or interpolating the input would invent them). The first doStep builds the
+ * estimator (one allocation; the options are read then: an option left at its start value
+ * keeps duffid_default_config's default of the chosen method, exactly as identify() does).
+ * The estimator lives in one flat block of memory: the FMU state is a byte copy of it
+ * (duffid_relocate fixes its internal pointers after a restore).
  */
 #include <math.h>
 #include <stdint.h>
@@ -65,7 +68,8 @@ enum {
 #define VR_OUTLIERS (VR_STATUS + N_PARAMS)
 #define VR_OPT (VR_OUTLIERS + 1)
 #define VR_NOMINAL (VR_OPT + N_OPTIONS)
-#define N_VARS_EXPECTED (VR_NOMINAL + N_PARAMS)
+#define VR_SAMPLE_PERIOD (VR_NOMINAL + N_PARAMS)
+#define N_VARS_EXPECTED (VR_SAMPLE_PERIOD + 1)
 
 typedef char estimator_layout_check[(N_VARS_EXPECTED == ESTIMATOR_N_VARS) ? 1 : -1];
 
@@ -209,21 +213,33 @@ static int start_estimator(Instance *inst, EstData *d, double h)
 static int do_step(Instance *inst, double t, double h)
 {
     EstData *d = data_of(inst);
-    double x[N_DOF], f[1];
+    double x[N_DOF], f[1], period = inst->vars[VR_SAMPLE_PERIOD];
     duffid_output out;
     int i;
     if (d == NULL) {
         fmu_log(inst, FMU_ERROR, "logStatusError", "out of memory");
         return 1;
     }
-    if (!d->started) {
-        if (start_estimator(inst, d, h) != 0) return 1;
-    } else if (fabs(h - d->dt) > DT_RTOL * d->dt) {
-        fmu_log(inst, FMU_ERROR, "logStatusError",
-                "communicationStepSize %.17g at t = %.17g differs from the sampling period %.17g "
-                "fixed by the first step", h, t, d->dt);
+    if (!(period > 0.0 && isfinite(period))) {
+        fmu_log(inst, FMU_ERROR, "logStatusError", "parameter sample_period must be positive, got %.17g", period);
         return 1;
     }
+    if (fabs(h - period) > DT_RTOL * period) {
+        double ratio = h / period;
+        fmu_log(inst, FMU_ERROR, "logStatusError",
+                "communicationStepSize %.17g at t = %.17g differs from the parameter sample_period %.17g: "
+                "each doStep consumes one sample; set sample_period to the record's sampling period and "
+                "step by it%s", h, t, period,
+                fabs(ratio - floor(ratio + 0.5)) <= 1e-9 * ratio && ratio > 1.5
+                    ? " (a step of several periods is refused: the samples in between are not known)" : "");
+        return 1;
+    }
+    if (d->started && fabs(d->dt - period) > DT_RTOL * period) { /* a state saved with another period */
+        fmu_log(inst, FMU_ERROR, "logStatusError", "the estimator runs at the sample period %.17g of its restored "
+                "FMU state, not at the parameter sample_period %.17g", d->dt, period);
+        return 1;
+    }
+    if (!d->started && start_estimator(inst, d, period) != 0) return 1;
     for (i = 0; i < N_DOF; i++) x[i] = inst->vars[VR_X + i];
     f[0] = inst->vars[VR_F];
     if (duffid_update(d->est, x, f, &out) != DUFFID_OK) {

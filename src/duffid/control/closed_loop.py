@@ -319,7 +319,8 @@ def loop_system(case: LoopCase, fmus: Mapping[str, Path], *, baseline: bool = Fa
                                         nominal=mismatched(case.truth, case.mismatch))
     else:
         params = _controller_parameters(case)
-        system.add("estimator", fmus[case.estimator], parameters=case.estimator_parameters)
+        system.add("estimator", fmus[case.estimator],
+                   parameters={**case.estimator_parameters, "sample_period": case.dt})
     system.add("controller", fmus[case.controller], parameters=params)
     # the 1-DOF estimator and controller are declared in m and N; the circuit feeds C and V
     generic = {"check_units": case.mechanical}

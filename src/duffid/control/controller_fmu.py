@@ -44,6 +44,7 @@ from ..assets import fmu_sources
 from ..cbuild import Platform
 from ..errors import InputError
 from ..fmu.c_model import build_c_model_fmu
+from ..fmu.estimator_table import parameter_unit
 from ..fmu.variables import FmuVariable
 from .adaptive import PARAMETER_NAMES, controller_parameters
 from .design import design
@@ -58,15 +59,10 @@ CONTROLLER_FMU_NAMES = {1: "AdaptiveController1", 2: "AdaptiveController2"}
 TYPES = {"identified": "Boolean", "phase": "Integer", "saturated": "Boolean",
          **{p.name: "Boolean" if p.kind == "bool" else "Integer" for p in PARAMETERS if p.kind != "real"}}
 _FILES = ("duffid_controller.c", "duffid_controller.h", "duffid_ctrl_params.h", "fmu_model_controller.c")
-_UNITS = {"m": "kg", "b": "N.s/m", "k": "N/m", "kp": "N/m3"}
 #: Parameters: (name, unit, description), in value-reference order (then the nominal values
 #: and fixed_switch_time), from the schema of duffid.control.settings.
 _PARAMETERS = tuple((p.name, p.unit, p.description) for p in PARAMETERS if p.name != "fixed_switch_time")
 _SWITCH = next(p for p in PARAMETERS if p.name == "fixed_switch_time")
-
-
-def _unit(name: str) -> str:
-    return _UNITS[name.rstrip("0123456789")]
 
 
 def controller_variables(dofs: int) -> tuple[list[FmuVariable], dict[str, int]]:
@@ -98,7 +94,7 @@ def controller_variables(dofs: int) -> tuple[list[FmuVariable], dict[str, int]]:
     for name in x_names:
         add(name, "input", 0.0, "m", f"measured position {name}", "X")
     for name in names:
-        add(f"{name}_hat", "input", 0.0, _unit(name), f"estimate of {name} (NaN: not yet estimated)", "EST")
+        add(f"{name}_hat", "input", 0.0, parameter_unit(name), f"estimate of {name} (NaN: not yet estimated)", "EST")
     add("identified", "input", 0.0, None, "the estimates are trustworthy")
     add("f", "output", None, "N", "force command (applied from the next communication point)")
     add("f_sample", "output", None, "N", "the force as a sample for an identifier: mean of the forces "
@@ -111,11 +107,11 @@ def controller_variables(dofs: int) -> tuple[list[FmuVariable], dict[str, int]]:
     add("saturated", "output", None, None, "the last command was limited to force_limit")
     add("switch_time", "output", None, "s", "time from which the law acts (NaN before the switch)")
     for name in names:
-        add(f"{name}_used", "output", None, _unit(name), f"{name} of the law (NaN before the switch)", "USED")
+        add(f"{name}_used", "output", None, parameter_unit(name), f"{name} of the law (NaN before the switch)", "USED")
     for name, unit, text in _PARAMETERS:
         add(name, "parameter", float(start[name]), unit, text)
     for name in names:
-        add(f"{name}_nominal", "parameter", start[f"{name}_nominal"], _unit(name), f"{name} of the fixed mode",
+        add(f"{name}_nominal", "parameter", start[f"{name}_nominal"], parameter_unit(name), f"{name} of the fixed mode",
             "NOMINAL")
     add(_SWITCH.name, "parameter", start[_SWITCH.name], _SWITCH.unit, _SWITCH.description)
     return table, groups
@@ -132,8 +128,9 @@ def build_controller_fmu(dofs: int, out_dir: str | Path, fmi_version: int = 2, c
                              model_dir=fmu_sources("controller"), model_files=_FILES,
                              description=f"duffid adaptive controller ({dofs} DOF): excitation, online "
                                          "estimates, feedback linearisation",
-                             types=TYPES, defines=defines, non_finite=non_finite, compiler=compiler,
-                             platforms=platforms)
+                             types=TYPES, defines=defines,
+                             sample_period=next(v.start for v in table if v.name == "sample_period"),
+                             non_finite=non_finite, compiler=compiler, platforms=platforms)
 
 
 def build_controller_fmus(out_dir: str | Path = Path("build/fmus"),
@@ -143,4 +140,5 @@ def build_controller_fmus(out_dir: str | Path = Path("build/fmus"),
     this machine); return the paths."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    return [build_controller_fmu(dofs, out_dir, version, platforms=platforms) for dofs in CONTROLLER_FMU_NAMES for version in (2, 3)]
+    return [build_controller_fmu(dofs, out_dir, version, platforms=platforms)
+            for dofs in CONTROLLER_FMU_NAMES for version in (2, 3)]

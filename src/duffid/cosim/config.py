@@ -88,7 +88,17 @@ class CosimConfig:
                                progress=progress)
 
     def export_container(self, path: str | os.PathLike[str]) -> Path:
-        """Write the system as one container FMU described by the ``container`` section."""
+        """Write the system as one container FMU described by the ``container`` section.
+
+        Raises
+        ------
+        ConfigError
+            If the file has no ``container`` section (the container's interface).
+        """
+        if not self.container:
+            raise ConfigError(f"{self.path}: --export-container needs a \"container\" section, the container's "
+                              "interface: its inputs (e.g. {\"r\": [\"controller.r\"]}) and outputs "
+                              "(e.g. {\"x\": \"plant.x\"}); without it the FMU would have no inputs")
         return self.system.export_container(path, inputs=self.container.get("inputs"),
                                             outputs=self.container.get("outputs"), step=self.step,
                                             parameters=self.container.get("parameters"))

@@ -3,7 +3,9 @@
 The container is an FMI 2.0 Co-Simulation FMU whose binary (shipped with fmpy) runs the
 components it holds in ``resources/``: a Jacobi master at a fixed internal step, the
 same algorithm as :meth:`duffid.cosim.system.System.run` with ``ordering="jacobi"``. Its
-``doStep`` accepts any multiple of that step.
+``doStep`` accepts a whole multiple of that step only (so
+``canHandleVariableCommunicationStepSize`` is false). Container variables carry the units
+of the component variables they map to (one unit per container variable, else an error).
 
 What is exported:
 
@@ -26,9 +28,10 @@ read, so an output with direct feedthrough from a connected input (e.g. a gain
 value returned right after ``doStep`` (``k u(t_k)``). Outputs without direct
 feedthrough (states, the estimator's and controller's sampled outputs) are identical.
 
-External inputs of the system (:meth:`~duffid.cosim.system.System.set_input`) are not part of
-the container: map the inputs they drive to container inputs instead. Inputs that are
-neither connected nor container inputs keep their start values.
+External inputs of the system (:meth:`~duffid.cosim.system.System.set_input`) cannot be part of
+the container: every input they drive must be mapped to a container input (else
+:class:`~duffid.errors.WiringError`). Inputs that are neither connected nor driven keep
+their start values.
 
 Two defects of fmpy 0.3.32 are worked around: connections of FMI 2 components are
 written with their FMI 2 type names, which the container binary rejects, so the
@@ -74,6 +77,26 @@ def _as_list(value: str | Sequence[str], what: str) -> list[str]:
     if not items:
         raise WiringError(f"{what}: maps to no component variable")
     return items
+
+
+def _one_unit(variables: Sequence[Any], what: str) -> str | None:
+    """The unit shared by the component ``variables`` a container variable maps to."""
+    units = {v.unit for v in variables if v.unit}
+    if len(units) > 1:
+        raise WiringError(f"{what} maps to variables of different units: {', '.join(sorted(map(str, units)))}")
+    return units.pop() if units else None
+
+
+def _unit_definitions(names: set[str], descriptions: Sequence[Any]) -> list[Any]:
+    """The components' definitions of the units ``names`` (a unit no component defines is
+    declared by its name alone)."""
+    from fmpy.model_description import Unit
+
+    defined: dict[str, Any] = {}
+    for md in descriptions:
+        for unit in md.unitDefinitions:
+            defined.setdefault(unit.name, unit)
+    return [defined.get(name) or Unit(name=name) for name in sorted(names)]
 
 
 def export_container(system: System, path: str | os.PathLike[str],
@@ -151,13 +174,14 @@ def export_container(system: System, path: str | os.PathLike[str],
         used: set[str] = {"time"}
 
         def new_variable(name: str, kind: str, causality: str, variability: str, initial: str | None,
-                         start: str | None, description: str) -> Any:
+                         start: str | None, description: str, unit: str | None = None) -> Any:
             if not name or name in used:
                 raise WiringError(f"container variable name {name!r} is empty or used twice")
             used.add(name)
             v = ModelVariable(name=name, valueReference=len(variables), type=_FMI2_TYPE[kind], causality=causality,
                               variability=variability, initial=initial, description=description)
             v.start = start
+            v.unit = unit if kind == "Real" else None
             variables.append(v)
             return v
 
@@ -178,8 +202,15 @@ def export_container(system: System, path: str | os.PathLike[str],
             start = entries[0][1].start
             v = new_variable(name, kind, "input", "discrete" if kind != "Real" else "continuous", None,
                              start if start is not None else ("false" if kind == "Boolean" else "0"),
-                             f"drives {', '.join(_as_list(targets, name))}")
+                             f"drives {', '.join(_as_list(targets, name))}",
+                             _one_unit([m for _, m, _ in entries], f"container input {name!r}"))
             mappings[v] = [(c, m) for c, m, _ in entries]
+        exported = {full for targets in (inputs or {}).values() for full in _as_list(targets, "container input")}
+        lost = sorted(set(system._externals) - exported)
+        if lost:
+            raise WiringError(f"{', '.join(lost)} {'is' if len(lost) == 1 else 'are'} driven by the system's external "
+                              "inputs (set_input, inputs_from_csv), which a container cannot hold: map "
+                              f"{'it' if len(lost) == 1 else 'them'} to container inputs")
         if outputs is None:
             outputs = {f"{c.name}.{v.name}": f"{c.name}.{v.name}" for c in system._components.values()
                        for v in c.outputs()}
@@ -192,7 +223,7 @@ def export_container(system: System, path: str | os.PathLike[str],
                 raise WiringError(f"container output {name!r}: {source} is {with_article(var.causality)}, not an output")
             c, m, kind = resolve(source, "container output source")
             v = new_variable(name, kind, "output", "continuous" if kind == "Real" else "discrete", "calculated",
-                             None, f"output {source}")
+                             None, f"output {source}", m.unit)
             mappings[v] = [(c, m)]
             out_vars.append(v)
         exposed: dict[str, list[str]] = {name: _as_list(t, f"container parameter {name!r}")
@@ -223,7 +254,8 @@ def export_container(system: System, path: str | os.PathLike[str],
             if len(set(starts)) != 1:
                 raise WiringError(f"container parameter {name!r}: its targets have different values {starts}")
             v = new_variable(name, kind, "parameter", "fixed", "exact", starts[0],
-                             f"sets {', '.join(targets)}")
+                             f"sets {', '.join(targets)}",
+                             _one_unit([m for _, m, _ in entries], f"container parameter {name!r}"))
             mappings[v] = [(c, m) for c, m, _ in entries]
 
         connections = []
@@ -238,10 +270,12 @@ def export_container(system: System, path: str | os.PathLike[str],
                                           f"(Jacobi, fixed step {step!r} s)",
                               generationTool="duffid.cosim.system + fmpy.container_fmu",
                               coSimulation=CoSimulation(modelIdentifier="container_fmu",
-                                                        canHandleVariableCommunicationStepSize=True,
+                                                        canHandleVariableCommunicationStepSize=False,
                                                         fixedInternalStepSize=float(step)),
                               defaultExperiment=DefaultExperiment(startTime="0", stepSize=repr(float(step))))
         md.modelVariables = variables
+        md.unitDefinitions = _unit_definitions({v.unit for v in variables if v.unit},
+                                               [c.modelDescription for c in components.values()])
         # workaround 2: ModelStructure (outputs are initial unknowns too)
         md.outputs = [Unknown(variable=v) for v in out_vars]
         md.initialUnknowns = [Unknown(variable=v) for v in out_vars]

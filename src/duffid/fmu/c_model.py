@@ -16,7 +16,7 @@ from typing import Collection, Mapping, Sequence
 
 from ..cbuild import Platform
 from ..errors import InputError
-from .fmi_xml import FmuInfo, build_description, model_description_fmi2, model_description_fmi3
+from .fmi_xml import C_MODEL_GENERATION_TOOL, FmuInfo, build_description, model_description_fmi2, model_description_fmi3
 from .package import COMMON_FILES, build_fmu_archive, token_from
 from .variables import CAUSALITY_CODES, VARIABILITY_CODES, FmuVariable, c_literal
 
@@ -96,14 +96,17 @@ def retype(description: bytes, fmi_version: int, types: Mapping[str, str]) -> by
 def build_c_model_fmu(out_dir: str | Path, identifier: str, fmi_version: int, table: list[FmuVariable], *,
                       prefix: str, model_dir: Path, model_files: tuple[str, ...], description: str,
                       types: Mapping[str, str], defines: Mapping[str, int | str],
-                      non_finite: Collection[str] = (), compiler: str | None = None,
+                      sample_period: float, non_finite: Collection[str] = (), compiler: str | None = None,
                       platforms: Sequence[Platform] | None = None) -> Path:
     """Build ``<identifier>.fmu`` (FMI 2) or ``<identifier>_fmi3.fmu`` (FMI 3) in ``out_dir``.
 
     ``model_files`` (in ``model_dir``) are the model's sources, packed with the glue and
     the generated ``<prefix>_fmu_config.h`` (which also defines ``<PREFIX>_IDENTIFIER``
     and ``<PREFIX>_TOKEN``); the token is derived from the sources and the table, so
-    the same inputs give the same archive, byte for byte. ``platforms``: the binaries'
+    the same inputs give the same archive, byte for byte. The model is discrete-time:
+    every communication step must equal its parameter ``sample_period``, whose start value
+    ``sample_period`` is the default experiment's step size (and
+    ``canHandleVariableCommunicationStepSize`` is false). ``platforms``: the binaries'
     targets (default: this machine; see :func:`duffid.cbuild.resolve_platforms`).
     """
     if fmi_version not in (2, 3):
@@ -118,7 +121,8 @@ def build_c_model_fmu(out_dir: str | Path, identifier: str, fmi_version: int, ta
                              [n for n in core if n.endswith(".c")]))
     info = FmuInfo(model_name=identifier, model_identifier=identifier, token=token, description=description,
                    sources=c_sources, model_exchange=False, co_simulation=True,
-                   experiment={"StartTime": 0.0, "StopTime": 1.0, "Interval": 1e-3})
+                   experiment={"StartTime": 0.0, "StopTime": 1.0, "Interval": sample_period},
+                   variable_step=False, generation_tool=C_MODEL_GENERATION_TOOL)
     if fmi_version == 2:
         xml = retype(model_description_fmi2(info, table), 2, types)
         extra = dict(core)

@@ -25,11 +25,14 @@ Integer, ``sign_in_numerator`` and ``identified`` Boolean as there; all paramete
 identify()); an option left at its start value keeps the default of the chosen method.
 
 Semantics are those of the pythonfmu FMU: each ``doStep(t, h)`` consumes the inputs set
-for time ``t`` with ``h`` as sampling period; the first step fixes the period (and builds
-the estimator, its only allocation), a later step of another size fails with Discard and
-a logged error; non-finite inputs are rejected when set (Error, logged). Estimates are
-NaN unless published. To identify a record of ``n`` samples, simulate from ``t[0]`` to
-``t[-1] + dt`` with communication step ``dt``.
+for time ``t``; ``h`` must equal the parameter ``sample_period`` [s] (start value
+:data:`~duffid.fmu.estimator_table.DEFAULT_SAMPLE_PERIOD`, the default experiment's step
+size), otherwise the step fails with Discard and a logged error naming both values (a step
+of several periods too: the samples in between are unknown). The first step builds the
+estimator, its only allocation; non-finite inputs are rejected when set (Error, logged).
+Estimates are NaN unless published. To identify a record of ``n`` samples, set
+``sample_period`` to its ``dt`` and simulate from ``t[0]`` to ``t[-1] + dt`` with
+communication step ``dt``. The variable table is :mod:`duffid.fmu.estimator_table`.
 """
 from __future__ import annotations
 
@@ -38,88 +41,14 @@ from typing import Sequence
 
 from ..assets import fmu_sources
 from ..cbuild import Platform
-from ..errors import InputError
-from ..identification.engine import status_codes
-from ..identification.options import ONLINE_METHODS, fmu_parameters
-from ..models.chain import Duffing1, Duffing2
 from .c_model import build_c_model_fmu
+from .estimator_table import C_FMU_NAMES, DEFAULT_SAMPLE_PERIOD, MODEL_CODES, estimator_variables, variable_types
 from .python_estimator import build_python_fmu
-from .variables import FmuVariable
 
-__all__ = ["build_estimator_fmus", "build_estimator_fmu", "estimator_variables", "variable_types",
-           "C_FMU_NAMES", "OPTIONS", "TYPES"]
+__all__ = ["build_estimator_fmus", "build_estimator_fmu"]
 
-#: Model name -> model identifier of the C FMUs (FMI 3 files get a ``_fmi3`` suffix).
-C_FMU_NAMES = {"duffing1": "DuffingEstimator1", "duffing2": "DuffingEstimator2"}
-_CODES = {"duffing1": 1, "duffing2": 2}
-_INPUTS = {"duffing1": (("x", "m", "displacement of the mass"), ("f", "N", "force on the mass")),
-           "duffing2": (("x1", "m", "displacement of m1"), ("x2", "m", "displacement of m2"),
-                        ("f1", "N", "force on m1"))}
-_PARAM_UNITS = {"m": "kg", "b": "N.s/m", "k": "N/m", "kp": "N/m3"}
-#: Parameters in value-reference order (name, unit, description): the method, then the
-#: options of the schema (duffid.identification.options), which also generates the C table.
-OPTIONS = (("method", None, "identification method: " + ", ".join(f"{i} {m}" for i, m in enumerate(ONLINE_METHODS))),
-           *((o.name, o.unit, o.coded_description) for o in fmu_parameters()))
-#: Variables that are not Float64 (and every ``<name>_status``: Integer).
-TYPES = {"method": "Integer", "identified": "Boolean",
-         **{o.name: "Boolean" if o.kind == "bool" else "Integer" for o in fmu_parameters() if o.c_kind == "CODE"}}
-
-
-def variable_types(model_name: str) -> dict[str, str]:
-    """:data:`TYPES` with the ``<name>_status`` outputs of the model."""
-    model = Duffing1() if model_name == "duffing1" else Duffing2()
-    return {**TYPES, "outliers": "Integer", **{f"{name}_status": "Integer" for name in model.parameters}}
 _CORE_FILES = ("duffid_estimator.c", "duffid_estimator.h", "duffid_options.h", "duffid_linalg.c", "duffid_linalg.h",
                "fmu_model_estimator.c")
-
-
-def _param_unit(name: str) -> str:
-    return _PARAM_UNITS[name.rstrip("0123456789")]
-
-
-def _defaults(model_name: str) -> dict[str, float]:
-    """Parameter start values: the robust method and the schema's defaults as the C core codes them."""
-    values = {"method": 0.0, **{o.name: float(o.c_default) for o in fmu_parameters()}}
-    model = Duffing1() if model_name == "duffing1" else Duffing2()
-    values.update({f"{name}_nominal": 0.0 for name in model.parameters})
-    return values
-
-
-def estimator_variables(model_name: str) -> list[FmuVariable]:
-    """The variable table of an estimator FMU (value references 0, 1, ...)."""
-    if model_name not in C_FMU_NAMES:
-        raise InputError(f"unknown model {model_name!r}; choose {', '.join(C_FMU_NAMES)}")
-    model = Duffing1() if model_name == "duffing1" else Duffing2()
-    defaults = _defaults(model_name)
-    table: list[FmuVariable] = []
-
-    def add(name: str, causality: str, variability: str, initial: str | None, start: float | None,
-            unit: str | None, description: str) -> None:
-        table.append(FmuVariable(name=name, vr=len(table), causality=causality, variability=variability,
-                                 initial=initial, start=start, internal_start=start if start is not None
-                                 else float("nan"), unit=unit, description=description))
-
-    add("time", "independent", "continuous", None, None, "s", "simulation time")
-    for name, unit, text in _INPUTS[model_name]:
-        add(name, "input", "continuous", None, 0.0, unit, f"{text} (one sample per doStep)")
-    for name in model.parameters:
-        add(f"{name}_hat", "output", "discrete", "calculated", None, _param_unit(name),
-            f"estimate of {name} (NaN unless published)")
-    add("identified", "output", "discrete", "calculated", None, None, "1 when every estimate is trustworthy")
-    add("condition", "output", "discrete", "calculated", None, "1", "largest condition number of the equations")
-    add("uncertainty", "output", "discrete", "calculated", None, "1", "largest relative standard error (robust)")
-    add("window_length", "output", "discrete", "calculated", None, "s", "window length")
-    for name in model.parameters:
-        add(f"{name}_status", "output", "discrete", "calculated", None, None,
-            f"status of {name}: {status_codes()}")
-    add("outliers", "output", "discrete", "calculated", None, None,
-        "isolated displacement outliers excluded so far (each one logged, category logStatusWarning)")
-    for name, unit, text in OPTIONS:
-        add(name, "parameter", "fixed", "exact", defaults[name], unit, text)
-    for name in model.parameters:
-        add(f"{name}_nominal", "parameter", "fixed", "exact", defaults[f"{name}_nominal"], _param_unit(name),
-            f"optional prior size of {name} for the trust test (0: none, the scale comes from the data)")
-    return table
 
 
 def build_estimator_fmu(model_name: str, out_dir: str | Path, fmi_version: int = 2,
@@ -149,8 +78,8 @@ def build_estimator_fmu(model_name: str, out_dir: str | Path, fmi_version: int =
     return build_c_model_fmu(out_dir, C_FMU_NAMES[model_name], fmi_version, table, prefix="estimator",
                              model_dir=fmu_sources("estimator"), model_files=_CORE_FILES,
                              description=f"duffid online algebraic identification of {model} (C estimator core)",
-                             types=variable_types(model_name), defines={"MODEL": _CODES[model_name]},
-                             compiler=compiler, platforms=platforms)
+                             types=variable_types(model_name), defines={"MODEL": MODEL_CODES[model_name]},
+                             sample_period=DEFAULT_SAMPLE_PERIOD, compiler=compiler, platforms=platforms)
 
 
 def build_estimator_fmus(out_dir: str | Path = Path("build/fmus"), *, python: bool = True,
@@ -173,8 +102,8 @@ def build_estimator_fmus(out_dir: str | Path = Path("build/fmus"), *, python: bo
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    paths = [build_estimator_fmu(name, out_dir, version, platforms=platforms) for name in C_FMU_NAMES for version in (2, 3)]
+    paths = [build_estimator_fmu(name, out_dir, version, platforms=platforms)
+             for name in C_FMU_NAMES for version in (2, 3)]
     if python:
-
         paths += [build_python_fmu(name, out_dir) for name in C_FMU_NAMES]
     return paths

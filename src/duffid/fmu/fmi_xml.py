@@ -4,13 +4,17 @@ from __future__ import annotations
 import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from typing import Iterable
 
 from .variables import FmuVariable
 
 __all__ = ["FmuInfo", "model_description_fmi2", "model_description_fmi3", "build_description",
-           "unit_exponents"]
+           "unit_exponents", "unit_definitions", "GENERATION_TOOL", "C_MODEL_GENERATION_TOOL"]
 
+#: generationTool of the plant FMUs exported from Modelica.
 GENERATION_TOOL = "duffid.modelica (pymoca front end, CasADi code generation)"
+#: generationTool of the hand-written C models on duffid's FMI glue (estimators, controllers).
+C_MODEL_GENERATION_TOOL = "duffid (C model on duffid's FMI glue, fmus/common)"
 LOG_CATEGORIES = {
     "logStatusError": "Errors (always logged)",
     "logStatusDiscard": "Discarded steps (always logged)",
@@ -54,7 +58,13 @@ def unit_exponents(unit: str) -> tuple[int, ...] | None:
 
 @dataclass(frozen=True)
 class FmuInfo:
-    """Model-level data of a modelDescription."""
+    """Model-level data of a modelDescription.
+
+    ``variable_step``: the co-simulation interface accepts a communication step of any
+    size (an integrating plant); False for the discrete-time models whose step is their
+    sample period (estimators, controllers). ``experiment`` keys: StartTime, StopTime,
+    Tolerance, Interval (the default experiment's step size).
+    """
 
     model_name: str
     model_identifier: str
@@ -64,6 +74,12 @@ class FmuInfo:
     model_exchange: bool
     co_simulation: bool
     experiment: dict
+    variable_step: bool = True
+    generation_tool: str = GENERATION_TOOL
+
+
+def _bool(value: bool) -> str:
+    return "true" if value else "false"
 
 
 def _num(value: float) -> str:
@@ -71,7 +87,13 @@ def _num(value: float) -> str:
 
 
 def _units(parent: ET.Element, table: list[FmuVariable]) -> None:
-    units = sorted({v.unit for v in table if v.unit})
+    unit_definitions(parent, [v.unit for v in table if v.unit])
+
+
+def unit_definitions(parent: ET.Element, names: Iterable[str]) -> None:
+    """Append ``<UnitDefinitions>`` of the unit ``names`` (with their SI base units where
+    :func:`unit_exponents` knows them) to ``parent``; nothing when there is none."""
+    units = sorted(set(names))
     if not units:
         return
     defs = ET.SubElement(parent, "UnitDefinitions")
@@ -114,14 +136,14 @@ def model_description_fmi2(info: FmuInfo, table: list[FmuVariable]) -> bytes:
     """modelDescription.xml for FMI 2.0 (Model Exchange and/or Co-Simulation)."""
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "2.0", "modelName": info.model_name, "guid": info.token,
-        "description": info.description, "generationTool": GENERATION_TOOL,
+        "description": info.description, "generationTool": info.generation_tool,
         "variableNamingConvention": "structured", "numberOfEventIndicators": "0"})
     common = {"modelIdentifier": info.model_identifier, "canNotUseMemoryManagementFunctions": "true",
               "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true",
               "providesDirectionalDerivative": "false"}
     for enabled, tag, extra in (
             (info.model_exchange, "ModelExchange", {"completedIntegratorStepNotNeeded": "true"}),
-            (info.co_simulation, "CoSimulation", {"canHandleVariableCommunicationStepSize": "true",
+            (info.co_simulation, "CoSimulation", {"canHandleVariableCommunicationStepSize": _bool(info.variable_step),
                                                   "canInterpolateInputs": "false",
                                                   "maxOutputDerivativeOrder": "0"})):
         if enabled:
@@ -190,14 +212,14 @@ def model_description_fmi3(info: FmuInfo, table: list[FmuVariable]) -> bytes:
     """modelDescription.xml for FMI 3.0 (Model Exchange and/or Co-Simulation)."""
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "3.0", "modelName": info.model_name, "instantiationToken": info.token,
-        "description": info.description, "generationTool": GENERATION_TOOL,
+        "description": info.description, "generationTool": info.generation_tool,
         "variableNamingConvention": "structured"})
     common = {"modelIdentifier": info.model_identifier, "canGetAndSetFMUState": "true",
               "canSerializeFMUState": "true", "providesDirectionalDerivatives": "false"}
     if info.model_exchange:
         ET.SubElement(root, "ModelExchange", {**common, "needsCompletedIntegratorStep": "false"})
     if info.co_simulation:
-        ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": "true",
+        ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": _bool(info.variable_step),
                                              "hasEventMode": "false", "maxOutputDerivativeOrder": "0",
                                              "providesIntermediateUpdate": "false"})
     _units(root, table)
