@@ -17,6 +17,7 @@ import os
 import random
 import shutil
 import tempfile
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +39,7 @@ from duffid.cosim.system import (  # noqa: E402  # noqa: E402
     _greedy_order,
     _order_cost,
 )
+from duffid.cbuild import FMI2_PLATFORM  # noqa: E402
 from duffid.data.record import Record  # noqa: E402
 from duffid.data.signals import Step  # noqa: E402
 from duffid.fmu.estimator import build_estimator_fmu  # noqa: E402
@@ -226,6 +228,10 @@ def test_container_equals_jacobi_and_validates(fmus, tmp_path, no_leftovers):
     md = fmpy.read_model_description(str(path))
     params = {v.name: v.start for v in md.modelVariables if v.causality == "parameter"}
     assert params == {"ramp.a": "2.0", "i1.y0": "0.5", "gain.k": "-4.0"}
+    # the container binaries only of the platforms every component has (here: this machine's)
+    with zipfile.ZipFile(path) as z:
+        platforms = {n.split("/")[1] for n in z.namelist() if n.startswith("binaries/") and n.count("/") == 2}
+    assert platforms == {FMI2_PLATFORM}
     expected = system.run(1.0, H)
     inner = System().add("c", path).run(1.0, H)
     for name, source in {"y": "i1.y", "r": "ramp.y"}.items():

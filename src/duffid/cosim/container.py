@@ -33,6 +33,10 @@ the container: every input they drive must be mapped to a container input (else
 :class:`~duffid.errors.WiringError`). Inputs that are neither connected nor driven keep
 their start values.
 
+The container carries fmpy's container binaries only for the platforms on which every
+component has a binary (fmpy ships linux64, win64 and darwin64 ones); none in common is an
+error.
+
 Two defects of fmpy 0.3.32 are worked around: connections of FMI 2 components are
 written with their FMI 2 type names, which the container binary rejects, so the
 connection variables are passed as copies typed ``Float64``/``Int32`` (Boolean needs
@@ -285,7 +289,7 @@ def export_container(system: System, path: str | os.PathLike[str],
         unzipdir.mkdir()
         built = work / "Container.fmu"
         create_container_fmu(config, unzipdir, built)
-        _clean_archive(built)
+        _finish_archive(built, list(components))
         path.parent.mkdir(parents=True, exist_ok=True)
         shutil.move(str(built), str(path))
     finally:
@@ -293,14 +297,39 @@ def export_container(system: System, path: str | os.PathLike[str],
     return path
 
 
-def _clean_archive(fmu: Path) -> None:
-    """Drop a half-written copy of the archive that ``shutil.make_archive`` may have
-    put inside itself (fmpy writes the zip into the directory it archives)."""
+#: The container binary's platform folder -> the component folders (FMI 2, FMI 3) it can load.
+_CONTAINER_PLATFORMS = {"linux64": {"linux64", "x86_64-linux"}, "win64": {"win64", "x86_64-windows"},
+                        "darwin64": {"darwin64", "x86_64-darwin", "aarch64-darwin"}}
+
+
+def _finish_archive(fmu: Path, components: Sequence[str]) -> None:
+    """Drop a half-written copy of the archive that ``shutil.make_archive`` may have put
+    inside itself (fmpy writes the zip into the directory it archives), and the container
+    binaries of platforms for which a component has no binary (the container would load
+    there and then fail to load that component).
+
+    Raises
+    ------
+    WiringError
+        If no platform has binaries of every component.
+    """
     with zipfile.ZipFile(fmu) as z:
         names = z.namelist()
-        if not any(n.endswith("Container.zip") for n in names):
+        folders = {name: {n.split("/")[3] for n in names if n.startswith(f"resources/{name}/binaries/")
+                          and n.count("/") >= 4} for name in components}
+        keep = {p for p, accepted in _CONTAINER_PLATFORMS.items() if all(folders[c] & accepted for c in components)}
+        if not keep:
+            raise WiringError("no platform has binaries of every component: "
+                              + "; ".join(f"{c}: {', '.join(sorted(f)) or 'none'}" for c, f in folders.items()))
+
+        def wanted(name: str) -> bool:
+            parts = name.split("/")
+            return not name.endswith("Container.zip") and not (
+                parts[0] == "binaries" and len(parts) > 1 and parts[1] and parts[1] not in keep)
+
+        if all(wanted(n) for n in names):
             return
-        entries = [(info, z.read(info)) for info in z.infolist() if not info.filename.endswith("Container.zip")]
+        entries = [(info, z.read(info)) for info in z.infolist() if wanted(info.filename)]
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as z:
         for info, data in entries:
             z.writestr(info, data)
