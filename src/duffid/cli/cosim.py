@@ -8,6 +8,7 @@ from typing import Any
 
 from ..cosim import config as cosim_config
 from ..cosim.config import load_config
+from ..cosim.runner import signals_held
 from ..cosim.system import ORDERINGS
 from ..errors import CosimError
 
@@ -38,7 +39,8 @@ def run(args: argparse.Namespace) -> int:
     except CosimError as exc:
         print(f"duffid cosim: the run failed: {exc}", file=sys.stderr)
         if args.output is not None and exc.result is not None:
-            exc.result.to_csv(args.output)
+            with signals_held():  # a second Ctrl-C does not lose the rows
+                exc.result.to_csv(args.output)
             print(f"duffid cosim: the {len(exc.result)} rows before the failure are in {args.output}",
                   file=sys.stderr)
         return 1
@@ -47,6 +49,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"{len(result)} communication points from {result.time[0]:g} to {result.time[-1]:g} s "
           f"({config.ordering if args.ordering is None else args.ordering}, order {', '.join(result.order)})"
           + (f"; wrote {args.output}" if args.output is not None else ""))
+    if result.ended is not None:
+        print(f"the simulation ended early: {result.ended}")
     for name in result.names:
         values = result[name]
         print(f"  {name:<32} final {values[-1]:.6g}")

@@ -19,8 +19,10 @@ A configuration file lets a user wire and run FMUs without writing Python::
     }
 
 Relative paths (FMUs, CSV) are taken from the configuration file's folder. ``inputs`` are
-constants; time-varying inputs come from ``input_csv`` (linear interpolation, time column
-``t`` or ``time``). ``container`` describes the container FMU that ``duffid cosim
+constants; time-varying inputs come from ``input_csv`` (time column ``t`` or ``time``; a time
+given twice marks a step): continuous Real inputs are interpolated linearly, discrete ones
+and Integer/Boolean inputs hold the last sample, and ``"interpolation": {"r": "hold"}``
+overrides per column. ``container`` describes the container FMU that ``duffid cosim
 --export-container`` writes (its step is ``run.step``). Connections may carry a third
 element ``{"check_units": false}``. Every error names the file and the entry that is
 wrong (:class:`ConfigError`); wiring errors are those of :class:`duffid.cosim.system.System`.
@@ -186,11 +188,12 @@ def load_config(path: str | os.PathLike[str]) -> CosimConfig:
     for target, value in _mapping(path, "inputs", data.get("inputs", {})).items():
         wired(f"inputs.{target}", system.set_input, target, _number(path, f"inputs.{target}", value))
     if "input_csv" in data:
-        csv_spec = _mapping(path, "input_csv", data["input_csv"], {"file", "columns"})
+        csv_spec = _mapping(path, "input_csv", data["input_csv"], {"file", "columns", "interpolation"})
         if not isinstance(csv_spec.get("file"), str):
             raise ConfigError(f"{path}: input_csv.file must be the CSV file's name")
         columns = _mapping(path, "input_csv.columns", csv_spec.get("columns"))
-        wired("input_csv", system.inputs_from_csv, base / csv_spec["file"], columns)
+        interpolation = _mapping(path, "input_csv.interpolation", csv_spec.get("interpolation", {}))
+        wired("input_csv", system.inputs_from_csv, base / csv_spec["file"], columns, interpolation)
     run = _mapping(path, "run", data.get("run"), _RUN)
     for key in ("stop_time", "step"):
         if key not in run:

@@ -17,7 +17,8 @@ from ..errors import CosimError, InputError, WiringError
 
 __all__ = ["InputSource", "VARIABLE_KINDS", "STATUS_NAMES", "NAME_RE", "N_MESSAGES", "N_REPORTED", "DTYPES",
            "WiringError", "Connection", "Failure", "CosimError", "Result", "with_article", "suggest", "unit_of",
-           "Component", "typed_parameter", "External", "check_external_value", "sampled_on_grid"]
+           "Component", "typed_parameter", "External", "check_external_value", "sampled_on_grid",
+           "INTERPOLATIONS"]
 
 #: Source of an external input: a constant, a function of time, or samples ``(t, values)``.
 InputSource = Union[float, Callable[[float], float], tuple]
@@ -81,7 +82,7 @@ class Failure:
             self.function.startswith("fmi") else f"{where}: {self.function} failed at t = {self.time!r}: {self.status}"
         if self.messages:
             text += "\n  last logged messages:\n" + "\n".join(f"    {m}" for m in self.messages)
-        else:
+        elif self.function.startswith("fmi"):  # a silent FMU call (not a Python input function)
             text += (" (nothing was logged; some FMUs, e.g. pythonfmu ones, log only with logging on: "
                      "System.add(..., logging=True))")
         return text
@@ -109,7 +110,11 @@ class Result:
     step : float
         Communication step [s].
     failure : Failure or None
-        Why the run stopped early (None for a complete run).
+        Why the run failed (None for a complete run or one a component ended).
+    ended : str or None
+        Which component ended the simulation before the stop time, and when (an FMU's
+        request: FMI 2 Discard with fmi2Terminated, FMI 3 terminateSimulation); None when
+        the run reached the stop time or failed.
     """
 
     time: np.ndarray
@@ -120,6 +125,7 @@ class Result:
     ordering: str = "jacobi"
     step: float = 0.0
     failure: Failure | None = None
+    ended: str | None = None
 
     def __getitem__(self, name: str) -> np.ndarray:
         """The column of ``"component.variable"`` (float64; int32 for Integer, bool for
@@ -249,6 +255,7 @@ class External:
     mode: str           # "constant", "function", "sampled"
     value: Any          # float, callable, or (t, values) arrays
     origin: str         # for messages
+    interpolation: str = "linear"  # sampled: "linear" or "hold" (the previous sample)
 
 
 def check_external_value(ext: External, v: Any, t: float) -> float:
@@ -261,17 +268,32 @@ def check_external_value(ext: External, v: Any, t: float) -> float:
     return number
 
 
+#: How a sampled input is read between its samples.
+INTERPOLATIONS = ("linear", "hold")
+
+
 def sampled_on_grid(ext: External, grid: np.ndarray) -> np.ndarray:
-    """The samples of a sampled external input at the communication points ``grid``."""
+    """The samples of a sampled external input at the communication points ``grid``.
+
+    ``ext.interpolation`` "linear" interpolates between neighbouring samples, "hold" takes
+    the last sample at or before the point. A time given twice marks a step: at that time
+    and after it the second value holds (the right limit), before it the first.
+    """
     ts, values = ext.value
     lo, hi = float(grid[0]), float(grid[-1])
     if lo < ts[0] or hi > ts[-1]:
         bad = lo if lo < ts[0] else hi
         raise WiringError(f"input {ext.target} ({ext.origin}): the communication point t = {bad!r} lies "
                           f"outside the sampled range [{float(ts[0])!r}, {float(ts[-1])!r}] (never extrapolated)")
-    if ext.kind == "Real":
+    i = np.searchsorted(ts, grid, side="right") - 1  # the last sample at or before each point
+    if ext.interpolation == "hold":
+        return values[i]
+    if np.all(np.diff(ts) > 0):
         return np.interp(grid, ts, values)
-    return values[np.searchsorted(ts, grid, side="right") - 1]  # previous sample (held)
+    j = np.minimum(i + 1, len(ts) - 1)
+    span = ts[j] - ts[i]
+    weight = np.divide(grid - ts[i], span, out=np.zeros(len(grid)), where=span > 0)
+    return values[i] + weight * (values[j] - values[i])
 
 
 # --------------------------------------------------------------------------------- system

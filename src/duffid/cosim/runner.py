@@ -10,12 +10,16 @@ ctypes functions that fmpy loaded are called directly and their status is checke
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
+import os
 import shutil
+import signal
 import tempfile
+import threading
 from collections import deque
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Iterator
 
 import numpy as np
 
@@ -37,7 +41,7 @@ from .elements import (
 if TYPE_CHECKING:
     from .system import System
 
-__all__ = ["Runner"]
+__all__ = ["Runner", "signals_held"]
 
 _FUNCS = {  # kind -> (get, set, ctype) per FMI version
     2: {"Real": ("fmi2GetReal", "fmi2SetReal", ctypes.c_double),
@@ -58,6 +62,36 @@ class _StepFailure(Exception):
     def __init__(self, ci: int, function: str, status: int | str, t: float) -> None:
         super().__init__(function)
         self.ci, self.function, self.status, self.t = ci, function, status, t
+
+
+class _Terminated(Exception):
+    """A component asked to end the simulation (FMI 2 Discard + fmi2Terminated, FMI 3
+    terminateSimulation); ``full``: it completed the step (a final row is recorded)."""
+
+    def __init__(self, ci: int, t_last: float, full: bool) -> None:
+        super().__init__(ci)
+        self.ci, self.t_last, self.full = ci, t_last, full
+
+
+class _Interrupted(Exception):
+    """SIGTERM during a run (handled as Ctrl-C is)."""
+
+
+@contextlib.contextmanager
+def signals_held() -> Iterator[None]:
+    """A block that Ctrl-C (SIGINT) and SIGTERM cannot interrupt (in the main thread; they
+    are ignored meanwhile): the release of FMU instances, the writing of the rows so far."""
+    main = threading.current_thread() is threading.main_thread()
+    held = [(sig, signal.signal(sig, signal.SIG_IGN)) for sig in (signal.SIGINT, signal.SIGTERM)] if main else []
+    try:
+        yield
+    finally:
+        for sig, handler in held:
+            signal.signal(sig, handler)
+
+
+def _interrupt(signum: int, frame: Any) -> None:
+    raise _Interrupted(f"interrupted by {signal.Signals(signum).name}")
 
 
 class _InputFailure(Exception):
@@ -179,16 +213,14 @@ class Runner:
     # ------------------------------------------------------------------ instances
     def _instantiate(self, inst: _Instance) -> None:
         import fmpy
-        from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
-        from fmpy.fmi3 import FMU3Slave
+        from fmpy.fmi2 import defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 
         comp = inst.comp
         assert self.tmp is not None
         unzipdir = fmpy.extract(str(comp.path), str(Path(self.tmp) / comp.name))
         ident = comp.md.coSimulation.modelIdentifier
+        inst.slave = self._load(inst, unzipdir, ident)
         if comp.version == 2:
-            inst.slave = FMU2Slave(guid=comp.md.guid, unzipDirectory=unzipdir, modelIdentifier=ident,
-                                   instanceName=comp.name)
 
             def logger(env: Any, name: Any, status: int, category: bytes, message: bytes) -> None:
                 inst.log(status, category, message.replace(b"%%", b"%") if message else message)
@@ -201,26 +233,53 @@ class Runner:
             try:
                 inst.slave.instantiate(callbacks=callbacks, loggingOn=comp.logging)
             except Exception:
-                inst.slave.freeLibrary()
+                self._unload(inst)
                 raise _StepFailure(inst.index, "fmi2Instantiate", "NULL (instantiation failed)", self.grid[0])
         else:
-            inst.slave = FMU3Slave(guid=comp.md.instantiationToken, unzipDirectory=unzipdir, modelIdentifier=ident,
-                                   instanceName=comp.name)
 
             def log3(env: Any, status: int, category: bytes, message: bytes) -> None:
                 inst.log(status, category, message)
 
             try:
                 inst.slave.instantiate(loggingOn=comp.logging, logMessage=log3)  # fmpy keeps the callback
+                failed = not inst.slave.component
             except Exception:
-                inst.slave.freeLibrary()
-                raise _StepFailure(inst.index, "fmi3InstantiateCoSimulation", "NULL (instantiation failed)",
-                                   self.grid[0])
-            if not inst.slave.component:
-                inst.slave.freeLibrary()
+                failed = True
+            if failed:
+                self._unload(inst)
                 raise _StepFailure(inst.index, "fmi3InstantiateCoSimulation", "NULL (instantiation failed)",
                                    self.grid[0])
         inst.state = "instantiated"
+
+    def _load(self, inst: _Instance, unzipdir: str, identifier: str) -> Any:
+        """fmpy's slave object for the component: its binary loaded. fmpy changes the working
+        directory while it loads a library; it is restored whatever happens, and a binary that
+        cannot be loaded is a failure naming the component and its FMU."""
+        from fmpy.fmi2 import FMU2Slave
+        from fmpy.fmi3 import FMU3Slave
+
+        comp = inst.comp
+        cwd = os.getcwd()
+        try:
+            if comp.version == 2:
+                return FMU2Slave(guid=comp.md.guid, unzipDirectory=unzipdir, modelIdentifier=identifier,
+                                 instanceName=comp.name)
+            return FMU3Slave(guid=comp.md.instantiationToken, unzipDirectory=unzipdir, modelIdentifier=identifier,
+                             instanceName=comp.name)
+        except Exception as exc:
+            inst.log(3, b"load", f"{type(exc).__name__}: {exc}".encode())
+            raise _StepFailure(inst.index, "loading the binary", "cannot be loaded", self.grid[0]) from None
+        finally:
+            os.chdir(cwd)
+
+    @staticmethod
+    def _unload(inst: _Instance) -> None:
+        """Unload the binary of an instance that does not exist (no call may reach it again)."""
+        try:
+            inst.slave.freeLibrary()
+        finally:
+            inst.slave = None
+            inst.state = "freed"
 
     def _call(self, inst: _Instance, method: str, *args: Any, **kwargs: Any) -> Any:
         """A call through fmpy's high-level API (set-up only), status exceptions converted."""
@@ -312,12 +371,12 @@ class Runner:
             if version == 2:
                 term = ctypes.c_bool(False)
                 args = (handle, self.t_arg, self.h_arg, ctypes.c_int(1))
-                self.step_ops.append((raw("fmi2DoStep"), args, ci, "fmi2DoStep", term))
+                self.step_ops.append((raw("fmi2DoStep"), args, ci, "fmi2DoStep", term, None))
             else:
                 flags = [ctypes.c_bool(False) for _ in range(3)] + [ctypes.c_double(0.0)]
                 args = (handle, self.t_arg, self.h_arg, ctypes.c_bool(True)) + tuple(ctypes.pointer(f) for f in flags)
                 self._keep.append(flags)
-                self.step_ops.append((raw("fmi3DoStep"), args, ci, "fmi3DoStep", flags[1]))
+                self.step_ops.append((raw("fmi3DoStep"), args, ci, "fmi3DoStep", flags[1], flags))
             self.set_ops.append(sets)
             self.init_ops.append(inits)
             self.get_ops.append(gets)
@@ -404,6 +463,7 @@ class Runner:
         k = 0
         t = grid[0]
         t_arg = self.t_arg
+        self.ending: _Terminated | None = None
         try:
             for start, stop in self._chunks():
                 for k in range(start, stop):
@@ -416,10 +476,10 @@ class Runner:
                             status = setf(*args)
                             if status > 1:
                                 raise _StepFailure(ci, fname, status, t)
-                        for stepf, step_args, ci, fname, term in steps:
+                        for stepf, step_args, ci, fname, term, flags in steps:
                             status = stepf(*step_args)
                             if status > 1 or term.value:
-                                raise _StepFailure(ci, fname, status if status > 1 else "terminateSimulation", t)
+                                self._ended(ci, fname, status, flags, t)
                         for getf, args, ci, fname in gets:
                             status = getf(*args)
                             if status > 1:
@@ -439,15 +499,58 @@ class Runner:
                             rec[k + 1] = g
                         else:
                             take(g, idx, out=rec[k + 1])
-        except BaseException:
-            self.rows = k + 1
+                    if self.ending is not None:  # the step completed: its row is recorded
+                        raise self.ending
+        except BaseException as exc:
+            self.rows = k + 2 if isinstance(exc, _Terminated) and exc.full else k + 1
             self.t_fail = t
             raise
         self.rows = self.n + 1
 
+    def _ended(self, ci: int, function: str, status: int, flags: Any, t: float) -> None:
+        """A doStep that did not simply succeed: a request to end the simulation (raises
+        :class:`_Terminated` for a partial step, or records it in ``self.ending`` and returns
+        so that the macro step completes and its row is recorded), else a failure."""
+        inst = self.instances[ci]
+        slave, h = inst.slave, self.step
+        handle = ctypes.c_void_p(slave.component)
+        if inst.comp.version == 2:
+            terminated = ctypes.c_int(0)
+            if status != 2 or slave.dll.fmi2GetBooleanStatus(handle, 3, ctypes.byref(terminated)) > 1 or \
+                    not terminated.value or any(m.startswith(("[Error]", "[Fatal]")) for m in inst.messages):
+                # 3: fmi2Terminated; a component that logged an error failed, whatever it asks
+                raise _StepFailure(ci, function, status, t)
+            last = ctypes.c_double(t)
+            if slave.dll.fmi2GetRealStatus(handle, 2, ctypes.byref(last)) > 1:  # 2: fmi2LastSuccessfulTime
+                last.value = t
+            inst.state, inst.failed_status = "failed", 2  # terminate, then free
+            t_last = last.value
+        else:
+            if status > 1:
+                raise _StepFailure(ci, function, status, t)
+            t_last = flags[3].value if flags[2].value else t + h  # earlyReturn: lastSuccessfulTime
+        full = abs(t_last - (t + h)) <= 1e-9 * h
+        self.ending = _Terminated(ci, t_last, full)
+        if not full:
+            raise self.ending
+
     # ------------------------------------------------------------------ driver
     def execute(self) -> Result:
-        """Instantiate, initialise, loop, release; a :class:`Result` or :class:`CosimError`."""
+        """Instantiate, initialise, loop, release; a :class:`Result` or :class:`CosimError`.
+
+        In the main thread, SIGTERM interrupts the run as Ctrl-C does (the rows so far are
+        kept in the error's result), and neither signal can interrupt the release of the
+        instances and the deletion of the extracted FMUs.
+        """
+        main = threading.current_thread() is threading.main_thread()
+        previous = signal.signal(signal.SIGTERM, _interrupt) if main else None
+        try:
+            return self._execute()
+        finally:
+            if main:
+                signal.signal(signal.SIGTERM, previous)
+
+    def _execute(self) -> Result:
         self.tmp = tempfile.mkdtemp(prefix="duffid-cosim-")
         self.t_fail = float(self.grid[0])
         try:
@@ -456,10 +559,23 @@ class Runner:
             self._build_ops()
             self._initialize()
             self._loop()
+        except _Terminated as end:
+            self._release(None)
+            inst = self.instances[end.ci]
+            t_k = float(self.grid[self.rows - 1])
+            note = (f"component {inst.comp.name!r} ({inst.comp.path}) asked to end the simulation at "
+                    f"t = {end.t_last!r}" + ("" if end.full else
+                                             f", during the step from t = {t_k!r}: the last row is t = {t_k!r}")
+                    + ("" if inst.comp.logging or inst.comp.version == 3 else
+                       " (FMI 2 cannot tell a failure from a request to stop, and its logging is off: if it "
+                       "failed, System.add(..., logging=True) shows why)"))
+            return self._result(None, note)
         except BaseException as exc:
-            failure = self._failure(exc)
-            self._release(failure)
-            raise CosimError(failure, self._result(failure)) from (
+            with signals_held():  # a second Ctrl-C must not lose the clean-up or the rows
+                failure = self._failure(exc)
+                self._release(failure)
+                partial = self._result(failure)
+            raise CosimError(failure, partial) from (
                 exc.exc if isinstance(exc, _InputFailure) else None if isinstance(exc, _StepFailure) else exc)
         self._release(None)
         return self._result(None)
@@ -468,8 +584,9 @@ class Runner:
         if isinstance(exc, _StepFailure):
             inst = self.instances[exc.ci]
             status = STATUS_NAMES.get(exc.status, str(exc.status)) if isinstance(exc.status, int) else exc.status
-            inst.state = "failed"
-            inst.failed_status = exc.status if isinstance(exc.status, int) else 3
+            if inst.slave is not None:  # an instance that exists (not one that failed to load or instantiate)
+                inst.state = "failed"
+                inst.failed_status = exc.status if isinstance(exc.status, int) else 3
             return Failure(inst.comp.name, inst.comp.path, float(exc.t), exc.function, status,
                            tuple(list(inst.messages)[-N_REPORTED:]))
         if isinstance(exc, _InputFailure):
@@ -479,7 +596,12 @@ class Runner:
         return Failure(None, None, float(self.t_fail), "run", f"{type(exc).__name__}: {exc}".rstrip(": "))
 
     def _release(self, failure: Failure | None) -> None:
-        """terminate (where allowed) and freeInstance every instance; delete the directory."""
+        """terminate (where allowed) and freeInstance every instance; delete the directory
+        (Ctrl-C and SIGTERM wait until it is done)."""
+        with signals_held():
+            self._release_all()
+
+    def _release_all(self) -> None:
         try:
             for inst in reversed(self.instances):
                 slave = inst.slave
@@ -505,7 +627,7 @@ class Runner:
                 shutil.rmtree(self.tmp, ignore_errors=True)
                 self.tmp = None
 
-    def _result(self, failure: Failure | None) -> Result:
+    def _result(self, failure: Failure | None, ended: str | None = None) -> Result:
         rows = self.rows
         columns: dict[str, np.ndarray] = {}
         for name in self.names:
@@ -514,4 +636,5 @@ class Runner:
             columns[name] = column.astype(bool) if kind == "Boolean" else column.copy()
         order = list(self.sequence)
         return Result(time=self.grid[:rows].copy(), names=list(self.names), _columns=columns, order=order,
-                      delayed=list(self.delayed), ordering=self.ordering, step=self.step, failure=failure)
+                      delayed=list(self.delayed), ordering=self.ordering, step=self.step, failure=failure,
+                      ended=ended)

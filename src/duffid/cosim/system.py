@@ -82,6 +82,7 @@ EXACT_ORDER_LIMIT = 12
 from ..errors import CosimError, WiringError
 from .container import export_container
 from .elements import (
+    INTERPOLATIONS,
     NAME_RE,
     VARIABLE_KINDS,
     Component,
@@ -276,7 +277,7 @@ class System:
         self._drivers[target] = f"the connection from {source!r}"
         return self
 
-    def set_input(self, target: str, source: InputSource) -> System:
+    def set_input(self, target: str, source: InputSource, interpolation: str | None = None) -> System:
         """Drive an input from outside the system.
 
         Parameters
@@ -286,21 +287,33 @@ class System:
         source : float, callable or (t, values)
             A constant; a function ``t -> value`` evaluated at every communication
             point (e.g. a :class:`duffid.data.signals.Signal`); or samples ``(t, values)``
-            (strictly increasing finite ``t``): Real inputs are interpolated linearly,
-            Integer and Boolean inputs hold the previous sample. Every communication
-            point ``t_0 .. t_n`` must lie within ``[t[0], t[-1]]``; nothing is
-            extrapolated or clipped (:meth:`run` raises otherwise).
+            (finite, non-decreasing ``t``; a time given twice marks a step, the second
+            value holding from that time on). Every communication point ``t_0 .. t_n``
+            must lie within ``[t[0], t[-1]]``; nothing is extrapolated or clipped
+            (:meth:`run` raises otherwise).
+        interpolation : {"linear", "hold"}, optional
+            How samples are read between sample times: "linear" interpolates, "hold" keeps
+            the last sample (zero-order hold). Default: "linear" for a Real input of
+            continuous variability, "hold" for a discrete-variability Real input and for
+            Integer and Boolean inputs (as FMI hosts do).
 
         Returns
         -------
         System
             self.
         """
-        return self._set_input(target, source, "set_input")
+        return self._set_input(target, source, "set_input", interpolation)
 
-    def _set_input(self, target: str, source: Any, origin: str) -> System:
+    def _set_input(self, target: str, source: Any, origin: str, interpolation: str | None = None) -> System:
         comp, var = self._claim_input(target, origin)
         kind = comp.kind(var, "driven")
+        if interpolation is None:
+            interpolation = "linear" if kind == "Real" and var.variability == "continuous" else "hold"
+        elif interpolation not in INTERPOLATIONS:
+            raise WiringError(f"input {target!r} ({origin}): interpolation must be one of "
+                              f"{', '.join(INTERPOLATIONS)}, got {interpolation!r}")
+        elif interpolation == "linear" and kind != "Real":
+            raise WiringError(f"input {target!r} ({origin}) is {var.type}: it can only hold its samples")
         if isinstance(source, tuple) or isinstance(source, list):
             if len(source) != 2:
                 raise WiringError(f"input {target!r}: samples must be a pair (t, values)")
@@ -309,11 +322,13 @@ class System:
             if ts.ndim != 1 or values.shape != ts.shape or len(ts) < 2:
                 raise WiringError(f"input {target!r}: t and values must be 1-D of the same length >= 2, "
                                   f"got shapes {ts.shape} and {values.shape}")
-            if not np.all(np.isfinite(ts)) or not np.all(np.diff(ts) > 0):
-                raise WiringError(f"input {target!r}: t must be finite and strictly increasing")
+            if not np.all(np.isfinite(ts)) or not np.all(np.diff(ts) >= 0):
+                raise WiringError(f"input {target!r}: t must be finite and non-decreasing")
+            if np.any((np.diff(ts[1:]) == 0) & (np.diff(ts[:-1]) == 0)):
+                raise WiringError(f"input {target!r}: a time is given more than twice (twice marks a step)")
             if kind != "Real" and not np.all(values == np.round(values)):
                 raise WiringError(f"input {target!r} is {var.type}; the samples must be integers")
-            ext = External(target, kind, "sampled", (ts, values), origin)
+            ext = External(target, kind, "sampled", (ts, values), origin, interpolation)
         elif callable(source):
             ext = External(target, kind, "function", source, origin)
         elif isinstance(source, numbers.Real):
@@ -329,16 +344,20 @@ class System:
         self._drivers[target] = origin
         return self
 
-    def inputs_from_csv(self, path: str | os.PathLike[str], columns: Mapping[str, str]) -> System:
-        """Drive inputs from the columns of a CSV file (linear interpolation in time).
+    def inputs_from_csv(self, path: str | os.PathLike[str], columns: Mapping[str, str],
+                        interpolation: Mapping[str, str] | None = None) -> System:
+        """Drive inputs from the columns of a CSV file.
 
         Parameters
         ----------
         path : str or os.PathLike
             CSV file: one header line with a time column ``t`` or ``time`` and named
-            columns, then one row of numbers per sample (strictly increasing time).
+            columns, then one row of numbers per sample (non-decreasing time; a time
+            given on two rows marks a step, the second row holding from then on).
         columns : mapping
             CSV column -> ``"component.input"``.
+        interpolation : mapping, optional
+            CSV column -> "linear" or "hold" (default per input: see :meth:`set_input`).
 
         Returns
         -------
@@ -388,12 +407,19 @@ class System:
                 data[i, j] = value
         if len(data) < 2:
             raise WiringError(f"{source}: needs at least 2 rows of samples, found {len(data)}")
-        bad = np.nonzero(np.diff(data[:, 0]) <= 0)[0]
+        steps = np.diff(data[:, 0])
+        bad = np.nonzero((steps < 0) | np.concatenate([[False], (steps[1:] == 0) & (steps[:-1] == 0)]))[0]
         if len(bad):
             raise WiringError(f"{source}, line {bad[0] + 3}, column {wanted[0]!r}: time "
-                              f"{float(data[bad[0] + 1, 0])!r} does not increase (previous {float(data[bad[0], 0])!r})")
+                              f"{float(data[bad[0] + 1, 0])!r} does not increase (previous {float(data[bad[0], 0])!r}"
+                              "; a time may be given twice, to mark a step)")
+        for column in interpolation or {}:
+            if column not in columns:
+                raise WiringError(f"{source}: interpolation given for {column!r}, which is not one of the columns "
+                                  f"used ({', '.join(columns)})")
         for j, (column, target) in enumerate(columns.items(), start=1):
-            self._set_input(target, (data[:, 0], data[:, j]), f"column {column!r} of {source}")
+            self._set_input(target, (data[:, 0], data[:, j]), f"column {column!r} of {source}",
+                            (interpolation or {}).get(column))
         return self
 
     # ---------------------------------------------------------------- inspection

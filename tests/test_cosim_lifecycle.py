@@ -1,0 +1,160 @@
+"""Co-simulation semantics and lifecycle: an FMU that asks to end the run, held and
+interpolated inputs, steps in input files, FMUs that cannot be loaded or instantiated."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from duffid.cli import main
+from duffid.cosim.system import System
+from duffid.errors import CosimError
+
+PYFMUS = Path(__file__).parent / "pyfmus"
+
+
+@pytest.fixture(scope="module")
+def pyfmus(tmp_path_factory):
+    """The pythonfmu test FMUs of tests/pyfmus (built from their scripts)."""
+    from pythonfmu.builder import FmuBuilder
+
+    out = tmp_path_factory.mktemp("pyfmus")
+    built = {}
+    for script in ("Stopper.py", "Echo.py"):
+        work = tmp_path_factory.mktemp(script[:-3])
+        shutil.copy(PYFMUS / script, work / script)
+        built[script[:-3]] = Path(FmuBuilder.build_FMU(work / script, dest=out))
+        sys.modules.pop(script[:-3], None)
+    return built
+
+
+@pytest.fixture
+def no_new_cosim_folders():
+    mine = "duffid-cosim-"
+    before = {n for n in os.listdir(tempfile.gettempdir()) if n.startswith(mine)}
+    cwd = os.getcwd()
+    yield
+    assert os.getcwd() == cwd and os.path.isdir(cwd)  # never left in a deleted folder
+    assert {n for n in os.listdir(tempfile.gettempdir()) if n.startswith(mine)} <= before
+
+
+# ------------------------------------------------------------------ an FMU that asks to stop
+def test_an_fmu_asking_to_end_the_run_ends_it_cleanly(pyfmus, no_new_cosim_folders):
+    result = System().add("s", pyfmus["Stopper"], {"t_end": 0.3}).run(1.0, 0.05)
+    assert result.failure is None
+    assert "component 's'" in result.ended and "asked to end the simulation at t = 0.3" in result.ended
+    np.testing.assert_allclose(result.time[-1], 0.3)  # the last completed communication point
+    np.testing.assert_allclose(result["s.y"][-1], 0.3)
+    complete = System().add("s", pyfmus["Stopper"], {"t_end": 2.0}).run(1.0, 0.05)
+    assert complete.ended is None and len(complete) == 21
+
+
+def test_the_cli_reports_the_end_and_exits_0(pyfmus, tmp_path, capsys):
+    config = tmp_path / "stop.toml"
+    config.write_text(f'[components.s]\nfmu = "{pyfmus["Stopper"]}"\nparameters = {{t_end = 0.3}}\n'
+                      '[run]\nstop_time = 1.0\nstep = 0.05\n')
+    assert main(["cosim", str(config), "-o", str(tmp_path / "run.csv")]) == 0
+    out = capsys.readouterr().out
+    assert "the simulation ended early: component 's'" in out and "t = 0.3" in out
+    rows = np.genfromtxt(tmp_path / "run.csv", delimiter=",", names=True)
+    np.testing.assert_allclose(rows["time"][-1], 0.3)
+
+
+# ------------------------------------------------------------------ inputs: hold and interpolate
+def test_discrete_inputs_are_held_and_continuous_ones_interpolated(pyfmus):
+    samples = (np.array([0.0, 0.1, 0.2]), np.array([0.0, 1.0, 3.0]))
+    result = (System().add("e", pyfmus["Echo"]).set_input("e.u_discrete", samples)
+              .set_input("e.u_continuous", samples).run(0.2, 0.025))
+    # row k + 1 holds the input set for t_k
+    t = result.time[:-1]
+    np.testing.assert_allclose(result["e.y_continuous"][1:], np.interp(t, *samples), rtol=0, atol=1e-15)
+    held = np.where(t < 0.1 - 1e-12, 0.0, np.where(t < 0.2 - 1e-12, 1.0, 3.0))
+    np.testing.assert_array_equal(result["e.y_discrete"][1:], held)
+    # and the other way round when asked
+    swapped = (System().add("e", pyfmus["Echo"]).set_input("e.u_discrete", samples, interpolation="linear")
+               .set_input("e.u_continuous", samples, interpolation="hold").run(0.2, 0.025))
+    np.testing.assert_array_equal(swapped["e.y_continuous"][1:], held)
+    np.testing.assert_allclose(swapped["e.y_discrete"][1:], np.interp(t, *samples), rtol=0, atol=1e-15)
+
+
+def test_a_time_given_twice_in_a_csv_marks_a_step(pyfmus, tmp_path):
+    csv = tmp_path / "in.csv"
+    csv.write_text("time,u\n0,0\n0.1,1\n0.1,5\n0.2,6\n")
+    result = System().add("e", pyfmus["Echo"]).inputs_from_csv(csv, {"u": "e.u_continuous"}).run(0.2, 0.05)
+    # t = 0, 0.05: ramp 0 -> 1; t = 0.1: after the step (5); t = 0.15: ramp 5 -> 6
+    np.testing.assert_allclose(result["e.y_continuous"][1:], [0.0, 0.5, 5.0, 5.5], rtol=0, atol=1e-12)
+    held = (System().add("e", pyfmus["Echo"])
+            .inputs_from_csv(csv, {"u": "e.u_continuous"}, {"u": "hold"}).run(0.2, 0.05))
+    np.testing.assert_array_equal(held["e.y_continuous"][1:], [0.0, 0.0, 5.0, 5.0])
+
+
+# ------------------------------------------------------------------ FMUs that cannot run
+def _tampered(src: Path, dst: Path, change) -> Path:
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w") as zout:
+        for info in zin.infolist():
+            zout.writestr(info, change(info.filename, zin.read(info)))
+    return dst
+
+
+def test_an_fmu_that_refuses_to_instantiate_is_an_error_not_a_crash(loop_fmus, tmp_path, no_new_cosim_folders):
+    """A token that does not match the binary: the FMU refuses to instantiate (this crashed the
+    host when the runner called freeInstance into the unloaded library). In a subprocess, so
+    that a crash fails this test instead of ending the test run."""
+    from duffid.fmu.estimator import build_estimator_fmu
+
+    fmi3 = build_estimator_fmu("duffing1", tmp_path, 3)
+    for src, target in ((loop_fmus["Oscillator1DOF"], "plant.f"), (fmi3, "plant.f")):
+        bad = _tampered(src, tmp_path / f"{src.stem}_badtoken.fmu", lambda n, data: data.replace(
+            b'guid="{', b'guid="{0').replace(b'instantiationToken="{', b'instantiationToken="{0')
+            if n == "modelDescription.xml" else data)
+        code = ("from duffid.cosim.system import System\nfrom duffid.errors import CosimError\n"
+                f"try:\n    System().add('plant', {str(bad)!r}).set_input({target!r}, 1.0).run(0.01, 1e-3)\n"
+                "except CosimError as exc:\n    print('COSIMERROR', exc)\n")
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0, done.stderr[-2000:]
+        assert "COSIMERROR component 'plant'" in done.stdout and bad.name in done.stdout
+        assert "nstantiat" in done.stdout
+
+
+def test_a_binary_that_cannot_be_loaded_names_the_component_and_fmu(loop_fmus, tmp_path, no_new_cosim_folders):
+    bad = _tampered(loop_fmus["Oscillator1DOF"], tmp_path / "broken.fmu",
+                    lambda n, data: b"\x7fELF not really" if n.startswith("binaries/") and n.endswith(".so") else data)
+    with pytest.raises(CosimError) as info:
+        System().add("plant", bad).set_input("plant.f", 1.0).run(0.01, 1e-3)
+    text = str(info.value)
+    assert "component 'plant'" in text and "broken.fmu" in text and "loading the binary" in text
+    assert "nothing was logged" not in text
+
+
+# ------------------------------------------------------------------ signals
+@pytest.mark.slow
+@pytest.mark.parametrize("signals", [("SIGTERM",), ("SIGINT", "SIGINT")])
+def test_signals_keep_the_rows_and_clean_up(loop_fmus, tmp_path, signals, no_new_cosim_folders):
+    """SIGTERM, or Ctrl-C twice (the second during the clean-up): every instance freed, the
+    extracted FMUs deleted, the rows so far written, no traceback."""
+    import signal
+    import time
+
+    config = tmp_path / "long.toml"
+    config.write_text(f'[components.plant]\nfmu = "{loop_fmus["Oscillator1DOF"]}"\n[inputs]\n"plant.f" = 1.0\n'
+                      '[run]\nstop_time = 2000.0\nstep = 0.001\nrecord = ["plant.x"]\n')
+    out = tmp_path / "run.csv"
+    process = subprocess.Popen([str(Path(sys.executable).with_name("duffid")), "cosim", str(config), "-o", str(out)],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(4.0)  # past the start-up, inside the loop
+    for name in signals:
+        process.send_signal(getattr(signal, name))
+        time.sleep(0.02)
+    stdout, stderr = process.communicate(timeout=120)
+    assert process.returncode == 1, stderr
+    assert "Traceback" not in stderr and "the run failed" in stderr
+    assert ("SIGTERM" in stderr) if signals == ("SIGTERM",) else ("KeyboardInterrupt" in stderr)
+    rows = np.genfromtxt(out, delimiter=",", names=True)
+    assert len(rows) > 10 and np.all(np.diff(rows["time"]) > 0)
