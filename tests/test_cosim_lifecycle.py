@@ -158,3 +158,31 @@ def test_signals_keep_the_rows_and_clean_up(loop_fmus, tmp_path, signals, no_new
     assert ("SIGTERM" in stderr) if signals == ("SIGTERM",) else ("KeyboardInterrupt" in stderr)
     rows = np.genfromtxt(out, delimiter=",", names=True)
     assert len(rows) > 10 and np.all(np.diff(rows["time"]) > 0)
+
+
+# ------------------------------------------------------------------ warnings for silent cases
+def test_silent_cases_are_warned_about(loop_fmus, tmp_path, capsys):
+    """A communication step shorter than an FMU's fixed internal step, FMI 3 aliases and
+    array outputs: the run says so (the model descriptions are edited after reading, as
+    FMUs with these features would declare them)."""
+    import copy
+
+    from duffid.fmu.estimator import build_estimator_fmu
+
+    system = System().add("est", build_estimator_fmu("duffing1", tmp_path, 3)).set_input("est.x", 0.0)
+    system.set_input("est.f", 0.0)
+    comp = system._components["est"]
+    comp.md.coSimulation.fixedInternalStepSize = 0.01
+    alias = copy.copy(next(v for v in comp.md.modelVariables if v.name == "m_hat"))
+    alias.name = "mass_hat"
+    array = copy.copy(next(v for v in comp.md.modelVariables if v.name == "k_hat"))
+    array.name, array.dimensions = "k_history", [object()]
+    comp.md.modelVariables += [alias, array]
+    result = system.run(0.01, 1e-3)
+    text = "\n".join(result.warnings)
+    assert "fixed internal step of 0.01 s, longer than the communication step 0.001 s" in text
+    assert "est.mass_hat is an alias of est.m_hat (the same value reference): recorded once" in text
+    assert "its array outputs k_history are not recorded" in text
+    assert "est.m_hat" in result.names and "est.mass_hat" not in result.names
+    clean = System().add("plant", loop_fmus["Oscillator1DOF"]).set_input("plant.f", 1.0).run(0.01, 1e-3)
+    assert clean.warnings == []

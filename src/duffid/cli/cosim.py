@@ -49,6 +49,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"{len(result)} communication points from {result.time[0]:g} to {result.time[-1]:g} s "
           f"({config.ordering if args.ordering is None else args.ordering}, order {', '.join(result.order)})"
           + (f"; wrote {args.output}" if args.output is not None else ""))
+    for warning in result.warnings:
+        print(f"duffid cosim: warning: {warning}", file=sys.stderr)
     if result.ended is not None:
         print(f"the simulation ended early: {result.ended}")
     for name in result.names:

@@ -115,6 +115,10 @@ class Result:
         Which component ended the simulation before the stop time, and when (an FMU's
         request: FMI 2 Discard with fmi2Terminated, FMI 3 terminateSimulation); None when
         the run reached the stop time or failed.
+    warnings : list of str
+        What the run could not do as a user may expect, in plain words (array outputs not
+        recorded, FMI 3 aliases recorded once, a communication step shorter than an FMU's
+        fixed internal step).
     """
 
     time: np.ndarray
@@ -126,6 +130,7 @@ class Result:
     step: float = 0.0
     failure: Failure | None = None
     ended: str | None = None
+    warnings: list[str] = field(default_factory=list)
 
     def __getitem__(self, name: str) -> np.ndarray:
         """The column of ``"component.variable"`` (float64; int32 for Integer, bool for

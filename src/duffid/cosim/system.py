@@ -548,20 +548,42 @@ class System:
                     raise WiringError(f"order must name every component exactly once; "
                                       f"missing {missing}, given {sequence}")
             delayed = self._delayed(sequence)
-        names = self._record_names(record)
+        warnings: list[str] = []
+        names = self._record_names(record, warnings)
+        for comp in self._components.values():
+            internal = getattr(comp.md.coSimulation, "fixedInternalStepSize", None)
+            if internal is not None and float(step) < float(internal) * (1 - 1e-9):
+                warnings.append(f"component {comp.name!r} ({comp.path}) computes with a fixed internal step of "
+                                f"{float(internal)!r} s, longer than the communication step {float(step)!r} s: its "
+                                "outputs change only every internal step (a staircase)")
         grid = float(start_time) + np.arange(n + 1) * float(step)
         sampled = {t: sampled_on_grid(e, grid) for t, e in self._externals.items() if e.mode == "sampled"}
         runner = Runner(self, grid, float(step), ordering, sequence, delayed, names, sampled, progress)
-        return runner.execute()
+        result = runner.execute()
+        result.warnings = warnings
+        return result
 
-    def _record_names(self, record: Sequence[str] | None) -> list[str]:
+    def _record_names(self, record: Sequence[str] | None, warnings: list[str]) -> list[str]:
         if record is None:
             names = []
             for comp in self._components.values():
+                seen: dict[tuple[str, int], str] = {}
+                arrays = []
                 for v in comp.md.modelVariables:
                     full = f"{comp.name}.{v.name}"
-                    if (v.causality == "output" and v.type in VARIABLE_KINDS and not v.dimensions) or full in self._externals:
+                    if v.causality == "output" and v.type in VARIABLE_KINDS and v.dimensions:
+                        arrays.append(v.name)
+                    elif (v.causality == "output" and v.type in VARIABLE_KINDS) or full in self._externals:
+                        key = (v.type, v.valueReference)
+                        if key in seen and comp.version == 3 and full not in self._externals:
+                            warnings.append(f"{full} is an alias of {seen[key]} (the same value reference): "
+                                            f"recorded once, as {seen[key]}")
+                            continue
+                        seen.setdefault(key, full)
                         names.append(full)
+                if arrays:
+                    warnings.append(f"component {comp.name!r} ({comp.path}): its array outputs "
+                                    f"{', '.join(arrays)} are not recorded (only scalar variables can be)")
             return names
         if isinstance(record, str):
             raise WiringError("record must be a sequence of names, not a string")
