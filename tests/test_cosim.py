@@ -430,7 +430,7 @@ def test_input_and_record_errors(fmus):
         s.set_input("plant.f", ([0.0, 1.0, 0.5], [1.0, 2.0, 3.0]))
     with pytest.raises(WiringError, match="more than twice"):
         s.set_input("plant.f", ([0.0, 0.5, 0.5, 0.5, 1.0], [1.0, 2.0, 3.0, 4.0, 5.0]))
-    with pytest.raises(WiringError, match="interpolation must be one of linear, hold"):
+    with pytest.raises(WiringError, match="interpolation must be one of linear, hold, average, sample-of-hold"):
         s.set_input("plant.f", ([0.0, 1.0], [1.0, 2.0]), interpolation="cubic")
     s.set_input("plant.f", ([0.0, 0.5], [0.0, 1.0]))
     with pytest.raises(WiringError, match=r"t = 1.0 lies outside the sampled range \[0.0, 0.5\]"):

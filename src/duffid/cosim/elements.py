@@ -273,26 +273,56 @@ def check_external_value(ext: External, v: Any, t: float) -> float:
     return number
 
 
-#: How a sampled input is read between its samples.
-INTERPOLATIONS = ("linear", "hold")
+#: How a sampled input is read between its samples: "linear" (the interpolated value at the
+#: communication point), "hold" (the last sample at or before it), "average" (the mean of the
+#: linear interpolation over the step that starts there: what an FMU that holds its input
+#: over the step must get to respond as to the continuous signal, to O(h^2)),
+#: "sample-of-hold" (the sample at the communication point of the staircase that "hold" gives
+#: an FMU: the mean of the held values before and after it; what an estimator must get while a
+#: plant is driven by the held signal, as the adaptive controller's f_sample).
+INTERPOLATIONS = ("linear", "hold", "average", "sample-of-hold")
+
+
+def _integral(ts: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The integral from ``ts[0]`` to each ``t`` of the linear interpolation of the samples
+    (a repeated time, a step, is a segment of length zero)."""
+    lengths = np.diff(ts)
+    cumulative = np.concatenate([[0.0], np.cumsum(0.5 * (values[1:] + values[:-1]) * lengths)])
+    i = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 2)
+    d = t - ts[i]
+    slope = np.divide(values[i + 1] - values[i], lengths[i], out=np.zeros(len(t)), where=lengths[i] > 0)
+    return cumulative[i] + values[i] * d + 0.5 * slope * d * d
 
 
 def sampled_on_grid(ext: External, grid: np.ndarray) -> np.ndarray:
     """The samples of a sampled external input at the communication points ``grid``.
 
     ``ext.interpolation`` "linear" interpolates between neighbouring samples, "hold" takes
-    the last sample at or before the point. A time given twice marks a step: at that time
-    and after it the second value holds (the right limit), before it the first.
+    the last sample at or before the point, "average" the mean of the linear interpolation
+    over the step from the point (at the last point, the value there). A time given twice
+    marks a step: at that time and after it the second value holds (the right limit),
+    before it the first.
     """
     ts, values = ext.value
     lo, hi = float(grid[0]), float(grid[-1])
-    if lo < ts[0] or hi > ts[-1]:
-        bad = lo if lo < ts[0] else hi
+    rounding = 1e-9 * float(grid[1] - grid[0]) if len(grid) > 1 else 0.0  # of t0 + k h against the samples' times
+    if lo < ts[0] - rounding or hi > ts[-1] + rounding:
+        bad = lo if lo < ts[0] - rounding else hi
         raise WiringError(f"input {ext.target} ({ext.origin}): the communication point t = {bad!r} lies "
                           f"outside the sampled range [{float(ts[0])!r}, {float(ts[-1])!r}] (never extrapolated)")
+    grid = np.clip(grid, ts[0], ts[-1])
     i = np.searchsorted(ts, grid, side="right") - 1  # the last sample at or before each point
     if ext.interpolation == "hold":
         return values[i]
+    if ext.interpolation == "sample-of-hold":
+        held = values[i]
+        return np.concatenate([held[:1], 0.5 * (held[1:] + held[:-1])])
+    if ext.interpolation == "average":
+        area = _integral(ts, values, grid)
+        out = np.empty(len(grid))
+        out[:-1] = np.diff(area) / np.diff(grid)
+        out[-1] = np.interp(grid[-1], ts, values) if np.all(np.diff(ts) > 0) else values[i[-1]]
+        return out
     if np.all(np.diff(ts) > 0):
         return np.interp(grid, ts, values)
     j = np.minimum(i + 1, len(ts) - 1)

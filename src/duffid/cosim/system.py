@@ -291,11 +291,14 @@ class System:
             value holding from that time on). Every communication point ``t_0 .. t_n``
             must lie within ``[t[0], t[-1]]``; nothing is extrapolated or clipped
             (:meth:`run` raises otherwise).
-        interpolation : {"linear", "hold"}, optional
+        interpolation : {"linear", "hold", "average", "sample-of-hold"}, optional
             How samples are read between sample times: "linear" interpolates, "hold" keeps
-            the last sample (zero-order hold). Default: "linear" for a Real input of
-            continuous variability, "hold" for a discrete-variability Real input and for
-            Integer and Boolean inputs (as FMI hosts do).
+            the last sample (zero-order hold), "average" gives each step the mean of the
+            linear interpolation over it, "sample-of-hold" the sample at each point of the
+            staircase that "hold" makes (the mean of the held values before and after it;
+            see :meth:`replay`). Default: "linear" for a Real input of continuous
+            variability, "hold" for a discrete-variability Real input and for Integer and
+            Boolean inputs (as FMI hosts do).
 
         Returns
         -------
@@ -312,7 +315,7 @@ class System:
         elif interpolation not in INTERPOLATIONS:
             raise WiringError(f"input {target!r} ({origin}): interpolation must be one of "
                               f"{', '.join(INTERPOLATIONS)}, got {interpolation!r}")
-        elif interpolation == "linear" and kind != "Real":
+        elif interpolation != "hold" and kind != "Real":
             raise WiringError(f"input {target!r} ({origin}) is {var.type}: it can only hold its samples")
         if isinstance(source, tuple) or isinstance(source, list):
             if len(source) != 2:
@@ -344,6 +347,37 @@ class System:
         self._drivers[target] = origin
         return self
 
+    def replay(self, samples: tuple, held: str, sampled: Sequence[str]) -> System:
+        """Replay a measured signal into a plant and into estimators, paired right.
+
+        An FMU input holds its value over each communication step, so a plant driven by the
+        samples ``f(t_k)`` responds to a staircase, which lags the samples by half a step; an
+        estimator given the same samples would read that lag as physics (for a stiff plant,
+        a half-step force lag looks like extra damping of about k h / 2). Here the plant's
+        input ``held`` gets the samples held over each step, and every input of
+        ``sampled`` gets the staircase's own sample at each communication point, the mean
+        of the held values before and after it (as the adaptive controller's ``f_sample``),
+        so that both see the same force.
+
+        Parameters
+        ----------
+        samples : (t, values)
+            The measured signal (see :meth:`set_input`).
+        held : str
+            The plant input (``"component.input"``).
+        sampled : sequence of str
+            The estimator inputs.
+
+        Returns
+        -------
+        System
+            self.
+        """
+        self._set_input(held, samples, "replay (held)", "hold")
+        for target in ([sampled] if isinstance(sampled, str) else sampled):
+            self._set_input(target, samples, "replay (sample of the held signal)", "sample-of-hold")
+        return self
+
     def inputs_from_csv(self, path: str | os.PathLike[str], columns: Mapping[str, str],
                         interpolation: Mapping[str, str] | None = None) -> System:
         """Drive inputs from the columns of a CSV file.
@@ -357,7 +391,8 @@ class System:
         columns : mapping
             CSV column -> ``"component.input"``.
         interpolation : mapping, optional
-            CSV column -> "linear" or "hold" (default per input: see :meth:`set_input`).
+            CSV column -> "linear", "hold", "average" or "sample-of-hold" (default per
+            input: see :meth:`set_input`).
 
         Returns
         -------
