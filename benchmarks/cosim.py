@@ -5,7 +5,8 @@ Run: python benchmarks/cosim.py [--stop-time 10] [--repeats 5] [--fmus DIR]
 The closed loop Oscillator1DOF <-> DuffingEstimator1 <-> AdaptiveController1 (FMI 2.0 C
 FMUs, 1 ms communication step, reference r = 5 mm held) is run by
 
-  a. the orchestrator, Jacobi and Gauss-Seidel (every output recorded);
+  a. the orchestrator, Jacobi and Gauss-Seidel (every output recorded), with its compiled
+     inner loop (C, the default) and with its Python loop (loop="python");
   b. the same graph exported as one container FMU (duffid.cosim.container), run by the
      orchestrator as a one-component system and by a bare fmpy FMU2Slave loop;
   c. a plain hand-written fmpy loop: FMU2Slave getReal/getBoolean/setReal/setBoolean/
@@ -166,8 +167,12 @@ def main() -> None:
         one = System().add("loop", container).set_input("loop.r", R)
         runs = {
             "plain fmpy loop (FMU2Slave methods)": lambda: plain_fmpy(fmus, n),
-            "orchestrator, Jacobi": lambda: system.run(n * H, H),
-            "orchestrator, Gauss-Seidel": lambda: system.run(n * H, H, ordering="gauss-seidel"),
+            "orchestrator, Jacobi, Python loop": lambda: system.run(n * H, H, loop="python"),
+            "orchestrator, Gauss-Seidel, Python loop": lambda: system.run(n * H, H, ordering="gauss-seidel",
+                                                                          loop="python"),
+            "orchestrator, Jacobi, compiled loop": lambda: system.run(n * H, H, loop="compiled"),
+            "orchestrator, Gauss-Seidel, compiled loop": lambda: system.run(n * H, H, ordering="gauss-seidel",
+                                                                            loop="compiled"),
             "container FMU, orchestrator": lambda: one.run(n * H, H),
             "container FMU, bare FMU2Slave loop": lambda: container_bare(container, n),
             "3 x doStep alone (floor, no exchange)": lambda: steps_only(fmus, n),
@@ -178,11 +183,19 @@ def main() -> None:
     base = rates["plain fmpy loop (FMU2Slave methods)"]
     print(f"\nCo-simulation of plant <-> estimator <-> controller (FMI 2.0 C FMUs), {n} macro steps of 1 ms, "
           f"median of {args.repeats} runs (set-up included)")
-    print(f"{'':<42}{'steps/s':>12}{'us/step':>10}{'ratio':>8}")
+    print(f"{'':<44}{'steps/s':>12}{'us/step':>10}{'ratio':>8}")
     for label, rate in rates.items():
-        print(f"{label:<42}{rate:>12,.0f}{1e6 / rate:>10.2f}{rate / base:>8.2f}")
+        print(f"{label:<44}{rate:>12,.0f}{1e6 / rate:>10.2f}{rate / base:>8.2f}")
+    python_loop = rates["orchestrator, Jacobi, Python loop"]
+    print(f"\ncompiled loop / Python loop (Jacobi): {rates['orchestrator, Jacobi, compiled loop'] / python_loop:.2f}; "
+          f"Gauss-Seidel: {rates['orchestrator, Gauss-Seidel, compiled loop'] / rates['orchestrator, Gauss-Seidel, Python loop']:.2f}")
+    for ordering in ("Jacobi", "Gauss-Seidel"):
+        a, b = values[f"orchestrator, {ordering}, compiled loop"], values[f"orchestrator, {ordering}, Python loop"]
+        same = all(np.array_equal(a[name], b[name], equal_nan=True) for name in a.names)
+        print(f"{ordering}: compiled and Python loops {'identical, bit for bit' if same else 'DIFFER'} over "
+              f"{len(a.names)} recorded variables; max |dx| {np.max(np.abs(a['plant.x'] - b['plant.x'])):.1e} m")
     plain = values["plain fmpy loop (FMU2Slave methods)"]
-    jacobi = values["orchestrator, Jacobi"]["plant.x"]
+    jacobi = values["orchestrator, Jacobi, compiled loop"]["plant.x"]
     inner = values["container FMU, orchestrator"]["loop.x"]
     bare = values["container FMU, bare FMU2Slave loop"]
     print(f"\nagreement: max |x| difference, orchestrator Jacobi vs plain loop {np.max(np.abs(jacobi - plain)):.1e} m, "

@@ -29,6 +29,7 @@ from fmpy.validation import validate_fmu  # noqa: E402
 from rounding import identifier_spread  # noqa: E402
 
 from duffid import Duffing1  # noqa: E402
+from duffid.cbuild import FMI2_PLATFORM  # noqa: E402
 from duffid.cosim.system import (  # noqa: E402  # noqa: E402
     Connection,
     CosimError,
@@ -39,7 +40,6 @@ from duffid.cosim.system import (  # noqa: E402  # noqa: E402
     _greedy_order,
     _order_cost,
 )
-from duffid.cbuild import FMI2_PLATFORM  # noqa: E402
 from duffid.data.record import Record  # noqa: E402
 from duffid.data.signals import Step  # noqa: E402
 from duffid.fmu.estimator import build_estimator_fmu  # noqa: E402

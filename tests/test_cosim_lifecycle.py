@@ -135,16 +135,19 @@ def test_a_binary_that_cannot_be_loaded_names_the_component_and_fmu(loop_fmus, t
 
 # ------------------------------------------------------------------ signals
 @pytest.mark.slow
+@pytest.mark.parametrize("loop", ["compiled", "python"])
 @pytest.mark.parametrize("signals", [("SIGTERM",), ("SIGINT", "SIGINT")])
-def test_signals_keep_the_rows_and_clean_up(loop_fmus, tmp_path, signals, no_new_cosim_folders):
+def test_signals_keep_the_rows_and_clean_up(loop_fmus, tmp_path, signals, loop, no_new_cosim_folders):
     """SIGTERM, or Ctrl-C twice (the second during the clean-up): every instance freed, the
-    extracted FMUs deleted, the rows so far written, no traceback."""
+    extracted FMUs deleted, the rows so far written, no traceback; in either inner loop (the
+    compiled one runs chunks of macro steps between which the signals are acted on)."""
     import signal
     import time
 
     config = tmp_path / "long.toml"
+    stop_time = 20000.0 if loop == "compiled" else 2000.0  # still running after 4 s
     config.write_text(f'[components.plant]\nfmu = "{loop_fmus["Oscillator1DOF"]}"\n[inputs]\n"plant.f" = 1.0\n'
-                      '[run]\nstop_time = 2000.0\nstep = 0.001\nrecord = ["plant.x"]\n')
+                      f'[run]\nstop_time = {stop_time}\nstep = 0.001\nrecord = ["plant.x"]\nloop = "{loop}"\n')
     out = tmp_path / "run.csv"
     process = subprocess.Popen([str(Path(sys.executable).with_name("duffid")), "cosim", str(config), "-o", str(out)],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

@@ -10,12 +10,12 @@ import pytest
 from rounding import assert_close, final_spread, identifier_spread
 
 from duffid import Duffing1, Duffing2, Record, measure
+from duffid.errors import InputError
 from duffid.identification.batch import estimate
 from duffid.identification.buffered import velocity_signs
 from duffid.identification.engine import Integrators, OnlineIdentifier
 from duffid.identification.equation import identify_equation
 from duffid.models.chain import Chain
-from duffid.errors import InputError
 from duffid.models.equation import EquationError, derive, parse_equations
 
 DUFFING1 = "m*der(x,2) + b*der(x) + k*x + kp*x^3 = f"

@@ -19,20 +19,23 @@ KERNEL32.dll and msvcrt.dll.
 """
 from __future__ import annotations
 
+import hashlib
 import os
 import shutil
 import subprocess
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Sequence
 
 import fmpy
 
-from .errors import BuildError, CompilerNotFoundError, InputError
+from .errors import AssetError, BuildError, CompilerNotFoundError, InputError
 
 __all__ = ["CFLAGS", "LIBRARY_FLAGS", "FMU_FLAGS", "find_compiler", "compile_shared_library",
            "FMI2_PLATFORM", "FMI3_PLATFORM", "SHARED_LIBRARY_SUFFIX", "fmu_binary_path",
-           "Platform", "PLATFORMS", "HOST_PLATFORM", "resolve_platforms", "platform_compiler"]
+           "Platform", "PLATFORMS", "HOST_PLATFORM", "resolve_platforms", "platform_compiler",
+           "cached_library", "default_build_dir"]
 
 #: Flags of every C build: optimised, position independent, warnings are errors, and no
 #: fused multiply-adds, so the C code computes what its Python reference computes,
@@ -235,3 +238,65 @@ def compile_shared_library(sources: Sequence[str | os.PathLike[str]], output: st
     if done.returncode != 0:
         raise BuildError(f"compiling {Path(output).name} for {platform.name} failed:\n{' '.join(command)}\n"
                          f"{(done.stdout + done.stderr).strip()}")
+
+
+def default_build_dir(source_dir: str | os.PathLike[str], component: str) -> Path:
+    """Where a library built from ``source_dir`` (``fmus/<component>``) is cached:
+    ``$DUFFID_BUILD_DIR``; else ``build/<component>`` of a writable checkout (the sources are
+    its files); else ``<user cache>/duffid/<component>``."""
+    env = os.environ.get("DUFFID_BUILD_DIR")
+    if env:
+        return Path(env)
+    root = Path(source_dir).resolve().parents[1]
+    if (root / "pyproject.toml").is_file() and os.access(root, os.W_OK):
+        return root / "build" / component
+    cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(cache) / "duffid" / component
+
+
+def cached_library(stem: str, source_dir: str | os.PathLike[str], sources: Sequence[str],
+                   headers: Sequence[str] = (), *, flags: Sequence[str] = LIBRARY_FLAGS,
+                   build_dir: str | os.PathLike[str] | None = None, compiler: str | None = None,
+                   force: bool = False) -> Path:
+    """A shared library for this machine compiled from ``sources`` (and ``headers``) of
+    ``source_dir``, cached as ``<build_dir>/<stem>-<hash><suffix>`` by the hash of the files
+    and the flags; stale builds of the same stem are removed.
+
+    The library is written to a temporary file and renamed: concurrent builders never see a
+    partial file. ``build_dir`` defaults to :func:`default_build_dir` of the source folder.
+
+    Raises
+    ------
+    AssetError
+        If a source or header is missing.
+    CompilerNotFoundError, BuildError
+        As :func:`compile_shared_library`.
+    """
+    src = Path(source_dir)
+    missing = [name for name in (*sources, *headers) if not (src / name).is_file()]
+    if missing:
+        raise AssetError(f"C sources of {stem} not found in {src}: {missing}")
+    digest = hashlib.sha256()
+    for name in (*sources, *headers):
+        digest.update(name.encode() + b"\0" + (src / name).read_bytes())
+    digest.update(" ".join((*CFLAGS, *flags)).encode())
+    out_dir = Path(build_dir) if build_dir is not None else default_build_dir(src, src.name)
+    target = out_dir / f"{stem}-{digest.hexdigest()[:16]}{SHARED_LIBRARY_SUFFIX}"
+    if target.is_file() and not force:
+        return target
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=target.stem + ".", suffix=target.suffix, dir=out_dir)
+    os.close(fd)
+    try:
+        compile_shared_library([src / name for name in sources], tmp, flags=flags, compiler=compiler)
+        os.replace(tmp, target)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    for stale in out_dir.glob(f"{stem}-*{SHARED_LIBRARY_SUFFIX}"):  # builds of older sources
+        if stale != target and len(stale.stem) == len(target.stem):
+            try:
+                stale.unlink()
+            except OSError:  # in use (Windows) or removed by another builder
+                pass
+    return target

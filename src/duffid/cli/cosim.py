@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from ..cosim import config as cosim_config
+from ..cosim.compiled_loop import LOOP_MODES
 from ..cosim.config import load_config
 from ..cosim.runner import signals_held
 from ..cosim.system import ORDERINGS
@@ -22,6 +23,9 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("config", type=Path, help="configuration file (.json or .toml)")
     p.add_argument("-o", "--output", type=Path, default=None, help="write the recorded outputs to this CSV")
     p.add_argument("--ordering", choices=ORDERINGS, default=None, help="override the file's run.ordering")
+    p.add_argument("--loop", choices=LOOP_MODES, default=None,
+                   help="override the file's run.loop: the macro steps in C (compiled) or Python; auto (default) "
+                        "takes C unless a component is a Python FMU")
     p.add_argument("--progress", action="store_true", help="show a progress bar")
     p.add_argument("--export-container", type=Path, default=None, metavar="FMU",
                    help="write the system as one container FMU (see the file's container section) and exit")
@@ -35,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
         if args.export_container is not None:
             print(config.export_container(args.export_container))
             return 0
-        result = config.run(progress=args.progress, ordering=args.ordering)
+        result = config.run(progress=args.progress, ordering=args.ordering, loop=args.loop)
     except CosimError as exc:
         print(f"duffid cosim: the run failed: {exc}", file=sys.stderr)
         if args.output is not None and exc.result is not None:
@@ -45,7 +49,8 @@ def run(args: argparse.Namespace) -> int:
                   file=sys.stderr)
         return 1
     if args.output is not None:
-        result.to_csv(args.output)
+        with signals_held():
+            result.to_csv(args.output)
     print(f"{len(result)} communication points from {result.time[0]:g} to {result.time[-1]:g} s "
           f"({config.ordering if args.ordering is None else args.ordering}, order {', '.join(result.order)})"
           + (f"; wrote {args.output}" if args.output is not None else ""))

@@ -38,12 +38,13 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError, WiringError
+from .compiled_loop import LOOP_MODES
 from .system import ORDERINGS, Result, System
 
 __all__ = ["ConfigError", "CosimConfig", "load_config"]
 
 _TOP = {"components", "connections", "inputs", "input_csv", "run", "container"}
-_RUN = {"stop_time", "step", "start_time", "ordering", "order", "record"}
+_RUN = {"stop_time", "step", "start_time", "ordering", "order", "record", "loop"}
 _COMPONENT = {"fmu", "parameters"}
 _CONTAINER = {"inputs", "outputs", "parameters"}
 
@@ -70,6 +71,8 @@ class CosimConfig:
         Variables to record (None: every output).
     container : dict
         The ``container`` section (inputs, outputs, parameters of an exported container).
+    loop : str
+        The inner loop (``System.run(loop=)``): ``"auto"``, ``"compiled"`` or ``"python"``.
     """
 
     path: Path
@@ -81,13 +84,14 @@ class CosimConfig:
     order: list[str] | None = None
     record: list[str] | None = None
     container: dict[str, Any] = field(default_factory=dict)
+    loop: str = "auto"
 
-    def run(self, *, progress: bool = False, ordering: str | None = None) -> Result:
-        """Run the system as configured (``ordering`` overrides the file's)."""
+    def run(self, *, progress: bool = False, ordering: str | None = None, loop: str | None = None) -> Result:
+        """Run the system as configured (``ordering`` and ``loop`` override the file's)."""
         ordering = ordering or self.ordering
         return self.system.run(self.stop_time, self.step, start_time=self.start_time, ordering=ordering,
                                order=self.order if ordering == "gauss-seidel" else None, record=self.record,
-                               progress=progress)
+                               progress=progress, loop=loop or self.loop)
 
     def export_container(self, path: str | os.PathLike[str]) -> Path:
         """Write the system as one container FMU described by the ``container`` section.
@@ -201,6 +205,9 @@ def load_config(path: str | os.PathLike[str]) -> CosimConfig:
     ordering = run.get("ordering", "jacobi")
     if ordering not in ORDERINGS:
         raise ConfigError(f"{path}: run.ordering must be one of {list(ORDERINGS)}, got {ordering!r}")
+    loop = run.get("loop", "auto")
+    if loop not in LOOP_MODES:
+        raise ConfigError(f"{path}: run.loop must be one of {list(LOOP_MODES)}, got {loop!r}")
     for key in ("order", "record"):
         if key in run and not (isinstance(run[key], list) and all(isinstance(s, str) for s in run[key])):
             raise ConfigError(f"{path}: run.{key} must be a list of names")
@@ -209,4 +216,4 @@ def load_config(path: str | os.PathLike[str]) -> CosimConfig:
                        step=_number(path, "run.step", run["step"], positive=True),
                        start_time=_number(path, "run.start_time", run.get("start_time", 0.0)),
                        ordering=ordering, order=run.get("order"), record=run.get("record"),
-                       container=container)
+                       container=container, loop=loop)

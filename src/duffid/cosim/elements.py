@@ -119,6 +119,8 @@ class Result:
         What the run could not do as a user may expect, in plain words (array outputs not
         recorded, FMI 3 aliases recorded once, a communication step shorter than an FMU's
         fixed internal step).
+    loop : str
+        The inner loop that ran: ``"compiled"`` (C) or ``"python"`` (see ``System.run(loop=)``).
     """
 
     time: np.ndarray
@@ -131,6 +133,7 @@ class Result:
     failure: Failure | None = None
     ended: str | None = None
     warnings: list[str] = field(default_factory=list)
+    loop: str = "python"
 
     def __getitem__(self, name: str) -> np.ndarray:
         """The column of ``"component.variable"`` (float64; int32 for Integer, bool for

@@ -24,6 +24,8 @@ from typing import TYPE_CHECKING, Any, Iterator
 import numpy as np
 
 from ..errors import CosimError
+from . import compiled_loop
+from .compiled_loop import CompiledLoop
 from .elements import (
     DTYPES,
     N_MESSAGES,
@@ -42,6 +44,9 @@ if TYPE_CHECKING:
     from .system import System
 
 __all__ = ["Runner", "signals_held"]
+
+#: Macro steps per call of the compiled loop: signals (Ctrl-C, SIGTERM) are acted on between calls.
+_COMPILED_CHUNK = 5000
 
 _FUNCS = {  # kind -> (get, set, ctype) per FMI version
     2: {"Real": ("fmi2GetReal", "fmi2SetReal", ctypes.c_double),
@@ -124,8 +129,9 @@ class Runner:
 
     def __init__(self, system: System, grid: np.ndarray, step: float, ordering: str, sequence: list[str],
                  delayed: list[Connection], names: list[str], sampled: dict[str, np.ndarray],
-                 progress: bool) -> None:
+                 progress: bool, loop: str = "auto") -> None:
         self.system, self.grid, self.step = system, grid, step
+        self.loop_mode, self.loop_used = loop, "python"
         self.n = len(grid) - 1
         self.ordering, self.sequence, self.delayed, self.names = ordering, sequence, delayed, names
         self.sampled, self.progress = sampled, progress
@@ -432,14 +438,16 @@ class Runner:
                 np.take(self.g[kind], idx, out=rec[row])
 
     # ------------------------------------------------------------------ loops
-    def _chunks(self) -> Any:
+    def _chunks(self, largest: int | None = None) -> Any:
         n = self.n
         if not self.progress:
-            yield 0, n
+            size = largest or max(n, 1)
+            for start in range(0, n, size):
+                yield start, min(n, start + size)
             return
         from tqdm import tqdm
 
-        size = max(1, n // 100)
+        size = max(1, min(n // 100, largest or n))
         with tqdm(total=n, unit="step", desc="co-simulation") as bar:
             for start in range(0, n, size):
                 stop = min(n, start + size)
@@ -460,10 +468,14 @@ class Runner:
         else:
             stages = [(self.set_ops[self.index[c]], [self.step_ops[self.index[c]]], self.get_ops[self.index[c]],
                        self.post_ops[self.index[c]]) for c in self.sequence]
+        self.ending: _Terminated | None = None
+        compiled = self._compiled_loop(stages)
+        if compiled is not None:
+            self._run_compiled(compiled)
+            return
         k = 0
         t = grid[0]
         t_arg = self.t_arg
-        self.ending: _Terminated | None = None
         try:
             for start, stop in self._chunks():
                 for k in range(start, stop):
@@ -504,6 +516,50 @@ class Runner:
         except BaseException as exc:
             self.rows = k + 2 if isinstance(exc, _Terminated) and exc.full else k + 1
             self.t_fail = t
+            raise
+        self.rows = self.n + 1
+
+    def _compiled_loop(self, stages: list[tuple]) -> CompiledLoop | None:
+        """The C loop over this run's operations, where it can run them: every component a C
+        FMU (not pythonfmu, which runs Python inside its calls), no input function to call in
+        Python, and a C compiler (else None: the Python loop)."""
+        if self.loop_mode == "python" or compiled_loop.obstacles(
+                [inst.comp for inst in self.instances], self.system._externals.values()):
+            return None  # System.run refused loop="compiled" for these
+        library = compiled_loop.load()
+        moves = [(view, table, None, 0, table.strides[0]) for view, table in self.tables.values()]
+        moves += [(rec, self.g[kind], None if identity else idx, rec.strides[0], 0)
+                  for kind, (rec, idx, identity) in self.records.items()]
+
+        def on_step(op: int, status: int, k: int) -> bool:
+            _, _, ci, fname, _, flags = loop.step_entries[op]
+            self._ended(ci, fname, status, flags, float(self.grid[k]))  # raises unless the FMU ended the run
+            return True
+
+        loop = CompiledLoop(library, self.grid, self.step, stages, moves, on_step)
+        return loop
+
+    def _run_compiled(self, loop: CompiledLoop) -> None:
+        """The macro steps in C, in chunks (Ctrl-C and SIGTERM act between them)."""
+        sets = [op for stage in loop.stage_lists for op in stage[0]]  # in the C arrays' order
+        gets = [op for stage in loop.stage_lists for op in stage[2]]
+        self.loop_used = "compiled"
+        try:
+            for start, stop in self._chunks(_COMPILED_CHUNK):
+                code = loop.run(start, stop)
+                k = loop.failed_step.value
+                if code == compiled_loop.SET_FAILED:
+                    _, _, _, _, _, ci, fname = sets[loop.failed_op.value]
+                    raise _StepFailure(ci, fname, loop.failed_status.value, float(self.grid[k]))
+                if code == compiled_loop.GET_FAILED:
+                    _, _, ci, fname = gets[loop.failed_op.value]
+                    raise _StepFailure(ci, fname, loop.failed_status.value, float(self.grid[k + 1]))
+                if code == compiled_loop.ENDED:
+                    raise self.ending
+        except BaseException as exc:
+            k = loop.failed_step.value
+            self.rows = k + 2 if isinstance(exc, _Terminated) and exc.full else k + 1
+            self.t_fail = float(self.grid[min(k, self.n)])
             raise
         self.rows = self.n + 1
 
@@ -637,4 +693,4 @@ class Runner:
         order = list(self.sequence)
         return Result(time=self.grid[:rows].copy(), names=list(self.names), _columns=columns, order=order,
                       delayed=list(self.delayed), ordering=self.ordering, step=self.step, failure=failure,
-                      ended=ended)
+                      ended=ended, loop=self.loop_used)

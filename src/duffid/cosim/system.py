@@ -80,6 +80,7 @@ ORDERINGS = ("jacobi", "gauss-seidel")
 EXACT_ORDER_LIMIT = 12
 
 from ..errors import CosimError, WiringError
+from .compiled_loop import LOOP_MODES, obstacles
 from .container import export_container
 from .elements import (
     INTERPOLATIONS,
@@ -510,7 +511,7 @@ class System:
     # ---------------------------------------------------------------- running
     def run(self, stop_time: float, step: float, start_time: float = 0.0, ordering: str = "jacobi",
             order: Sequence[str] | None = None, record: Sequence[str] | None = None,
-            progress: bool = False) -> Result:
+            progress: bool = False, loop: str = "auto") -> Result:
         """Co-simulate from ``start_time`` to ``stop_time`` at a fixed communication step.
 
         Parameters
@@ -534,6 +535,13 @@ class System:
             externally driven input.
         progress : bool
             Show a tqdm progress bar (updated in chunks of steps).
+        loop : {"auto", "compiled", "python"}
+            The inner loop: the macro steps in C over the FMUs' functions (``fmus/cosim``,
+            compiled on first use), or in Python. The two give the same trajectories bit
+            for bit; the C loop is faster. ``"auto"`` (default) takes the C loop unless a
+            component is a Python FMU (pythonfmu), an input is a Python function, or no C
+            compiler is found; ``"compiled"`` makes those cases an error.
+            ``Result.loop`` says which one ran.
 
         Returns
         -------
@@ -552,8 +560,14 @@ class System:
 
         if ordering not in ORDERINGS:
             raise WiringError(f"ordering must be one of {ORDERINGS}, got {ordering!r}")
+        if loop not in LOOP_MODES:
+            raise WiringError(f"loop must be one of {LOOP_MODES}, got {loop!r}")
         if not self._components:
             raise WiringError("the system has no components")
+        if loop == "compiled":
+            reasons = obstacles(self._components.values(), self._externals.values())
+            if reasons:
+                raise WiringError("loop='compiled' cannot run this system: " + "; ".join(reasons))
         for value, label in ((stop_time, "stop_time"), (step, "step"), (start_time, "start_time")):
             if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
                 raise WiringError(f"{label} must be a finite number, got {value!r}")
@@ -593,7 +607,7 @@ class System:
                                 "outputs change only every internal step (a staircase)")
         grid = float(start_time) + np.arange(n + 1) * float(step)
         sampled = {t: sampled_on_grid(e, grid) for t, e in self._externals.items() if e.mode == "sampled"}
-        runner = Runner(self, grid, float(step), ordering, sequence, delayed, names, sampled, progress)
+        runner = Runner(self, grid, float(step), ordering, sequence, delayed, names, sampled, progress, loop)
         result = runner.execute()
         result.warnings = warnings
         return result

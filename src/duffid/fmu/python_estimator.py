@@ -66,8 +66,7 @@ from xml.etree.ElementTree import Element, SubElement
 from ..errors import InputError
 from ..identification.engine import STATUSES, OnlineIdentifier, status_codes
 from ..identification.options import fmu_parameters, from_c, to_c
-from .estimator_table import (DEFAULT_SAMPLE_PERIOD, INPUTS, MODELS, SAMPLE_PERIOD_DESCRIPTION,
-                              estimator_variables)
+from .estimator_table import DEFAULT_SAMPLE_PERIOD, INPUTS, MODELS, SAMPLE_PERIOD_DESCRIPTION, estimator_variables
 from .fmi_xml import unit_definitions
 
 __all__ = ["build_python_fmu", "FMU_NAMES", "EstimatorSlave"]

@@ -16,9 +16,7 @@ Examples
 from __future__ import annotations
 
 import ctypes
-import hashlib
 import os
-import tempfile
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -26,7 +24,7 @@ import numpy as np
 
 from ..assets import fmu_sources
 from ..cbuild import CFLAGS as CBUILD_FLAGS
-from ..cbuild import LIBRARY_FLAGS, SHARED_LIBRARY_SUFFIX, compile_shared_library
+from ..cbuild import LIBRARY_FLAGS, cached_library, default_build_dir
 from ..data.record import Record
 from ..errors import AssetError, InputError
 from ..models.chain import Chain, Duffing1, Duffing2, model_from_name
@@ -109,22 +107,6 @@ def source_dir() -> Path:
     return fmu_sources("estimator")
 
 
-def _default_build_dir() -> Path:
-    """``$DUFFID_BUILD_DIR``; else ``build/estimator`` of a writable checkout; else the user's cache."""
-    env = os.environ.get("DUFFID_BUILD_DIR")
-    if env:
-        return Path(env)
-    root = fmu_sources("estimator").resolve().parents[1]  # the checkout, when the sources are its files
-    if (root / "pyproject.toml").is_file() and os.access(root, os.W_OK):
-        return root / "build" / "estimator"
-    cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(cache) / "duffid" / "estimator"
-
-
-def _library_name(tag: str) -> str:
-    return f"libduffid_estimator-{tag}{SHARED_LIBRARY_SUFFIX}"
-
-
 def build_library(build_dir: str | os.PathLike[str] | None = None, *, compiler: str | None = None,
                   force: bool = False) -> Path:
     """Compile the C core into a shared library (cached by source and flag hash).
@@ -156,30 +138,10 @@ def build_library(build_dir: str | os.PathLike[str] | None = None, *, compiler: 
     if missing:
         raise AssetError(f"C sources of the estimator core not found in {src}: {missing} "
                          "(set DUFFID_C_SOURCES to the fmus/estimator folder)")
-    digest = hashlib.sha256()
-    for name in SOURCES + HEADERS:
-        digest.update(name.encode() + b"\0" + (src / name).read_bytes())
-    digest.update(" ".join(CFLAGS).encode())
-    out_dir = Path(build_dir) if build_dir is not None else _default_build_dir()
-    target = out_dir / _library_name(digest.hexdigest()[:16])
-    if target.is_file() and not force:
-        return target
-    out_dir.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=target.stem + ".", suffix=target.suffix, dir=out_dir)
-    os.close(fd)
-    try:
-        compile_shared_library([src / name for name in SOURCES], tmp, flags=LIBRARY_FLAGS, compiler=compiler)
-        os.replace(tmp, target)  # atomic: concurrent builders never see a partial file
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    for stale in out_dir.glob(_library_name("*")):  # builds of older sources
-        if stale != target:
-            try:
-                stale.unlink()
-            except OSError:  # in use (Windows) or removed by another builder
-                pass
-    return target
+    if build_dir is None:
+        build_dir = default_build_dir(fmu_sources("estimator"), "estimator")
+    return cached_library("libduffid_estimator", src, SOURCES, HEADERS, flags=LIBRARY_FLAGS, build_dir=build_dir,
+                          compiler=compiler, force=force)
 
 
 _LIBRARIES: dict[str, ctypes.CDLL] = {}

@@ -1,0 +1,203 @@
+/*
+ * duffid_cosim_loop.c - the macro steps of duffid's co-simulation orchestrator in C.
+ *
+ * duffid.cosim.runner prepares, for a system of C FMUs, the same operations its Python loop
+ * executes every macro step (FMI set calls, doStep calls, get calls, conversions, the input
+ * table rows and the recorded rows) as flat arrays of the structures below, and calls
+ * duffid_cosim_run for a range of macro steps. The C loop performs exactly those
+ * operations in the same order on the same buffers: the results equal the Python loop's bit
+ * for bit (only values are copied; no arithmetic is done on them).
+ *
+ * A doStep that does not simply succeed (status above Warning, or an FMI 3 request to
+ * terminate) is handed to the caller's callback, which decides: 0 = the FMU asked to end
+ * the simulation after this macro step (the step is completed and recorded, then the loop
+ * returns DUFFID_LOOP_ENDED), anything else = abort now (DUFFID_LOOP_ABORTED).
+ *
+ * C99, no allocation, no global or static mutable state.
+ */
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+#define DUFFID_LOOP_DONE 0
+#define DUFFID_LOOP_SET_FAILED 1
+#define DUFFID_LOOP_GET_FAILED 2
+#define DUFFID_LOOP_ABORTED 3
+#define DUFFID_LOOP_ENDED 4
+
+/* Value conversions of a gather or a move. */
+#define DUFFID_COPY 0          /* same type: bytes */
+#define DUFFID_INT32_TO_BOOL 1 /* a 4-byte integer buffer to 1-byte fmi3Boolean */
+#define DUFFID_BOOL_TO_INT32 2 /* 1-byte fmi3Boolean to a 4-byte integer buffer */
+
+#define FMI_WARNING 1
+
+/* Any function pointer (the FMI functions are cast to their own types before the call). */
+typedef void (*duffid_function)(void);
+
+/* An FMI get or set call: function(instance, vr, n, value[, n]) (FMI 3 repeats n as nValues).
+ * With gather_index != NULL the values are first gathered into value from
+ * gather_source[gather_index[i]] (the Python loop's np.take). */
+typedef struct {
+    duffid_function function;
+    void *instance;
+    const unsigned int *vr;
+    size_t n;
+    void *value;
+    int fmi3;
+    int convert;
+    const char *gather_source;
+    const intptr_t *gather_index;
+    size_t itemsize; /* bytes per value of gather_source */
+} duffid_io_op;
+
+/* A doStep call; FMI 3 writes its three flags and the last successful time. */
+typedef struct {
+    duffid_function function;
+    void *instance;
+    int fmi3;
+    _Bool *event_handling_needed;
+    _Bool *terminate;
+    _Bool *early_return;
+    double *last_successful_time;
+} duffid_step_op;
+
+/* A copy of n values for row r (= k + 1 after macro step k): from source + r * source_stride
+ * (at index[i] when index != NULL) to destination + r * destination_stride. Tables are moves
+ * with destination_stride 0, recorded rows moves with source_stride 0, FMI 3 Boolean outputs
+ * moves with both 0. */
+typedef struct {
+    char *destination;
+    const char *source;
+    const intptr_t *index;
+    size_t n;
+    size_t itemsize; /* bytes per value of source */
+    ptrdiff_t destination_stride, source_stride;
+    int convert;
+} duffid_move;
+
+/* One stage of a macro step: sets, doSteps, gets and conversions [lo, hi) (Jacobi: one stage
+ * of everything; Gauss-Seidel: one stage per component in the stepping order). */
+typedef struct {
+    int set_lo, set_hi, step_lo, step_hi, get_lo, get_hi, post_lo, post_hi;
+} duffid_stage;
+
+typedef int (*duffid_step_callback)(int step_op, int status, long step);
+
+typedef int (*call4_t)(void *, const unsigned int *, size_t, void *);
+typedef int (*call5_t)(void *, const unsigned int *, size_t, void *, size_t);
+typedef int (*fmi2_do_step_t)(void *, double, double, int);
+typedef int (*fmi3_do_step_t)(void *, double, double, _Bool, _Bool *, _Bool *, _Bool *, double *);
+
+static void convert_values(char *dst, const char *src, size_t n, size_t itemsize, int convert)
+{
+    size_t i;
+    if (convert == DUFFID_INT32_TO_BOOL) {
+        for (i = 0; i < n; i++) {
+            int32_t v;
+            memcpy(&v, src + i * 4, 4);
+            ((_Bool *)dst)[i] = v != 0;
+        }
+    } else if (convert == DUFFID_BOOL_TO_INT32) {
+        for (i = 0; i < n; i++) {
+            int32_t v = ((const _Bool *)src)[i] ? 1 : 0;
+            memcpy(dst + i * 4, &v, 4);
+        }
+    } else {
+        memcpy(dst, src, n * itemsize);
+    }
+}
+
+static void gather(char *dst, const char *src, const intptr_t *index, size_t n, size_t itemsize, int convert)
+{
+    size_t i;
+    size_t out = convert == DUFFID_INT32_TO_BOOL ? 1 : (convert == DUFFID_BOOL_TO_INT32 ? 4 : itemsize);
+    for (i = 0; i < n; i++)
+        convert_values(dst + i * out, src + (size_t)index[i] * itemsize, 1, itemsize, convert);
+}
+
+static int io_call(const duffid_io_op *op)
+{
+    if (op->gather_index != NULL)
+        gather((char *)op->value, op->gather_source, op->gather_index, op->n, op->itemsize, op->convert);
+    if (op->fmi3)
+        return ((call5_t)op->function)(op->instance, op->vr, op->n, op->value, op->n);
+    return ((call4_t)op->function)(op->instance, op->vr, op->n, op->value);
+}
+
+static void move(const duffid_move *m, long row)
+{
+    char *dst = m->destination + row * m->destination_stride;
+    const char *src = m->source + row * m->source_stride;
+    if (m->index != NULL)
+        gather(dst, src, m->index, m->n, m->itemsize, m->convert);
+    else
+        convert_values(dst, src, m->n, m->itemsize, m->convert);
+}
+
+/*
+ * Macro steps k = start .. stop-1 on grid (t_k = grid[k], step h): per stage its sets, doSteps,
+ * gets and conversions, then the moves (input table rows, recorded rows) for row k + 1.
+ * Returns DUFFID_LOOP_*; *failed_step = the macro step being executed, *failed_op = the op
+ * index within its kind, *failed_status = the FMI status (failures only).
+ */
+int duffid_cosim_run(const double *grid, long start, long stop, double h, const duffid_stage *stages,
+                     int n_stages, const duffid_io_op *sets, const duffid_step_op *steps, const duffid_io_op *gets,
+                     const duffid_move *posts, const duffid_move *moves, int n_moves,
+                     duffid_step_callback on_step, long *failed_step, int *failed_op, int *failed_status)
+{
+    long k;
+    for (k = start; k < stop; k++) {
+        const double t = grid[k];
+        int ending = 0, s, i, status;
+        *failed_step = k;
+        for (s = 0; s < n_stages; s++) {
+            const duffid_stage *stage = &stages[s];
+            for (i = stage->set_lo; i < stage->set_hi; i++) {
+                status = io_call(&sets[i]);
+                if (status > FMI_WARNING) {
+                    *failed_op = i;
+                    *failed_status = status;
+                    return DUFFID_LOOP_SET_FAILED;
+                }
+            }
+            for (i = stage->step_lo; i < stage->step_hi; i++) {
+                const duffid_step_op *op = &steps[i];
+                int terminate;
+                if (op->fmi3) {
+                    status = ((fmi3_do_step_t)op->function)(op->instance, t, h, 1, op->event_handling_needed,
+                                                           op->terminate, op->early_return,
+                                                           op->last_successful_time);
+                    terminate = *op->terminate;
+                } else {
+                    status = ((fmi2_do_step_t)op->function)(op->instance, t, h, 1);
+                    terminate = 0;
+                }
+                if (status > FMI_WARNING || terminate) {
+                    if (on_step(i, status, k) != 0) {
+                        *failed_op = i;
+                        *failed_status = status;
+                        return DUFFID_LOOP_ABORTED;
+                    }
+                    ending = 1;
+                }
+            }
+            for (i = stage->get_lo; i < stage->get_hi; i++) {
+                status = io_call(&gets[i]);
+                if (status > FMI_WARNING) {
+                    *failed_op = i;
+                    *failed_status = status;
+                    return DUFFID_LOOP_GET_FAILED;
+                }
+            }
+            for (i = stage->post_lo; i < stage->post_hi; i++)
+                move(&posts[i], 0);
+        }
+        for (i = 0; i < n_moves; i++)
+            move(&moves[i], k + 1);
+        if (ending)
+            return DUFFID_LOOP_ENDED;
+    }
+    *failed_step = stop;
+    return DUFFID_LOOP_DONE;
+}
