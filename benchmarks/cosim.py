@@ -12,6 +12,11 @@ FMUs, 1 ms communication step, reference r = 5 mm held) is run by
   c. a plain hand-written fmpy loop: FMU2Slave getReal/getBoolean/setReal/setBoolean/
      doStep through fmpy's normal methods (Jacobi, the same values recorded);
 
+  d. libcosim (libcosimpy, the Open Simulation Platform's C++ co-simulation library), the same
+     connections, in its own virtual environment (created on first use under
+     ~/.cache/duffid/bench-libcosim, or --libcosim-venv; skipped with a message where
+     libcosimpy cannot be installed);
+
 and, as the floor, the three doStep calls alone (raw function pointers, no exchange).
 Each figure is the median of --repeats runs of the whole run (extraction,
 instantiation, initialisation and clean-up included), with its ratio to the plain fmpy
@@ -20,7 +25,11 @@ loop measured in the same run. The last lines check that the variants agree.
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -142,6 +151,44 @@ def container_bare(path: Path, n: int) -> np.ndarray:
     return xs
 
 
+def libcosim_venv(folder: Path) -> Path | str:
+    """The Python of a virtual environment with libcosimpy (created on first use), or why not."""
+    python = folder / "bin" / "python"
+    if python.is_file():
+        return python
+    done = subprocess.run([sys.executable, "-m", "venv", str(folder)], capture_output=True, text=True)
+    if done.returncode == 0:
+        done = subprocess.run([str(python), "-m", "pip", "install", "--quiet", "libcosimpy"], capture_output=True,
+                              text=True)
+    if done.returncode != 0:
+        return (done.stdout + done.stderr).strip().splitlines()[-1] if (done.stdout + done.stderr).strip() else "failed"
+    return python
+
+
+def libcosim(python: Path, fmus: dict[str, Path], n: int, repeats: int) -> tuple[float, np.ndarray]:
+    """Steps/s (median of ``repeats`` runs, set-up included) of the loop in libcosim, and plant.x on
+    the grid (NaN where libcosim recorded no sample)."""
+    import fmpy
+
+    vr = {k: {v.name: v.valueReference for v in fmpy.read_model_description(str(p)).modelVariables}
+          for k, p in fmus.items()}
+    wires = [("Real", "plant", "x", "est", "x"), ("Real", "plant", "x", "ctrl", "x")]
+    wires += [("Real", "est", e, "ctrl", e) for e in ESTIMATES]
+    wires += [("Boolean", "est", "identified", "ctrl", "identified"), ("Real", "ctrl", "f", "plant", "f"),
+              ("Real", "ctrl", "f_sample", "est", "f")]
+    spec = {"fmus": {k: str(p) for k, p in fmus.items()},
+            "connections": [[kind, a, vr[a][x], b, vr[b][y]] for kind, a, x, b, y in wires],
+            "initial": [["ctrl", vr["ctrl"]["r"], R]], "observe": ["plant", vr["plant"]["x"]], "step": H, "n": n,
+            "repeats": repeats}
+    script = Path(__file__).with_name("libcosim_loop.py")
+    done = subprocess.run([str(python), str(script), json.dumps(spec)], capture_output=True, text=True, check=True)
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    x = np.full(n + 1, np.nan)
+    samples = np.array(out["x"])
+    x[np.rint(samples[:, 0] / H).astype(int)] = samples[:, 1]
+    return n / statistics.median(out["seconds"]), x
+
+
 def _median_rate(run, n: int, repeats: int) -> tuple[float, object]:
     times, value = [], None
     for _ in range(repeats):
@@ -156,6 +203,9 @@ def main() -> None:
     parser.add_argument("--stop-time", type=float, default=10.0, help="simulated time [s] (default 10)")
     parser.add_argument("--repeats", type=int, default=5, help="runs per figure (default 5)")
     parser.add_argument("--fmus", type=Path, default=None, help="folder to build/reuse the FMUs in")
+    parser.add_argument("--libcosim-venv", type=Path,
+                        default=Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "duffid"
+                        / "bench-libcosim", help="virtual environment with libcosimpy (created if missing)")
     args = parser.parse_args()
     n = round(args.stop_time / H)
     with tempfile.TemporaryDirectory() as work:
@@ -180,6 +230,11 @@ def main() -> None:
         rates, values = {}, {}
         for label, run in runs.items():
             rates[label], values[label] = _median_rate(run, n, args.repeats)
+        python = libcosim_venv(args.libcosim_venv)
+        if isinstance(python, Path):
+            rates["libcosim (libcosimpy)"], values["libcosim (libcosimpy)"] = libcosim(python, fmus, n, args.repeats)
+        else:
+            print(f"libcosim skipped: libcosimpy could not be installed in {args.libcosim_venv} ({python})")
     base = rates["plain fmpy loop (FMU2Slave methods)"]
     print(f"\nCo-simulation of plant <-> estimator <-> controller (FMI 2.0 C FMUs), {n} macro steps of 1 ms, "
           f"median of {args.repeats} runs (set-up included)")
@@ -196,6 +251,12 @@ def main() -> None:
               f"{len(a.names)} recorded variables; max |dx| {np.max(np.abs(a['plant.x'] - b['plant.x'])):.1e} m")
     plain = values["plain fmpy loop (FMU2Slave methods)"]
     jacobi = values["orchestrator, Jacobi, compiled loop"]["plant.x"]
+    if "libcosim (libcosimpy)" in rates:
+        x = values["libcosim (libcosimpy)"]
+        seen = np.isfinite(x)
+        print(f"compiled loop / libcosim: {rates['orchestrator, Jacobi, compiled loop'] / rates['libcosim (libcosimpy)']:.2f}; "
+              f"libcosim vs orchestrator Jacobi: max |dx| {np.max(np.abs(x[seen] - jacobi[seen])):.1e} m over "
+              f"{np.count_nonzero(seen)} of {len(x)} points")
     inner = values["container FMU, orchestrator"]["loop.x"]
     bare = values["container FMU, bare FMU2Slave loop"]
     print(f"\nagreement: max |x| difference, orchestrator Jacobi vs plain loop {np.max(np.abs(jacobi - plain)):.1e} m, "
