@@ -8,13 +8,14 @@ import sys
 from typing import Sequence
 
 from ..errors import DuffidError
-from . import build_fmus, cosim, demo, identify, nonlinearity, paper_cases, silverbox, simulate
+from . import build_estimator, build_fmus, cosim, demo, identify, nonlinearity, paper_cases, silverbox, simulate
 
 __all__ = ["main", "build_parser", "COMMANDS"]
 
 #: Subcommand -> its module (``add_parser(sub)``, ``run(args)``), in the order of ``duffid --help``.
 COMMANDS = {"identify": identify, "simulate": simulate, "nonlinearity": nonlinearity, "silverbox": silverbox,
-            "build-fmus": build_fmus, "cosim": cosim, "demo": demo, "paper-cases": paper_cases}
+            "build-fmus": build_fmus, "build-estimator": build_estimator, "cosim": cosim, "demo": demo,
+            "paper-cases": paper_cases}
 
 
 def build_parser() -> argparse.ArgumentParser:

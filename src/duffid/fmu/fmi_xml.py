@@ -1,11 +1,11 @@
 """modelDescription.xml (FMI 2.0 and 3.0) and buildDescription.xml (FMI 3.0) writers."""
 from __future__ import annotations
 
-import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from typing import Iterable
 
+from ..models.units import SI_BASE, si_exponents
 from .variables import FmuVariable
 
 __all__ = ["FmuInfo", "model_description_fmi2", "model_description_fmi3", "build_description",
@@ -21,39 +21,8 @@ LOG_CATEGORIES = {
     "logStatusWarning": "Warnings",
     "logAll": "All messages",
 }
-_BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
-_UNITS = {
-    "kg": (1, 0, 0, 0, 0, 0, 0, 0), "m": (0, 1, 0, 0, 0, 0, 0, 0), "s": (0, 0, 1, 0, 0, 0, 0, 0),
-    "A": (0, 0, 0, 1, 0, 0, 0, 0), "K": (0, 0, 0, 0, 1, 0, 0, 0), "mol": (0, 0, 0, 0, 0, 1, 0, 0),
-    "cd": (0, 0, 0, 0, 0, 0, 1, 0), "rad": (0, 0, 0, 0, 0, 0, 0, 1),
-    "N": (1, 1, -2, 0, 0, 0, 0, 0), "J": (1, 2, -2, 0, 0, 0, 0, 0), "W": (1, 2, -3, 0, 0, 0, 0, 0),
-    "Pa": (1, -1, -2, 0, 0, 0, 0, 0), "Hz": (0, 0, -1, 0, 0, 0, 0, 0), "C": (0, 0, 1, 1, 0, 0, 0, 0),
-    "V": (1, 2, -3, -1, 0, 0, 0, 0), "Ohm": (1, 2, -3, -2, 0, 0, 0, 0), "Wb": (1, 2, -2, -1, 0, 0, 0, 0),
-    "H": (1, 2, -2, -2, 0, 0, 0, 0), "F": (-1, -2, 4, 2, 0, 0, 0, 0), "S": (-1, -2, 3, 2, 0, 0, 0, 0),
-    "T": (1, 0, -2, -1, 0, 0, 0, 0),
-}
-_FACTOR = re.compile(r"^([A-Za-z]+)(-?\d+)?$")
-
-
-def unit_exponents(unit: str) -> tuple[int, ...] | None:
-    """SI base-unit exponents of a Modelica unit string such as ``N.s/m`` (None: unknown)."""
-    if unit == "1":
-        return (0,) * len(_BASE)
-    numerator, _, denominator = unit.partition("/")
-    total = [0] * len(_BASE)
-    for part, sign in ((numerator, 1), (denominator, -1)):
-        if not part:
-            if sign == 1:
-                return None
-            continue
-        for factor in part.split("."):
-            m = _FACTOR.match(factor)
-            if m is None or m.group(1) not in _UNITS:
-                return None
-            power = int(m.group(2)) if m.group(2) else 1
-            for k, e in enumerate(_UNITS[m.group(1)]):
-                total[k] += sign * power * e
-    return tuple(total)
+#: SI base-unit exponents of a unit string (``N.s/m``; None: unknown), see :mod:`duffid.models.units`.
+unit_exponents = si_exponents
 
 
 @dataclass(frozen=True)
@@ -101,7 +70,7 @@ def unit_definitions(parent: ET.Element, names: Iterable[str]) -> None:
         element = ET.SubElement(defs, "Unit", name=unit)
         exps = unit_exponents(unit)
         if exps is not None:
-            ET.SubElement(element, "BaseUnit", {b: str(e) for b, e in zip(_BASE, exps) if e})
+            ET.SubElement(element, "BaseUnit", {b: str(e) for b, e in zip(SI_BASE, exps) if e})
 
 
 def _log_categories(parent: ET.Element) -> None:

@@ -210,6 +210,15 @@ class EquationModel:
                 return True
         return False
 
+    def residual_terms(self, x: np.ndarray, dx: np.ndarray, ddx: np.ndarray, f: np.ndarray, sgn: np.ndarray,
+                       t: float) -> tuple[np.ndarray, np.ndarray]:
+        """At one point of the signals (displacements, their derivatives, forces, signs of
+        velocity, time): the derivative of each equation's residual with respect to each
+        parameter (n_equations x n_parameters, parameters in :attr:`parameters` order) and
+        the residuals' terms without a parameter."""
+        jac, rest = self._regressors(x, dx, ddx, f if self.n_forces else np.zeros((0, 1)), sgn, t)
+        return np.asarray(jac, dtype=float), np.asarray(rest, dtype=float).ravel()
+
     # ------------------------------------------------------------------ dynamics
     def linear_natural_frequencies(self, parameters: Mapping[str, float] | None = None) -> np.ndarray:
         """Undamped natural frequencies [rad/s] of the equations linearised about rest.
