@@ -10,6 +10,7 @@ import pytest
 import scipy.io
 
 from duffid.data.record import Record, RecordError
+from duffid.errors import InputError
 
 DT = 0.001
 
@@ -230,7 +231,10 @@ HEADER = "t,f,x\n"
         ("t,f,x,temp,y\n" + csv_rows(3, 5), r", line 1 \(header\): unknown columns 'temp', 'y' \(found t, f, x, temp, y;"),
         ("t,f,x,x0\n" + csv_rows(3, 4), r", line 1 \(header\): unknown column 'x0'"),
         ("f,t,x\n" + csv_rows(3), r", line 1 \(header\): first column must be 't', found 'f'"),
-        ("t;f;x\n0;1;2\n", r", line 1 \(header\): first column must be 't', found 't;f;x'; columns must be separated by commas"),
+        ("t;f;x\n0;1;2\n", r", line 1 \(header\): first column must be 't', found 't;f;x'; the line is separated by "
+                            r"';', not commas: is that the delimiter\?"),
+        ("t,f,x\n0,1,2\n0.001,\"1,5\",2\n", r", line 3, column 'f': value '1,5' is not a number: a decimal comma\? "
+                                           r"give the decimal mark ','$"),
         ("t,f,x1,x2\n" + csv_rows(3, 4), r", line 1 \(header\): mixes unnumbered 'f' with numbered columns"),
         ("t,f1,f2,x1\n" + csv_rows(3, 4), r", line 1 \(header\): 2 force columns but only 1 displacement"),
         ("t,f,x,f\n" + csv_rows(3, 4), r", line 1 \(header\): duplicate column 'f'"),
@@ -266,6 +270,19 @@ def test_csv_errors(tmp_path: Path, text: str, match: str) -> None:
     path = write(tmp_path, text)
     with pytest.raises(RecordError, match="^" + re.escape(str(path)) + match):
         Record.read_csv(path)
+
+
+def test_csv_decimal_comma(tmp_path: Path) -> None:
+    """A logger or spreadsheet that writes 1,5: the same record with decimal=","; the decimal
+    mark cannot be the delimiter too."""
+    plain = write(tmp_path, "t,f,x\n0,1.5,2e-3\n0.001,-2.25,1.5e-3\n0.002,0,1\n")
+    comma = tmp_path / "comma.csv"
+    comma.write_text("t;f;x\n0;1,5;2e-3\n0,001;-2,25;1,5e-3\n0,002;0;1\n")
+    assert Record.read_csv(comma, delimiter=";", decimal=",") == Record.read_csv(plain)
+    with pytest.raises(InputError, match="decimal mark and the delimiter are both ','"):
+        Record.read_csv(plain, decimal=",")
+    with pytest.raises(InputError, match="decimal mark must be"):
+        Record.read_csv(plain, decimal=";")
 
 
 def test_csv_missing_file_and_bad_encoding(tmp_path: Path) -> None:

@@ -85,6 +85,8 @@ def add_file_arguments(p: argparse.ArgumentParser) -> None:
                    help="CSV: the column of each signal, by header name or 1-based number, e.g. "
                         "t=time_s,f=force_N,x=3 (roles t, f, x, or f1.., x1..); default: header t,f,x")
     g.add_argument("--delimiter", type=delimiter_value, default=",", help="CSV field separator (default ','; tab, ';', ...)")
+    g.add_argument("--decimal", choices=(".", ","), default=".",
+                   help="CSV decimal mark (default '.'; ',' for files that write 1,5 - with --delimiter ';' or tab)")
     g.add_argument("--scale", type=scales_value, default=None, metavar="ROLE=FACTOR,...",
                    help="multiply columns into SI units (s, N, m), e.g. x=1e-3 for millimetres")
     g.add_argument("--fs", type=positive_float, default=None,
@@ -126,7 +128,7 @@ def read_record(args: argparse.Namespace, path: Path | None = None) -> Record:
         return record.scaled(args.scale) if args.scale else record
     try:
         return Record.read_csv(path, sampling_rtol=args.sampling_tolerance, columns=args.columns,
-                               delimiter=args.delimiter, scale=args.scale, fs=args.fs)
+                               delimiter=args.delimiter, scale=args.scale, fs=args.fs, decimal=args.decimal)
     except RecordError as exc:  # say which flags fix it
         text = str(exc)
         known = re.search(r"\(multiply (\w+) by ([^)]+)\)$", text)
@@ -136,6 +138,7 @@ def read_record(args: argparse.Namespace, path: Path | None = None) -> Record:
                              ("give the sampling rate", " (--fs HZ, or --columns t=...)"),
                              ("sampling rate were both given", " (drop --fs or the t in --columns)"),
                              ("is that the delimiter", " (--delimiter)"),
+                             ("give the decimal mark", " (--decimal ,)"),
                              ("uneven sampling", " (or widen --sampling-tolerance)")):
             if needle in text:
                 raise RecordError(text + flag) from None

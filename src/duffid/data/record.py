@@ -418,7 +418,7 @@ class Record:
     def read_csv(
         cls, path: str | os.PathLike[str], *, sampling_rtol: float = 1e-6,
         columns: Mapping[str, str | int] | None = None, delimiter: str = ",",
-        scale: Mapping[str, float] | None = None, fs: float | None = None,
+        scale: Mapping[str, float] | None = None, fs: float | None = None, decimal: str = ".",
     ) -> Record:
         """Read a record from a CSV file: duffid's own layout, or what a logger wrote.
 
@@ -442,6 +442,9 @@ class Record:
             millimetres (``x``/``f`` apply to every displacement/force column).
         fs : float, optional
             Sampling rate [Hz] of a file without a time column (``t = k / fs``).
+        decimal : {".", ","}, optional
+            Decimal mark of the numbers (``","`` for loggers and spreadsheets of countries
+            that write ``1,5``; then the delimiter must not be ``","``).
 
         Returns
         -------
@@ -475,13 +478,18 @@ class Record:
         source = os.fspath(path)
         if len(delimiter) != 1:
             raise InputError(f"the delimiter must be one character, got {delimiter!r}")
+        if decimal not in (".", ","):
+            raise InputError(f"the decimal mark must be '.' or ',', got {decimal!r}")
+        if decimal == delimiter:
+            raise InputError(f"the decimal mark and the delimiter are both {decimal!r}: a file with decimal commas "
+                             "separates its columns with something else (';' or a tab, say)")
         if fs is not None and not (np.isfinite(fs) and fs > 0):
             raise InputError(f"the sampling rate must be a positive number of Hz, got {fs!r}")
         lines = _read_text_lines(source)
-        if columns is None and delimiter == "," and fs is None:
+        if columns is None and delimiter == "," and fs is None and decimal == ".":
             record = _parse_csv_lines(lines, source, rtol)
             return record if not scale else record.scaled(scale)
-        return _parse_logger_lines(lines, source, rtol, columns, delimiter, scale or {}, fs)
+        return _parse_logger_lines(lines, source, rtol, columns, delimiter, scale or {}, fs, decimal)
 
     # --------------------------------------------------------------------- MAT
     def to_mat(
@@ -751,8 +759,9 @@ def _parse_header(
     found = ", ".join(n if n else "''" for n in names)
     if names[0] != "t":
         hint = ""
-        if len(names) == 1 and any(sep in names[0] for sep in (";", "\t", " ")):
-            hint = "; columns must be separated by commas"
+        seen = [sep for sep in (";", "\t", " ") if sep in names[0]] if len(names) == 1 else []
+        if seen:
+            hint = f"; the line is separated by {seen[0]!r}, not commas: is that the delimiter?"
         raise RecordError(
             f"{where}: first column must be 't', found {names[0]!r}{hint} "
             f"(expected {_CSV_LAYOUTS})"
@@ -815,15 +824,20 @@ def _parse_header(
     return f_idx, x_idx
 
 
-def _number(text: str, place: str) -> float:
-    """The decimal number ``text`` of a CSV field; RecordError naming ``place`` otherwise."""
-    if _NUMBER_RE.fullmatch(text):
-        return float(text)
+def _number(text: str, place: str, decimal: str = ".") -> float:
+    """The decimal number ``text`` of a CSV field (``decimal``: its decimal mark); RecordError
+    naming ``place`` otherwise."""
+    plain = text.replace(",", ".", 1) if decimal == "," and "." not in text else text
+    if _NUMBER_RE.fullmatch(plain):
+        return float(plain)
     if not text:
         raise RecordError(f"{place}: empty value")
     if _NONFINITE_RE.fullmatch(text):
         raise RecordError(f"{place}: value '{text}' is not finite")
-    raise RecordError(f"{place}: value '{text}' is not a number")
+    hint = ""
+    if decimal == "." and _NUMBER_RE.fullmatch(text.replace(",", ".", 1)):
+        hint = ": a decimal comma? give the decimal mark ','"
+    raise RecordError(f"{place}: value '{text}' is not a number{hint}")
 
 
 def _parse_csv_lines(lines: list[str], source: str, rtol: float) -> Record:
@@ -954,7 +968,7 @@ def _is_number(text: str) -> bool:
 
 
 def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Mapping[str, str | int] | None,
-                        delimiter: str, scale: Mapping[str, float], fs: float | None) -> Record:
+                        delimiter: str, scale: Mapping[str, float], fs: float | None, decimal: str = ".") -> Record:
     """Parse a CSV file with a column mapping, delimiter, units row, scale or sampling rate."""
     def split(line: str) -> list[str]:
         return [field.strip() for field in next(csv.reader([line], delimiter=delimiter))]
@@ -1020,7 +1034,7 @@ def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Map
         if len(fields) != len(names):
             raise RecordError(f"{source}, line {lineno}: {len(fields)} field{'s' if len(fields) != 1 else ''}, "
                               f"the header has {len(names)} columns")
-        rows.append([_number(fields[index[role]], f"{source}, line {lineno}, column {names[index[role]]!r}")
+        rows.append([_number(fields[index[role]], f"{source}, line {lineno}, column {names[index[role]]!r}", decimal)
                      for role in roles])
         linenos.append(lineno)
     if len(rows) < 2:
