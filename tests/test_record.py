@@ -231,6 +231,8 @@ HEADER = "t,f,x\n"
         ("t,f,x,temp,y\n" + csv_rows(3, 5), r", line 1 \(header\): unknown columns 'temp', 'y' \(found t, f, x, temp, y;"),
         ("t,f,x,x0\n" + csv_rows(3, 4), r", line 1 \(header\): unknown column 'x0'"),
         ("f,t,x\n" + csv_rows(3), r", line 1 \(header\): first column must be 't', found 'f'"),
+        ("t,f,x,\n0,1,2,\n", r", line 1 \(header\): column 4 has an empty name \(found t, f, x, ''\) \(every line ends "
+                              r"with the delimiter\? remove it\)$"),
         ("t;f;x\n0;1;2\n", r", line 1 \(header\): first column must be 't', found 't;f;x'; the line is separated by "
                             r"';', not commas: is that the delimiter\?"),
         ("t,f,x\n0,1,2\n0.001,\"1,5\",2\n", r", line 3, column 'f': value '1,5' is not a number: a decimal comma\? "
@@ -283,6 +285,19 @@ def test_csv_decimal_comma(tmp_path: Path) -> None:
         Record.read_csv(plain, decimal=",")
     with pytest.raises(InputError, match="decimal mark must be"):
         Record.read_csv(plain, decimal=";")
+
+
+def test_csv_declared_delimiter(tmp_path: Path) -> None:
+    """Excel's ``sep=;`` first line declares the delimiter; a different one given is an error
+    naming the line."""
+    plain = write(tmp_path, "t,f,x\n0,1.5,2e-3\n0.001,-2.25,1.5e-3\n")
+    excel = tmp_path / "excel.csv"
+    excel.write_text("sep=;\nt;f;x\n0;1,5;2e-3\n0,001;-2,25;1,5e-3\n")
+    assert Record.read_csv(excel, decimal=",") == Record.read_csv(plain)
+    with pytest.raises(RecordError, match=r"excel.csv, line 1: the file declares the delimiter ';' \(sep=\)"):
+        Record.read_csv(excel, delimiter="\t", decimal=",")
+    with pytest.raises(RecordError, match=r"line 3, column 'f': value '1,5' is not a number: a decimal comma"):
+        Record.read_csv(excel)
 
 
 def test_csv_missing_file_and_bad_encoding(tmp_path: Path) -> None:

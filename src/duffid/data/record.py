@@ -480,12 +480,13 @@ class Record:
             raise InputError(f"the delimiter must be one character, got {delimiter!r}")
         if decimal not in (".", ","):
             raise InputError(f"the decimal mark must be '.' or ',', got {decimal!r}")
-        if decimal == delimiter:
-            raise InputError(f"the decimal mark and the delimiter are both {decimal!r}: a file with decimal commas "
-                             "separates its columns with something else (';' or a tab, say)")
         if fs is not None and not (np.isfinite(fs) and fs > 0):
             raise InputError(f"the sampling rate must be a positive number of Hz, got {fs!r}")
         lines = _read_text_lines(source)
+        delimiter = _declared_delimiter(lines, source, delimiter)
+        if decimal == delimiter:
+            raise InputError(f"the decimal mark and the delimiter are both {decimal!r}: a file with decimal commas "
+                             "separates its columns with something else (';' or a tab, say)")
         if columns is None and delimiter == "," and fs is None and decimal == ".":
             record = _parse_csv_lines(lines, source, rtol)
             return record if not scale else record.scaled(scale)
@@ -724,6 +725,25 @@ def _column_names(nf: int, nx: int) -> list[str]:
     return ["t"] + [f"f{j + 1}" for j in range(nf)] + [f"x{j + 1}" for j in range(nx)]
 
 
+def _declared_delimiter(lines: list[str], source: str, delimiter: str) -> str:
+    """The delimiter a spreadsheet export declares on its first line (``sep=;``, Excel's
+    convention; that line then becomes a comment), else ``delimiter``. A declared delimiter
+    other than a non-default ``delimiter`` given is an error."""
+    for k, line in enumerate(lines):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        match = re.fullmatch(r"\s*sep=(.)\s*", line)
+        if match is None:
+            return delimiter
+        declared = match.group(1)
+        if delimiter not in (",", declared):
+            raise RecordError(f"{source}, line {k + 1}: the file declares the delimiter {declared!r} (sep=), "
+                              f"but {delimiter!r} was given")
+        lines[k] = "#" + line
+        return declared
+    return delimiter
+
+
 def _shape(arr: np.ndarray) -> str:
     """MATLAB-style shape text, e.g. ``'2x1000'``."""
     return "x".join(str(s) for s in arr.shape)
@@ -768,7 +788,8 @@ def _parse_header(
         )
     for k, name in enumerate(names):
         if not name:
-            raise RecordError(f"{where}: column {k + 1} has an empty name (found {found})")
+            trailing = " (every line ends with the delimiter? remove it)" if k == len(names) - 1 else ""
+            raise RecordError(f"{where}: column {k + 1} has an empty name (found {found}){trailing}")
     seen: set[str] = set()
     for name in names:
         if name in seen:
