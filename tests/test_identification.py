@@ -127,6 +127,21 @@ def test_linear_plant_gives_kp_near_zero_and_calls_it_not_excited():
     assert result.parameters["k"] == pytest.approx(1272.1, rel=1e-3)
 
 
+def test_the_status_goes_with_the_values_shown():
+    """A checked result's ``status`` is the assessment's (a value is shown exactly where it says
+    published), even where the online estimator had published one the checks withdrew; an
+    unchecked one's is the online estimator's."""
+    plant = Duffing1(kp=0.0)
+    record = measure(simulate(plant, Step(10.0), 1.0, 1e-3))
+    checked = identify(record, Duffing1(), refine=False)
+    assert checked.status == checked.assessment.status and checked.online_status
+    for name, value in checked.parameters.items():
+        assert (checked.status[name] == "published") == np.isfinite(value), name
+    assert checked.online_status["k"] == "published"
+    bare = estimate(record, Duffing1())
+    assert bare.assessment is None and bare.status == bare.online_status
+
+
 def test_the_trust_test_does_not_depend_on_the_models_values_but_takes_a_prior():
     plant = Duffing1(kp=0.0)
     record = measure(simulate(plant, Step(10.0), 1.0, 1e-3))

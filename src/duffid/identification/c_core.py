@@ -350,7 +350,7 @@ class CIdentifier(Identifier):
             t_identified=float(record.t[np.argmax(flags)] - record.t[0]) if flags.any() else None,
             window=float(rows["window"][-1]), options=dict(self.options), source=record.source,
             estimates={name: float(rows["current"][-1, i]) for i, name in enumerate(self._names)},
-            status={name: STATUSES[rows["status"][-1, i]] for i, name in enumerate(self._names)},
+            online_status={name: STATUSES[rows["status"][-1, i]] for i, name in enumerate(self._names)},
             outliers=[{"t": float(rows["outlier_t"][k]), "column": f"x{int(rows['outlier_column'][k]) + 1}",
                        "value": float(rows["outlier_value"][k]), "replaced_by": float(rows["outlier_replaced_by"][k])}
                       for k in found],

@@ -858,10 +858,12 @@ class Identification:
         :func:`duffid.identification.trust.identify`; None for a bare estimator run (:func:`estimate`, or
         ``identify(check=False)``), whose ``parameters`` are the estimator's final values,
         unchecked.
-    status : dict
+    online_status : dict
         The online estimator's own status of each parameter at the last sample (see
-        :data:`STATUSES`); empty for the buffered methods. The checked status is the
-        assessment's.
+        :data:`STATUSES`); empty for the buffered methods.
+    status : dict (read-only)
+        The status that goes with ``parameters``: the assessment's where the record was
+        checked (a value is shown only where it says ``published``), else ``online_status``.
     outliers : list of dict
         Displacement samples the online estimator excluded as isolated outliers
         (:attr:`OnlineIdentifier.outliers`).
@@ -880,8 +882,14 @@ class Identification:
     source: str = ""
     estimates: dict[str, float] = field(default_factory=dict)
     assessment: Any = None
-    status: dict[str, str] = field(default_factory=dict)
+    online_status: dict[str, str] = field(default_factory=dict)
     outliers: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def status(self) -> dict[str, str]:
+        """The status of each value of ``parameters``: the assessment's for a checked record,
+        else the online estimator's (``online_status``)."""
+        return dict(self.assessment.status) if self.assessment is not None else dict(self.online_status)
 
     @classmethod
     def from_estimates(cls, ident: OnlineIdentifier, record: Record, estimates: list[Estimate]) -> "Identification":
@@ -897,7 +905,7 @@ class Identification:
             t_identified=float(record.t[np.argmax(flags)] - record.t[0]) if flags.any() else None,
             window=estimates[-1].window, options=dict(ident.options), source=record.source,
             estimates={name: float(final[name]) for name in names},
-            status=dict(estimates[-1].status or {}),
+            online_status=dict(estimates[-1].status or {}),
         )
 
     def errors(self, truth: Mapping[str, float]) -> dict[str, float]:
@@ -939,8 +947,8 @@ class Identification:
         }
         if self.assessment is not None:
             out.update(self.assessment.to_dict())
-        elif self.status:
-            out["status"] = dict(self.status)
+        elif self.online_status:
+            out["status"] = dict(self.online_status)
         if self.outliers:
             out["outliers_excluded"] = [dict(o) for o in self.outliers]
         out.update({

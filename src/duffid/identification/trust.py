@@ -680,8 +680,8 @@ def _renamed(result: Identification, model: Chain) -> Identification:
     result.history = {k: np.array([row[k] for row in rows]) for k in model.parameters}
     result.parameters = public(result.parameters)
     result.estimates = public(result.estimates)
-    by_canonical = {core.canonical_name(k): v for k, v in result.status.items()}
-    result.status = {k: by_canonical[model.canonical_name(k)] for k in model.parameters}
+    by_canonical = {core.canonical_name(k): v for k, v in result.online_status.items()}
+    result.online_status = {k: by_canonical[model.canonical_name(k)] for k in model.parameters}
     result.model = model.name
     return result
 
