@@ -30,6 +30,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/silverbox.py
 	$(BIN)/python benchmarks/cosim.py
 	$(BIN)/python benchmarks/trust.py
+	$(BIN)/python benchmarks/platforms.py
 
 # files generated from one source: the C tables of the estimator options and the controller
 # parameters, from duffid.identification.options and duffid.control.settings

@@ -402,25 +402,23 @@ def test_rebuild_from_sources_with_fmpy_gives_identical_results(fmus, case_a, tm
 
 
 def test_c_host_program_matches_python(fmus, case_a, tmp_path):
-    """tests/c/fmu_host.c dlopens the FMU's binary and steps it; same numbers as fmpy."""
-    from pathlib import Path
+    """tests/c/fmi_host.c (the C host of tests/test_c_hosts.py) loads the FMU's binary itself
+    and steps it, FMI 2 and FMI 3: every estimate at every step, bit for bit as fmpy."""
+    import os
 
-    host_src = Path(__file__).parent / "c" / "fmu_host.c"
-    unzipdir = Path(fmpy.extract(str(fmus["DuffingEstimator1.fmu"]), str(tmp_path / "host")))
-    md = fmpy.read_model_description(str(fmus["DuffingEstimator1.fmu"]))
-    include = Path(fmpy.__file__).parent / "c-code"
-    exe = tmp_path / "fmu_host"
-    subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-Werror", f"-I{include}", str(host_src), "-o",
-                    str(exe), "-ldl"], check=True)
-    samples = tmp_path / "samples.txt"
-    np.savetxt(samples, np.column_stack([case_a.x, case_a.f]), fmt="%.17g")
-    binary = unzipdir / "binaries" / "linux64" / "DuffingEstimator1.so"
-    done = subprocess.run([str(exe), str(binary), md.guid, unzipdir.as_uri(), str(case_a.dt), str(samples)],
-                          capture_output=True, text=True, check=True)
-    host = np.array([float(v) for v in done.stdout.split()])
-    result = simulate_record(fmus["DuffingEstimator1.fmu"], case_a, ["x", "f"], {"sample_period": 1e-3})  # the host's
-    expected = np.array([result[f"{p}_hat"][-1] for p in Duffing1().parameters])
-    np.testing.assert_array_equal(host, expected)
+    from c_hosts import Case, Host, compile_host, run_host
+
+    from duffid.cbuild import HOST_PLATFORM
+
+    host = Host(HOST_PLATFORM, compile_host(HOST_PLATFORM, tmp_path), dict(os.environ))
+    inputs = {"x": np.ravel(case_a.x), "f": np.ravel(case_a.f)}
+    outputs = [f"{p}_hat" for p in Duffing1().parameters]
+    for version in (2, 3):
+        fmu = fmus[C_FILES["duffing1", version]]
+        got = run_host(host, Case(fmu.name, fmu, case_a.dt, inputs, {"sample_period": case_a.dt}, outputs), tmp_path)
+        expected = simulate_record(fmu, case_a, ["x", "f"])
+        for name in ["time", *outputs]:
+            np.testing.assert_array_equal(got[name], expected[name], err_msg=f"{fmu.name}: {name}")
 
 
 def test_a_glitch_is_excluded_by_both_fmus(fmus, case_b_exact):
