@@ -2,8 +2,10 @@
 
 Simulates the paper's sweep (instantaneous frequency 2.5 t Hz) on the 1-DOF Duffing plant
 and on the same plant without its cubic spring, at three amplitudes, and prints eta with
-and without the band-edge correction. Writes the Argand/Bode plot of the largest
-amplitude and eta vs amplitude.
+and without the band-edge correction, the Hilbert distortion with its noise floor, and the
+verdict with what it rests on. The three amplitudes of each plant are then judged together
+(the homogeneity test: does the FRF change with amplitude?). Writes the Argand/Bode plot of
+the largest amplitude and eta and D vs amplitude.
 
 Run: python examples/nonlinearity_index.py [--out DIR]
 """
@@ -14,6 +16,7 @@ from pathlib import Path
 
 from duffid import Duffing1
 from duffid.analysis.nonlinearity import amplitude_sweep
+from duffid.analysis.verdict import decide_group
 from duffid.apps.plots import plot_eta_vs_amplitude, plot_hilbert
 
 
@@ -28,7 +31,10 @@ def main() -> None:
         series[label] = amplitude_sweep(amplitudes, plant, rate=2.5, f_max=10.0)
         for r in series[label]:
             print(f"{label:>16} {r.amplitude:4.1f} N: eta {r.eta:.5f} (uncorrected {r.eta_uncorrected:.5f}), "
-                  f"distortion {r.distortion_db:6.1f} dB, {r.verdict}")
+                  f"distortion {r.distortion_db:6.1f} dB (noise floor {r.distortion_floor_db:.0f} dB): {r.verdict}")
+            print(f"{'':>20}{r.reasons[0]}")
+        group = decide_group([r.decision for r in series[label]], [r.frf for r in series[label]])
+        print(f"{label:>16} at all three amplitudes: {group.verdict}: {'; '.join(group.reasons)}")
     plot_hilbert(series["Duffing"][-1], args.out / "hilbert_duffing_6N.png")
     plot_eta_vs_amplitude(series, args.out / "eta_vs_amplitude.png")
 

@@ -109,3 +109,76 @@ def test_identify_equation_json(capsys, case_a_csv):
     assert data["parameters"]["mass"] == pytest.approx(2.53, rel=2e-3)
     code, _, err = _run(capsys, "identify", str(case_a_csv), "--equation", "m*der(x)*der(x) + k*x = f")
     assert code == 2 and "der(x)" in err
+
+
+# ---------------------------------------------------------------------- duffid nonlinearity (issue 18)
+@pytest.fixture(scope="module")
+def nonlinearity_files(tmp_path_factory):
+    """A linear plant under a random force (no ring-down), and linear and hardening sweeps at 0.3 and 1 N."""
+    from duffid import simulate
+    from duffid.analysis.nonlinearity import sweep_record
+    from duffid.data.signals import Multisine
+
+    folder = tmp_path_factory.mktemp("nonlinearity")
+    linear = Duffing1(kp=0.0)
+    simulate(linear, Multisine(1.0, 0.5, 10.0, 32.0, phases="random", seed=1), 32.0, 2e-3,
+             rtol=1e-8, atol=1e-12).to_csv(folder / "random.csv")
+    peak = np.max(np.abs(sweep_record(linear, 1.0, rate=1.0).x))
+    hard = Duffing1(kp=0.4 * 1272.1 / peak**2)
+    for name, plant in (("linear", linear), ("hard", hard)):
+        for a in (0.3, 1.0):
+            sweep_record(plant, a, rate=1.0).to_csv(folder / f"{name}_{a}N.csv")
+    return folder
+
+
+def test_nonlinearity_random_force_cannot_tell_in_words(capsys, nonlinearity_files):
+    code, out, err = _run(capsys, "nonlinearity", str(nonlinearity_files / "random.csv"))
+    assert code == 0 and "Warning" not in err and "warn" not in err.lower()
+    assert "h1" in out and "cannot tell" in out and "a random force linearises the plant" in out
+    assert "thresholds (set by the simulation study of benchmarks/nonlinearity.py)" in out
+
+
+def test_nonlinearity_sweep_estimator_leakage_message(capsys, nonlinearity_files):
+    code, out, err = _run(capsys, "nonlinearity", str(nonlinearity_files / "random.csv"), "--estimator", "sweep")
+    assert code == 0 and not err
+    assert "the response has not decayed at the end" in out and "append a ring-down or use --estimator h1" in out
+
+
+def test_nonlinearity_groups_by_plant_and_orders_by_amplitude(capsys, nonlinearity_files, tmp_path):
+    files = [str(nonlinearity_files / n) for n in ("hard_1.0N.csv", "linear_0.3N.csv", "hard_0.3N.csv", "linear_1.0N.csv")]
+    png = tmp_path / "eta.png"
+    code, out, _ = _run(capsys, "nonlinearity", *files, "--json", "--plot", str(png))
+    assert code == 0 and png.stat().st_size > 1000
+    rows = json.loads(out)
+    assert [r["group"].endswith("hard_#N.csv") for r in rows] == [True, False, True, False]
+    hard, linear = rows[0]["group_verdict"], rows[1]["group_verdict"]
+    assert hard["verdict"] == "nonlinear" and linear["verdict"] == "dominantly linear"
+    assert rows[0]["verdict"] == "nonlinear" and rows[0]["reasons"] and rows[0]["estimator"] == "sweep"
+    assert rows[0]["thresholds"]["D_NONLINEAR_DB"] < 0
+    code, out, _ = _run(capsys, "nonlinearity", *files, "--group", "a,b,a,b")
+    assert code == 0 and "plant a (2 records, amplitudes 0.3-1)" in out and "plant b" in out
+
+
+def test_nonlinearity_group_option_errors(capsys, nonlinearity_files):
+    files = [str(nonlinearity_files / n) for n in ("hard_1.0N.csv", "linear_0.3N.csv")]
+    code, _, err = _run(capsys, "nonlinearity", *files, "--group", "a")
+    assert code == 2 and "--group needs one non-empty label per file" in err
+    code, _, err = _run(capsys, "nonlinearity", *files, "--segments", "1")
+    assert code == 2 and "--segments" in err
+
+
+def test_nonlinearity_model_gives_the_nonlinear_share(capsys, nonlinearity_files):
+    code, out, _ = _run(capsys, "nonlinearity", str(nonlinearity_files / "hard_1.0N.csv"), "--model", "duffing1")
+    assert code == 0 and "nonlinear share of the restoring force kp x^2/k = +" in out and "(hardening)" in out
+    code, out, _ = _run(capsys, "nonlinearity", str(nonlinearity_files / "linear_0.3N.csv"), "--model", "duffing1",
+                        "--json")
+    (share,) = json.loads(out)["shares"]
+    assert share["share"] is None and share["reason"].startswith("the nonlinear share cannot be given: kp is")
+
+
+def test_nonlinearity_stepped_rejects_single_record_options(capsys, nonlinearity_files):
+    files = [str(nonlinearity_files / n) for n in ("hard_1.0N.csv", "linear_0.3N.csv")]
+    code, _, err = _run(capsys, "nonlinearity", *files, "--stepped", "--estimator", "h1")
+    assert code == 2 and "--estimator applies to single records" in err
+    code, _, err = _run(capsys, "nonlinearity", *files, "--stepped", "--group", "a,a")
+    assert code == 2 and "--group applies to separate records" in err

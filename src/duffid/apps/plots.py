@@ -131,27 +131,46 @@ def plot_hilbert(result, path: str | os.PathLike[str], *, title: str | None = No
 
 def plot_eta_vs_amplitude(series, path: str | os.PathLike[str], *, threshold: float = 0.9,
                           title: str | None = None) -> None:
-    """``eta`` vs excitation amplitude with the linearity threshold (paper Figures 6 and 11).
+    """``eta`` and the Hilbert distortion vs excitation amplitude (paper Figures 6 and 11).
 
     Parameters
     ----------
     series : mapping of str to list of NonlinearityResult
-        One curve per label (e.g. per sweep rate).
+        One curve per label (a plant, or a sweep rate), drawn in order of amplitude; each
+        point's marker shows its verdict (filled: nonlinear, open: dominantly linear,
+        cross: cannot tell).
     path : path
         PNG file to write.
+    threshold : float
+        The paper's eta criterion, drawn as a line.
     """
-    fig = Figure(figsize=(6.5, 4))
-    ax = fig.subplots()
-    for label, results in series.items():
-        amps = [r.amplitude for r in results]
-        ax.plot(amps, [r.eta for r in results], "o-", label=f"{label} (corrected)")
-        ax.plot(amps, [r.eta_uncorrected for r in results], "x:", label=f"{label} (uncorrected)")
-    ax.axhline(threshold, color="r", lw=0.8, ls="--", label=f"threshold {threshold}")
-    ax.set_xlabel("excitation amplitude [N]")
+    from ..analysis.verdict import D_LINEAR_DB, D_NONLINEAR_DB
+
+    fig = Figure(figsize=(10, 4))
+    ax, ax_d = fig.subplots(1, 2)
+    markers = {"nonlinear": dict(marker="o"), "dominantly linear": dict(marker="o", mfc="none"),
+               "cannot tell": dict(marker="x")}
+    for k, (label, results) in enumerate(series.items()):
+        ordered = sorted(results, key=lambda r: r.amplitude)
+        amps = [r.amplitude for r in ordered]
+        color = f"C{k % 10}"
+        ax.plot(amps, [r.eta for r in ordered], "-", color=color, label=f"{label} (corrected)")
+        ax.plot(amps, [r.eta_uncorrected for r in ordered], ":", color=color, label=f"{label} (uncorrected)")
+        ax_d.plot(amps, [r.distortion_db for r in ordered], "-", color=color, label=label)
+        for r in ordered:
+            style = markers.get(r.verdict, markers["cannot tell"])
+            ax.plot([r.amplitude], [r.eta], ls="none", color=color, **style)
+            ax_d.plot([r.amplitude], [r.distortion_db], ls="none", color=color, **style)
+    ax.axhline(threshold, color="r", lw=0.8, ls="--", label=f"paper's threshold {threshold}")
+    ax_d.axhline(D_NONLINEAR_DB, color="r", lw=0.8, ls="--", label=f"nonlinear from {D_NONLINEAR_DB:g} dB (above noise)")
+    ax_d.axhline(D_LINEAR_DB, color="g", lw=0.8, ls="--", label=f"linear up to {D_LINEAR_DB:g} dB")
     ax.set_ylabel("eta")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    ax.set_title(title or "Hilbert-transform nonlinearity index")
+    ax_d.set_ylabel("Hilbert distortion D [dB]")
+    for a in (ax, ax_d):
+        a.set_xlabel("excitation amplitude [N]")
+        a.grid(alpha=0.3)
+        a.legend(fontsize=7)
+    fig.suptitle(title or "Hilbert-transform nonlinearity index (filled: nonlinear, open: linear, x: cannot tell)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 
