@@ -765,6 +765,14 @@ static int is_single_mode(int mode)
     return mode > 0 && mode <= MODE_ERROR && (mode & (mode - 1)) == 0;
 }
 
+/* The modes an instance of this kind passes through (Error excluded: not restorable). */
+static int modes_of_kind(InterfaceKind kind)
+{
+    return kind == KIND_CO_SIMULATION
+               ? MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP | MODE_STEP_FAILED | MODE_TERMINATED
+               : MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_TERMINATED;
+}
+
 /* Everything: header, checksum, identity, the glue's fields and the model's invariants. */
 static int snapshot_usable(Instance *inst, const char *function, const Snapshot *s, size_t size)
 {
@@ -783,30 +791,42 @@ static int snapshot_usable(Instance *inst, const char *function, const Snapshot 
         return 0;
     }
     reason[0] = '\0';
-    if (!is_single_mode(s->mode) || s->mode == MODE_ERROR)
-        snprintf(reason, sizeof reason, "mode %d is not a state of the FMI state machine", s->mode);
+    if (!is_single_mode(s->mode) || !(s->mode & modes_of_kind(inst->kind)))
+        snprintf(reason, sizeof reason, "mode %d is not a state of the FMI state machine of this instance", s->mode);
     else if ((s->stop_time_defined != 0 && s->stop_time_defined != 1) || !isfinite(s->time) ||
-             !isfinite(s->start_time) || (s->stop_time_defined && !isfinite(s->stop_time)) ||
+             !isfinite(s->start_time) || (s->stop_time_defined && !(isfinite(s->stop_time) &&
+                                                                     s->stop_time >= s->start_time)) ||
              !(s->tolerance > 0.0 && isfinite(s->tolerance)) || !(s->h_next >= 0.0 && isfinite(s->h_next)))
         snprintf(reason, sizeof reason, "time, stop time, tolerance or step size out of range");
+    /* the variables: whole numbers and 0/1 where typed so, and finite wherever evaluation
+     * requires it (the rule of first_non_finite) */
     for (i = 0; reason[0] == '\0' && i < m->n_vars; i++) {
         int type = m->types != NULL ? m->types[i] : VARTYPE_FLOAT64;
         double v = vars[i];
-        int restricted = m->causality[i] == CAUSALITY_PARAMETER || m->causality[i] == CAUSALITY_INPUT ||
-                         m->causality[i] == CAUSALITY_INDEPENDENT;
+        int may_be_nan = may_be_non_finite(m, i) ||
+                         (m->non_finite_outputs && m->causality[i] == CAUSALITY_OUTPUT && type == VARTYPE_FLOAT64);
         if ((type == VARTYPE_INTEGER && !(v == floor(v) && fabs(v) <= 2147483647.0)) ||
-            (type == VARTYPE_BOOLEAN && v != 0.0 && v != 1.0) ||
-            (restricted && !isfinite(v) && !may_be_non_finite(m, i)))
+            (type == VARTYPE_BOOLEAN && v != 0.0 && v != 1.0) || (!isfinite(v) && !may_be_nan))
             snprintf(reason, sizeof reason, "variable %s = %g is not a valid value", m->names[i], v);
     }
     for (i = 0; reason[0] == '\0' && i < m->n_states; i++)
         if (!(scales[i] >= 0.0 && isfinite(scales[i])))
             snprintf(reason, sizeof reason, "error scale %g of state %s is not valid", scales[i],
                      m->names[m->state_vr[i]]);
-    if (reason[0] == '\0' && m->check_state != NULL &&
-        m->check_state(inst, (const void *)(scales + m->n_states), (size_t)s->model_bytes, reason,
-                       sizeof reason) != 0 && reason[0] == '\0')
-        snprintf(reason, sizeof reason, "the model data is not valid");
+    if (reason[0] == '\0' && m->check_state != NULL) {
+        Instance view = *inst; /* the instance as the state would leave it (model data aside) */
+        view.vars = (double *)vars;
+        view.mode = (Mode)s->mode;
+        view.time = s->time;
+        view.start_time = s->start_time;
+        view.stop_time = s->stop_time;
+        view.stop_time_defined = s->stop_time_defined;
+        view.tolerance = s->tolerance;
+        view.h_next = s->h_next;
+        if (m->check_state(&view, (const void *)(scales + m->n_states), (size_t)s->model_bytes, reason,
+                           sizeof reason) != 0 && reason[0] == '\0')
+            snprintf(reason, sizeof reason, "the model data is not valid");
+    }
     if (reason[0] != '\0') {
         log_error(inst, "%s: the FMU state is inconsistent (%s); rejected", function, reason);
         return 0;

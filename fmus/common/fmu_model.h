@@ -65,9 +65,12 @@ typedef size_t (*ModelStateSize)(const struct Instance *inst);
 typedef void (*ModelSaveState)(const struct Instance *inst, void *bytes);
 typedef int (*ModelLoadState)(struct Instance *inst, const void *bytes, size_t size);
 /* Checks model data of an FMU state before anything is restored: every invariant the model
- * relies on (counts, indices, buffer positions, sizes); 0 when usable, else nonzero with the
- * reason in msg. load_state is called only on data that passed (and must then succeed but
- * for lack of memory, leaving the instance unchanged then). */
+ * relies on (counts, indices, buffer positions, sizes, values that must be finite, agreement
+ * with the state's parameters); 0 when usable, else nonzero with the reason in msg. inst is a
+ * view of the instance as the state would leave it: its vars, mode and times are the state's
+ * (already checked by the glue); its model_data is the instance's current one (not the
+ * state's: do not use it). load_state is called only on data that passed (and must then
+ * succeed but for lack of memory, leaving the instance unchanged then). */
 typedef int (*ModelCheckState)(const struct Instance *inst, const void *bytes, size_t size, char *msg,
                                size_t msg_size);
 

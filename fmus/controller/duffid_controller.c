@@ -274,17 +274,83 @@ int duffid_ctrl_init(duffid_ctrl *ctrl, const duffid_ctrl_config *cfg, double t0
     return DUFFID_CTRL_OK;
 }
 
+/* ------------------------------------------------------------------ state check */
+
+static int same_bits(double a, double b)
+{
+    return memcmp(&a, &b, sizeof a) == 0;
+}
+
+/* Nonzero when the n values are all finite (nan_rest: and the rest up to max all NaN). */
+static int all_finite(const double *v, int n, int max, int nan_rest)
+{
+    int i;
+    for (i = 0; i < max; i++) {
+        if (i < n ? !isfinite(v[i]) : (nan_rest && !isnan(v[i]))) return 0;
+    }
+    return 1;
+}
+
+static int all_nan(const double *v, int n)
+{
+    int i;
+    for (i = 0; i < n; i++)
+        if (!isnan(v[i])) return 0;
+    return 1;
+}
+
+static int force_ok(double f, double limit)
+{
+    return isfinite(f) && fabs(f) <= limit;
+}
+
+/* The first field whose value the controller cannot have computed (NULL: none): forces within
+ * force_limit, measured positions and settling estimates finite, and per phase the law's
+ * values finite (control) or not yet set (NaN: excitation). Also what a step must leave. */
+static const char *bad_values(const duffid_ctrl *ctrl)
+{
+    const duffid_ctrl_config *p = &ctrl->cfg;
+    const int n = p->dofs, size = p->differentiator_samples, np = ctrl->n_params;
+    int i;
+    for (i = 0; i < n; i++)
+        if (!all_finite(ctrl->buf[i], size, size, 0)) return "buf (measured positions)";
+    if (ctrl->have_ref &&
+        !(all_finite(ctrl->p_ref, np, np, 0) && ctrl->p_ref[0] > 0.0 && (n == 1 || ctrl->p_ref[7] > 0.0)))
+        return "p_ref (estimates settling)";
+    if (!isfinite(ctrl->settle_start)) return "settle_start";
+    if (!force_ok(ctrl->f, p->force_limit)) return "f (force)";
+    if (!force_ok(ctrl->f_sample, p->force_limit)) return "f_sample (force sample)";
+    if (ctrl->phase == 0) { /* excitation: nothing of the control law yet */
+        if (!all_nan(ctrl->theta, DUFFID_CTRL_MAX_PARAMS)) return "theta (parameters of the law)";
+        if (!all_nan(ctrl->xh, 2) || !all_nan(ctrl->vh, 2)) return "xh, vh (observer)";
+        if (!all_nan(ctrl->ref, 3) || !all_nan(ctrl->z, 3)) return "ref, z (reference model)";
+        if (!isnan(ctrl->switch_time)) return "switch_time";
+        if (ctrl->saturated) return "saturated";
+        return NULL;
+    }
+    if (!(all_finite(ctrl->theta, np, DUFFID_CTRL_MAX_PARAMS, 1) && ctrl->theta[0] > 0.0 &&
+          (n == 1 || ctrl->theta[7] > 0.0)))
+        return "theta (parameters of the law)";
+    if (!all_finite(ctrl->xh, n, 2, 1) || !all_finite(ctrl->vh, n, 2, 1)) return "xh, vh (observer)";
+    if (!all_finite(ctrl->ref, 3, 3, 0)) return "ref (reference model)";
+    if (p->reference_model == 1 ? !all_finite(ctrl->z, 3, 3, 0) : !all_nan(ctrl->z, 3)) return "z (transient)";
+    if (!isfinite(ctrl->switch_time)) return "switch_time";
+    return NULL;
+}
+
 int duffid_ctrl_step(duffid_ctrl *ctrl, double t, double h, const duffid_ctrl_input *in,
                      duffid_ctrl_output *out)
 {
     const duffid_ctrl_config *p = &ctrl->cfg;
     int n = p->dofs, i, ok, changed, sw;
     double f_k = ctrl->f, g, f2, e, rp[3];
+    duffid_ctrl before;
     if (!ctrl->initialized) return DUFFID_CTRL_ERR_STATE;
     if (fabs(h - p->sample_period) > DT_RTOL * p->sample_period) return DUFFID_CTRL_ERR_STEP;
     if (!isfinite(in->r) || !isfinite(in->r_dot) || !isfinite(in->r_ddot)) return DUFFID_CTRL_ERR_INPUT;
     for (i = 0; i < n; i++)
         if (!isfinite(in->x[i])) return DUFFID_CTRL_ERR_INPUT;
+    before = *ctrl;
     ok = usable(ctrl, in);
     if (ctrl->phase == 0) {
         int size = p->differentiator_samples;
@@ -351,6 +417,43 @@ int duffid_ctrl_step(duffid_ctrl *ctrl, double t, double h, const duffid_ctrl_in
         law(ctrl);
     }
     ctrl->f_sample = 0.5 * (f_k + ctrl->f);
+    if (bad_values(ctrl) != NULL) { /* diverged (overflow): refused, the controller unchanged */
+        *ctrl = before;
+        return DUFFID_CTRL_ERR_NUMERIC;
+    }
     if (out != NULL) duffid_ctrl_outputs(ctrl, out);
+    return DUFFID_CTRL_OK;
+}
+
+int duffid_ctrl_check_state(const duffid_ctrl *ctrl, char *msg, size_t msg_size)
+{
+    const duffid_ctrl_config *p = &ctrl->cfg;
+    duffid_ctrl fresh;
+    const char *bad = NULL;
+    int size, j;
+    if (duffid_ctrl_check(p, msg, msg_size) != DUFFID_CTRL_OK) return DUFFID_CTRL_ERR_STATE;
+    if (!isfinite(ctrl->t0)) {
+        message(msg, msg_size, "controller field %s = %.17g is not finite", "t0", ctrl->t0);
+        return DUFFID_CTRL_ERR_STATE;
+    }
+    duffid_ctrl_init(&fresh, p, ctrl->t0, NULL, NULL, 0);
+    size = p->differentiator_samples;
+    if (ctrl->n_params != fresh.n_params) bad = "n_params";
+    for (j = 0; bad == NULL && j < DUFFID_CTRL_MAX_SAMPLES; j++)
+        if (!same_bits(ctrl->c[j], fresh.c[j])) bad = "c (differentiator weights)";
+    if (bad == NULL && !(same_bits(ctrl->w3, fresh.w3) && same_bits(ctrl->w2, fresh.w2) &&
+                         same_bits(ctrl->w1, fresh.w1)))
+        bad = "w1, w2, w3 (reference model)";
+    if (bad == NULL && ctrl->initialized != 1) bad = "initialized";
+    if (bad == NULL && !(ctrl->head >= 0 && ctrl->head < size)) bad = "head";
+    if (bad == NULL && !(ctrl->count >= 0 && ctrl->count <= size)) bad = "count";
+    if (bad == NULL && ctrl->have_ref != 0 && ctrl->have_ref != 1) bad = "have_ref";
+    if (bad == NULL && ctrl->phase != 0 && ctrl->phase != 1) bad = "phase";
+    if (bad == NULL && ctrl->saturated != 0 && ctrl->saturated != 1) bad = "saturated";
+    if (bad == NULL) bad = bad_values(ctrl);
+    if (bad != NULL) {
+        if (msg != NULL && msg_size > 0) snprintf(msg, msg_size, "controller field %s out of range", bad);
+        return DUFFID_CTRL_ERR_STATE;
+    }
     return DUFFID_CTRL_OK;
 }

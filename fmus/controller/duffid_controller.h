@@ -30,7 +30,9 @@ enum {
     DUFFID_CTRL_ERR_CONFIG = 1, /* invalid configuration (message says which) */
     DUFFID_CTRL_ERR_STEP = 2,   /* step size differs from the sample period */
     DUFFID_CTRL_ERR_INPUT = 3,  /* reference, its derivatives or a position not finite */
-    DUFFID_CTRL_ERR_STATE = 4   /* step before init */
+    DUFFID_CTRL_ERR_STATE = 4,  /* step before init; a controller state that fails its checks */
+    DUFFID_CTRL_ERR_NUMERIC = 5 /* the step would leave a value not finite (the observer or the
+                                   reference model overflowed): refused */
 };
 
 /* Parameter order (estimates, nominal values, parameters used):
@@ -108,12 +110,20 @@ int duffid_ctrl_init(duffid_ctrl *ctrl, const duffid_ctrl_config *cfg, double t0
                      char *msg, size_t msg_size);
 
 /* Consumes the inputs at t (= t_k) with step h; the outputs are those at t + h. On an
- * error the controller is unchanged. */
+ * error the controller is unchanged; a step that would leave a value the controller relies on
+ * not finite (overflow, see duffid_ctrl_check_state) is refused with DUFFID_CTRL_ERR_NUMERIC. */
 int duffid_ctrl_step(duffid_ctrl *ctrl, double t, double h, const duffid_ctrl_input *in,
                      duffid_ctrl_output *out);
 
 /* The current outputs. */
 void duffid_ctrl_outputs(const duffid_ctrl *ctrl, duffid_ctrl_output *out);
+
+/* Checks a byte copy of a controller (an FMU state's) before it is used: a valid
+ * configuration, the fields duffid_ctrl_init derives from it, buffer position and count within
+ * the differentiator's samples, flags 0/1, and the values of each phase (finite where the
+ * controller computes with them, NaN where it has not yet, forces within force_limit).
+ * DUFFID_CTRL_OK, else DUFFID_CTRL_ERR_STATE with a message naming the field. */
+int duffid_ctrl_check_state(const duffid_ctrl *ctrl, char *msg, size_t msg_size);
 
 #ifdef __cplusplus
 }

@@ -120,6 +120,11 @@ static int do_step(Instance *inst, double t, double h)
                 d->ctrl.cfg.sample_period);
         return 1;
     }
+    if (rc == DUFFID_CTRL_ERR_NUMERIC) {
+        fmu_log(inst, FMU_ERROR, "logStatusError",
+                "the controller diverged at t = %.17g (its force or observer would not be finite); step refused", t);
+        return 1;
+    }
     if (rc != DUFFID_CTRL_OK) {
         fmu_log(inst, FMU_ERROR, "logStatusError", "the controller rejected the inputs at t = %.17g (code %d)",
                 t, rc);
@@ -149,13 +154,48 @@ static void save_state(const Instance *inst, void *bytes)
         memset(bytes, 0, sizeof(CtrlData));
 }
 
-/* Every invariant of the model data of an FMU state: a valid configuration of this FMU's
- * size, buffer position and count within the differentiator's samples, flags 0/1. */
+static int same_bits(double a, double b)
+{
+    return memcmp(&a, &b, sizeof a) == 0;
+}
+
+/* Nonzero when two configurations are equal, field by field (bits of the doubles). */
+static int same_config(const duffid_ctrl_config *a, const duffid_ctrl_config *b)
+{
+    int i, same = a->dofs == b->dofs;
+#define CTRL_SAME_REAL(field) same = same && same_bits(a->field, b->field);
+#define CTRL_SAME_INT(field) same = same && a->field == b->field;
+#define CTRL_SAME_BOOL(field) same = same && a->field == b->field;
+#define CTRL_SAME(kind, field, NAME, name, rule, lo, hi, text) CTRL_SAME_##kind(field)
+    DUFFID_CTRL_PARAMETERS(CTRL_SAME)
+#undef CTRL_SAME
+#undef CTRL_SAME_BOOL
+#undef CTRL_SAME_INT
+#undef CTRL_SAME_REAL
+    for (i = 0; i < DUFFID_CTRL_MAX_PARAMS; i++) same = same && same_bits(a->nominal[i], b->nominal[i]);
+    return same;
+}
+
+/* Nonzero when two output sets are equal (bits of the doubles). */
+static int same_outputs(const duffid_ctrl_output *a, const duffid_ctrl_output *b)
+{
+    int i, same = same_bits(a->f, b->f) && same_bits(a->f_sample, b->f_sample) && a->phase == b->phase &&
+                  same_bits(a->x_ref, b->x_ref) && same_bits(a->v_hat[0], b->v_hat[0]) &&
+                  same_bits(a->v_hat[1], b->v_hat[1]) && a->saturated == b->saturated &&
+                  same_bits(a->switch_time, b->switch_time);
+    for (i = 0; i < DUFFID_CTRL_MAX_PARAMS; i++) same = same && same_bits(a->used[i], b->used[i]);
+    return same;
+}
+
+/* Every invariant of the model data of an FMU state: nothing when the controller is not yet
+ * started (the next evaluation starts it from the parameters); else a started controller of
+ * a stepping instance, configured from the state's parameters at its start time, whose fields
+ * pass duffid_ctrl_check_state and whose outputs are its own. */
 static int check_state(const Instance *inst, const void *bytes, size_t size, char *msg, size_t msg_size)
 {
     CtrlData d;
-    const duffid_ctrl *c = &d.ctrl;
-    (void)inst;
+    duffid_ctrl_config cfg;
+    duffid_ctrl_output out;
     if (size != sizeof d) {
         snprintf(msg, msg_size, "model data of %lu bytes, expected %lu", (unsigned long)size,
                  (unsigned long)sizeof d);
@@ -166,18 +206,20 @@ static int check_state(const Instance *inst, const void *bytes, size_t size, cha
         snprintf(msg, msg_size, "flag started = %d", d.started);
         return 1;
     }
-    if (!d.started && !c->initialized) return 0; /* nothing restored is used before a restart */
-    if (c->cfg.dofs != N_DOF || duffid_ctrl_check(&c->cfg, msg, msg_size) != DUFFID_CTRL_OK) {
-        if (msg_size > 0 && msg[0] == '\0') snprintf(msg, msg_size, "configuration");
+    if (!d.started) return 0; /* nothing restored is used: start() rebuilds it */
+    if (!(inst->mode & (MODE_STEP | MODE_STEP_FAILED | MODE_TERMINATED))) {
+        snprintf(msg, msg_size, "a started controller in state %s", mode_name(inst->mode));
         return 1;
     }
-    if (c->n_params != N_PARAMS || c->head < 0 || c->head >= c->cfg.differentiator_samples || c->count < 0 ||
-        c->count > c->cfg.differentiator_samples || (c->have_ref != 0 && c->have_ref != 1) ||
-        (c->phase != 0 && c->phase != 1) || (c->saturated != 0 && c->saturated != 1) ||
-        (c->initialized != 0 && c->initialized != 1) || (d.out.phase != 0 && d.out.phase != 1) ||
-        (d.out.saturated != 0 && d.out.saturated != 1)) {
-        snprintf(msg, msg_size, "n_params %d, head %d, count %d of %d samples, or a flag out of range", c->n_params,
-                 c->head, c->count, c->cfg.differentiator_samples);
+    if (duffid_ctrl_check_state(&d.ctrl, msg, msg_size) != DUFFID_CTRL_OK) return 1;
+    make_config(inst, &cfg);
+    if (!same_config(&d.ctrl.cfg, &cfg) || !same_bits(d.ctrl.t0, inst->start_time)) {
+        snprintf(msg, msg_size, "the controller's configuration is not that of the state's parameters");
+        return 1;
+    }
+    duffid_ctrl_outputs(&d.ctrl, &out);
+    if (!same_outputs(&d.out, &out)) {
+        snprintf(msg, msg_size, "the outputs are not those of the controller");
         return 1;
     }
     return 0;

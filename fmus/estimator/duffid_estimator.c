@@ -694,11 +694,14 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     /* counts, indices and buffer positions */
     n = est->n;
     STATE_RANGE(n, -1, limit)
-    STATE_RANGE(est->received, n, n + 1)
     STATE_RANGE(est->window_fixed, 0, 1)
-    STATE_RANGE(est->g_count, 0, est->received + 1)
     STATE_RANGE(est->pending, 0, 1)
+    STATE_RANGE(est->received, n + est->pending, n + est->pending) /* a held sample is not processed yet */
+    STATE_RANGE(est->g_count, 0, est->received + 1)
     STATE_RANGE(est->p_k, 0, limit)
+    if (est->pending) {
+        STATE_RANGE(est->p_k, est->received, est->received)
+    }
     STATE_RANGE(est->outliers, 0, est->received + 1)
     STATE_RANGE(est->outlier_column, -1, est->n_dof - 1)
     for (i = 0; i < DUFFID_MAX_DOF; i++) {
@@ -1789,6 +1792,15 @@ int duffid_update(duffid_estimator *est, const double *x, const double *f, duffi
     process(est, x, f);
     report(est, out);
     return DUFFID_OK;
+}
+
+long duffid_latest_output(const duffid_estimator *est, duffid_output *out)
+{
+    if (est == NULL || out == NULL) {
+        return 0;
+    }
+    report(est, out);
+    return (long)(est->received + 1);
 }
 
 int duffid_flush(duffid_estimator *est, duffid_output *out)

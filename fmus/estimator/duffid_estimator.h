@@ -177,6 +177,11 @@ void duffid_destroy(duffid_estimator *est);
 /* Forget all samples (start a new identification). */
 void duffid_reset(duffid_estimator *est);
 
+/* The output of the latest sample: what duffid_update reported for it. Returns the number of
+ * samples received (0: none yet, and *out is then meaningless). Reads the estimator's fields
+ * only, so it also works on a byte copy that duffid_check_state passed. */
+long duffid_latest_output(const duffid_estimator *est, duffid_output *out);
+
 /* Process a sample held back as a suspect outlier (the end of a record). Returns 1 and
  * fills out (if not NULL) when there was one, 0 otherwise. */
 int duffid_flush(duffid_estimator *est, duffid_output *out);

@@ -104,7 +104,7 @@ static int evaluate(Instance *inst)
     if (d != NULL && d->have_out) {
         for (i = 0; i < N_PARAMS; i++) v[VR_EST + i] = d->out.parameters[i];
         for (i = 0; i < N_PARAMS; i++) v[VR_STATUS + i] = (double)d->out.status[i];
-        v[VR_OUTLIERS] = (double)d->out.outliers;
+        v[VR_OUTLIERS] = (double)(d->out.outliers < INT32_MAX ? d->out.outliers : INT32_MAX); /* an Integer */
         v[VR_IDENTIFIED] = d->out.identified ? 1.0 : 0.0;
         v[VR_CONDITION] = d->out.condition;
         v[VR_UNCERTAINTY] = d->out.uncertainty;
@@ -145,25 +145,25 @@ static int reserve(Instance *inst, EstData *d, size_t size)
     return 0;
 }
 
-/* An option coded as a small non-negative integer: its value, or -1 (logged). */
-static int coded_option(Instance *inst, int option, int max_value)
+/* An option coded as a small non-negative integer: its value, or -1 (reason in msg). */
+static int coded_option(const Instance *inst, int option, int max_value, char *msg, size_t msg_size)
 {
     double v = inst->vars[VR_OPT + option];
     if (!(v >= 0.0 && v <= (double)max_value && v == floor(v))) {
-        fmu_log(inst, FMU_ERROR, "logStatusError", "parameter %s must be an integer in 0 .. %d, got %g",
-                inst->model->names[VR_OPT + option], max_value, v);
+        snprintf(msg, msg_size, "parameter %s must be an integer in 0 .. %d, got %g",
+                 inst->model->names[VR_OPT + option], max_value, v);
         return -1;
     }
     return (int)v;
 }
 
 /* The configuration from the parameters: method defaults, then every option or nominal
- * value that differs from its start value. */
-static int make_config(Instance *inst, double dt, duffid_config *cfg)
+ * value that differs from its start value; nonzero with the reason in msg. */
+static int config_of(const Instance *inst, double dt, duffid_config *cfg, char *msg, size_t msg_size)
 {
     const double *v = inst->vars, *start = inst->model->start;
-    int method = coded_option(inst, OPT_METHOD, 1), i, code;
-    char msg[256];
+    int method = coded_option(inst, OPT_METHOD, 1, msg, msg_size), i, code;
+    char reason[256];
 #define CHANGED(opt) (v[VR_OPT + (opt)] != start[VR_OPT + (opt)])
     if (method < 0) return 1;
     duffid_default_config(cfg, ESTIMATOR_MODEL, method == 0 ? DUFFID_ROBUST : DUFFID_PAPER, dt);
@@ -174,7 +174,8 @@ static int make_config(Instance *inst, double dt, duffid_config *cfg)
      * bounded by the core's DUFFID_MAX_ROWS) */
 #define SET_REAL(name, maximum) cfg->name = v[VR_OPT + OPT_##name];
 #define SET_CODE(name, maximum)                                                              \
-    if ((code = coded_option(inst, OPT_##name, (maximum) >= 0 ? (maximum) : DUFFID_MAX_ROWS)) < 0) \
+    if ((code = coded_option(inst, OPT_##name, (maximum) >= 0 ? (maximum) : DUFFID_MAX_ROWS, msg, \
+                             msg_size)) < 0)                                                 \
         return 1;                                                                            \
     cfg->name = code;
 #define DUFFID_SET_OPTION(kind, name, default_value, minimum, maximum, methods, valid) \
@@ -186,8 +187,19 @@ static int make_config(Instance *inst, double dt, duffid_config *cfg)
 #undef SET_CODE
 #undef SET_REAL
 #undef CHANGED
-    if (duffid_check_config(cfg, msg, sizeof msg) != DUFFID_OK) {
-        fmu_log(inst, FMU_ERROR, "logStatusError", "invalid estimator parameters: %s", msg);
+    if (duffid_check_config(cfg, reason, sizeof reason) != DUFFID_OK) {
+        snprintf(msg, msg_size, "invalid estimator parameters: %s", reason);
+        return 1;
+    }
+    return 0;
+}
+
+/* config_of, logging the reason of a failure. */
+static int make_config(Instance *inst, double dt, duffid_config *cfg)
+{
+    char msg[512];
+    if (config_of(inst, dt, cfg, msg, sizeof msg) != 0) {
+        fmu_log(inst, FMU_ERROR, "logStatusError", "%s", msg);
         return 1;
     }
     return 0;
@@ -293,13 +305,53 @@ static void save_state(const Instance *inst, void *bytes)
     if (h.est_bytes > 0) memcpy((char *)bytes + sizeof h, d->est, (size_t)h.est_bytes);
 }
 
+static int same_bits(double a, double b)
+{
+    return memcmp(&a, &b, sizeof a) == 0;
+}
+
+/* Nonzero when two configurations are equal, field by field (bits of the doubles). */
+static int same_config(const duffid_config *a, const duffid_config *b)
+{
+    int i, same = a->model == b->model && a->method == b->method && a->offset == b->offset &&
+                  same_bits(a->dt, b->dt);
+    for (i = 0; i < DUFFID_MAX_PARAMS; i++) same = same && same_bits(a->nominal[i], b->nominal[i]);
+#define SAME_REAL(name) same = same && same_bits(a->name, b->name);
+#define SAME_CODE(name) same = same && a->name == b->name;
+#define DUFFID_SAME_OPTION(kind, name, default_value, minimum, maximum, methods, valid) SAME_##kind(name)
+    DUFFID_OPTIONS(DUFFID_SAME_OPTION)
+#undef DUFFID_SAME_OPTION
+#undef SAME_CODE
+#undef SAME_REAL
+    return same;
+}
+
+/* Nonzero when two outputs are equal, field by field (bits of the doubles). */
+static int same_output(const duffid_output *a, const duffid_output *b)
+{
+    int i, same = same_bits(a->t, b->t) && a->n_parameters == b->n_parameters && a->identified == b->identified &&
+                  same_bits(a->condition, b->condition) && same_bits(a->uncertainty, b->uncertainty) &&
+                  same_bits(a->window, b->window) && a->outliers == b->outliers &&
+                  same_bits(a->outlier_t, b->outlier_t) && a->outlier_column == b->outlier_column &&
+                  same_bits(a->outlier_value, b->outlier_value) &&
+                  same_bits(a->outlier_replaced_by, b->outlier_replaced_by);
+    for (i = 0; i < DUFFID_MAX_PARAMS; i++)
+        same = same && same_bits(a->parameters[i], b->parameters[i]) && same_bits(a->current[i], b->current[i]) &&
+               a->status[i] == b->status[i];
+    return same;
+}
+
 /* Every invariant of the model data of an FMU state (the header here, the estimator memory
- * by duffid_check_state); nothing is changed. */
+ * by duffid_check_state): a started estimator belongs to a stepping instance, runs at the
+ * state's sample_period with the configuration of the state's parameters, and the last
+ * output is the estimator's own; nothing is changed. */
 static int check_state(const Instance *inst, const void *bytes, size_t size, char *msg, size_t msg_size)
 {
     EstState h;
-    int i;
-    (void)inst;
+    duffid_config cfg;
+    duffid_output latest;
+    const duffid_estimator *est;
+    long received;
     if (size < sizeof h) {
         snprintf(msg, msg_size, "model data of %lu bytes is too short", (unsigned long)size);
         return 1;
@@ -317,22 +369,33 @@ static int check_state(const Instance *inst, const void *bytes, size_t size, cha
         return 1;
     }
     if (!h.started) return 0;
-    if (h.cfg.model != ESTIMATOR_MODEL || !(h.dt > 0.0 && isfinite(h.dt)) || h.cfg.dt != h.dt ||
-        duffid_check_config(&h.cfg, msg, msg_size) != DUFFID_OK) {
-        if (msg_size > 0 && msg[0] == '\0') snprintf(msg, msg_size, "sampling period or configuration");
+    if (!(inst->mode & (MODE_STEP | MODE_STEP_FAILED | MODE_TERMINATED))) {
+        snprintf(msg, msg_size, "a started estimator in state %s", mode_name(inst->mode));
         return 1;
     }
-    for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
-        if (h.out.status[i] < DUFFID_STATUS_UNCERTAIN || h.out.status[i] > DUFFID_STATUS_LOST) {
-            snprintf(msg, msg_size, "status %d of parameter %d", h.out.status[i], i);
-            return 1;
-        }
-    }
-    if (h.out.outliers < 0 || (h.out.identified != 0 && h.out.identified != 1)) {
-        snprintf(msg, msg_size, "outliers %ld, identified %d", h.out.outliers, h.out.identified);
+    if (!same_bits(h.dt, inst->vars[VR_SAMPLE_PERIOD])) {
+        snprintf(msg, msg_size, "sampling period %.17g, parameter sample_period %.17g", h.dt,
+                 inst->vars[VR_SAMPLE_PERIOD]);
         return 1;
     }
-    return duffid_check_state((const char *)bytes + sizeof h, (size_t)h.est_bytes, msg, msg_size) != DUFFID_OK;
+    if (config_of(inst, h.dt, &cfg, msg, msg_size) != 0) return 1;
+    if (!same_config(&h.cfg, &cfg)) {
+        snprintf(msg, msg_size, "the estimator's configuration is not that of the state's parameters");
+        return 1;
+    }
+    if (duffid_check_state((const char *)bytes + sizeof h, (size_t)h.est_bytes, msg, msg_size) != DUFFID_OK)
+        return 1;
+    est = (const duffid_estimator *)((const char *)bytes + sizeof h);
+    if (!same_config(duffid_get_config(est), &cfg)) {
+        snprintf(msg, msg_size, "the estimator memory's configuration is not that of the state's parameters");
+        return 1;
+    }
+    received = duffid_latest_output(est, &latest);
+    if (h.have_out != (received > 0) || (h.have_out && !same_output(&h.out, &latest))) {
+        snprintf(msg, msg_size, "the last output is not the estimator's (%ld samples received)", received);
+        return 1;
+    }
+    return 0;
 }
 
 static int load_state(Instance *inst, const void *bytes, size_t size)
