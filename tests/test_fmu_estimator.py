@@ -21,7 +21,7 @@ from fmpy.validation import validate_fmu  # noqa: E402
 from fmu_helpers import simulate_record, start_fmi2  # noqa: E402
 from rounding import identifier_spread  # noqa: E402
 
-from duffid import Duffing1, Duffing2, Record, measure  # noqa: E402
+from duffid import Duffing1, Duffing2, DuffingCircuit, Multisine, Record, measure, simulate  # noqa: E402
 from duffid.fmu.estimator import build_estimator_fmu, build_estimator_fmus  # noqa: E402
 from duffid.fmu.estimator_table import TYPES  # noqa: E402
 from duffid.identification.batch import estimate  # noqa: E402
@@ -128,6 +128,33 @@ def test_c_fmu_equals_python_fmu_and_online_identifier(fmus, case_a, case_b_exac
         np.testing.assert_array_equal(c[f"{p}_status"][1:], codes)
         np.testing.assert_array_equal(py[f"{p}_status"][1:], codes)
     assert any(STATUSES.index("published") in set(c[f"{p}_status"]) for p in names)
+
+
+@pytest.mark.parametrize("name", ["DuffingCircuitEstimator.fmu", "DuffingCircuitEstimator_fmi3.fmu"])
+def test_circuit_estimator_equals_the_online_identifier(fmus, name):
+    """The series Duffing circuit (charge q [C], voltage u [V]): L, R, C and a with electrical
+    units, at every sample as OnlineIdentifier(DuffingCircuit()) (C the reciprocal of the core's
+    stiffness), statuses included; a prior size of C given as a capacitance."""
+    md = fmpy.read_model_description(str(fmus[name]))
+    units = {v.name: v.unit for v in md.modelVariables}
+    assert (units["q"], units["u"], units["L_hat"], units["R_hat"], units["C_hat"], units["a_hat"]) == \
+        ("C", "V", "H", "Ohm", "F", "V/C3")
+    assert units["C_nominal"] == "F"
+    plant = DuffingCircuit()
+    record = measure(simulate(plant, Multisine(8.0, 2.0, 40.0, 2.0, phases="random", seed=4), 4.0, 5e-4),
+                     snr_db=50, seed=1)
+    for start, nominal in (({}, None), ({"C_nominal": 2e-3}, {"C": 2e-3})):
+        result = simulate_record(fmus[name], record, ["q", "u"], start)
+        ident = OnlineIdentifier(DuffingCircuit(), dt=record.dt, **({"nominal": nominal} if nominal else {}))
+        estimates = [ident.update(record.x[i], record.f[i]) for i in range(record.n_samples)]
+        names = list(plant.parameters)
+        identifier_spread(DuffingCircuit(), record).assert_history(
+            {p: result[f"{p}_hat"][1:] for p in names}, {p: np.array([e.parameters[p] for e in estimates]) for p in names})
+        for p in names:
+            np.testing.assert_array_equal(result[f"{p}_status"][1:], [STATUSES.index(e.status[p]) for e in estimates])
+        assert estimates[-1].identified and bool(result["identified"][-1])
+        for p, truth in plant.parameters.items():
+            assert abs(result[f"{p}_hat"][-1] / truth - 1) < 0.02, p
 
 
 @pytest.mark.parametrize("name", ["DuffingEstimator2.fmu", "DuffingEstimator2_fmi3.fmu"])

@@ -1,6 +1,7 @@
 /* duffid's online identifier as a discrete-time co-simulation model of the shared FMI
- * glue (fmus/common): DuffingEstimator1 (inputs x, f) and DuffingEstimator2 (inputs x1,
- * x2, f1), FMI 2.0 and 3.0.
+ * glue (fmus/common): DuffingEstimator1 (inputs x, f), DuffingEstimator2 (inputs x1,
+ * x2, f1) and DuffingCircuitEstimator (inputs q, u: the Duffing1 core with L = m, R = b,
+ * C = 1/k, a = kp), FMI 2.0 and 3.0.
  *
  * The variable table (names, start values, causality, variability) comes from the
  * generated header estimator_fmu_config.h (duffid.fmu.estimator), which also selects the
@@ -46,6 +47,21 @@
 #define N_DOF 2
 #define N_PARAMS 8
 #endif
+
+/* Bit i set: public parameter i is the reciprocal of the core's (the circuit's C = 1/k); its
+ * estimate is output as 1/value (0 -> +Inf, as duffid.models.chain.DuffingCircuit) and its
+ * prior size <name>_nominal given as the reciprocal of the core's. */
+#ifndef ESTIMATOR_RECIPROCAL_MASK
+#define ESTIMATOR_RECIPROCAL_MASK 0
+#endif
+#define RECIPROCAL(i) ((ESTIMATOR_RECIPROCAL_MASK >> (i)) & 1)
+
+/* Public value of the core's parameter i. */
+static double public_value(int i, double value)
+{
+    if (!RECIPROCAL(i)) return value;
+    return value == 0.0 ? INFINITY : 1.0 / value;
+}
 
 /* Options, in value-reference order after the outputs: the method, then the option table
  * of duffid_options.h (generated from duffid.identification.options.OPTIONS). */
@@ -102,7 +118,7 @@ static int evaluate(Instance *inst)
     double *v = inst->vars;
     int i;
     if (d != NULL && d->have_out) {
-        for (i = 0; i < N_PARAMS; i++) v[VR_EST + i] = d->out.parameters[i];
+        for (i = 0; i < N_PARAMS; i++) v[VR_EST + i] = public_value(i, d->out.parameters[i]);
         for (i = 0; i < N_PARAMS; i++) v[VR_STATUS + i] = (double)d->out.status[i];
         v[VR_OUTLIERS] = (double)(d->out.outliers < INT32_MAX ? d->out.outliers : INT32_MAX); /* an Integer */
         v[VR_IDENTIFIED] = d->out.identified ? 1.0 : 0.0;
@@ -168,7 +184,8 @@ static int config_of(const Instance *inst, double dt, duffid_config *cfg, char *
     if (method < 0) return 1;
     duffid_default_config(cfg, ESTIMATOR_MODEL, method == 0 ? DUFFID_ROBUST : DUFFID_PAPER, dt);
     for (i = 0; i < N_PARAMS; i++)
-        if (v[VR_NOMINAL + i] != start[VR_NOMINAL + i]) cfg->nominal[i] = v[VR_NOMINAL + i];
+        if (v[VR_NOMINAL + i] != start[VR_NOMINAL + i])
+            cfg->nominal[i] = RECIPROCAL(i) ? 1.0 / fabs(v[VR_NOMINAL + i]) : v[VR_NOMINAL + i];
     /* a REAL option is taken as it is (duffid_check_config checks its range); a CODE option
      * must be a whole number in its range first (the only code without a maximum, n_rows, is
      * bounded by the core's DUFFID_MAX_ROWS) */

@@ -19,7 +19,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser("build-fmus", help="build the example plant FMUs (FMI 2.0 and 3.0, with sources)",
                        description="Build every Modelica example plant as <Name>.fmu (FMI 2.0) and "
                                    "<Name>_fmi3.fmu (FMI 3.0), the estimator FMUs DuffingEstimator{1,2}.fmu, "
-                                   "_fmi3.fmu (C) and _python.fmu (pythonfmu), the controller FMUs "
+                                   "_fmi3.fmu (C) and _python.fmu (pythonfmu) and DuffingCircuitEstimator.fmu, "
+                                   "_fmi3.fmu (C), the controller FMUs "
                                    "AdaptiveController{1,2}.fmu and the whole 1-DOF loop as the container FMU "
                                    "ClosedLoop1DOF.fmu. The C FMUs carry binaries for every platform of "
                                    "--platforms whose compiler is installed; a missing cross compiler is "

@@ -9,6 +9,10 @@ model ``fmus/estimator/fmu_model_estimator.c`` and the glue of ``fmus/common`` i
 - ``DuffingEstimator2.fmu`` and ``DuffingEstimator2_fmi3.fmu``: inputs ``x1``, ``x2``,
   ``f1``; outputs ``m1_hat``, ``b1_hat``, ``k1_hat``, ``kp1_hat``, ``b2_hat``, ``k2_hat``,
   ``kp2_hat``, ``m2_hat``;
+- ``DuffingCircuitEstimator.fmu`` and ``DuffingCircuitEstimator_fmi3.fmu`` (the series circuit
+  ``L q'' + R q' + q/C + a q^3 = u``, :class:`~duffid.models.chain.DuffingCircuit`): inputs
+  ``q`` [C], ``u`` [V]; outputs ``L_hat`` [H], ``R_hat`` [Ohm], ``C_hat`` [F], ``a_hat``
+  [V/C3] (the Duffing1 core; C is output as the reciprocal of its stiffness);
 
 each also with the outputs ``identified`` (0/1), ``condition``, ``uncertainty``,
 ``window_length`` [s] and ``<name>_status`` per parameter (Integer: the index of its status
@@ -42,8 +46,9 @@ from typing import Sequence
 from ..assets import fmu_sources
 from ..cbuild import Platform
 from .c_model import build_c_model_fmu
-from .estimator_table import C_FMU_NAMES, DEFAULT_SAMPLE_PERIOD, MODEL_CODES, estimator_variables, variable_types
-from .python_estimator import build_python_fmu
+from .estimator_table import (C_FMU_NAMES, DEFAULT_SAMPLE_PERIOD, MODEL_CODES, MODELS, RECIPROCAL, estimator_variables,
+                              variable_types)
+from .python_estimator import FMU_NAMES, build_python_fmu
 
 __all__ = ["build_estimator_fmus", "build_estimator_fmu"]
 
@@ -58,7 +63,7 @@ def build_estimator_fmu(model_name: str, out_dir: str | Path, fmi_version: int =
     Parameters
     ----------
     model_name : str
-        ``"duffing1"`` or ``"duffing2"``.
+        ``"duffing1"``, ``"duffing2"`` or ``"circuit"``.
     out_dir : str or Path
         Output folder; the file is ``<identifier>.fmu`` (FMI 2) or ``<identifier>_fmi3.fmu``.
     fmi_version : int
@@ -74,17 +79,22 @@ def build_estimator_fmu(model_name: str, out_dir: str | Path, fmi_version: int =
         The FMU written.
     """
     table = estimator_variables(model_name)
-    model = "Duffing1" if model_name == "duffing1" else "Duffing2"
+    names = list(MODELS[model_name]().parameters)
+    mask = sum(1 << names.index(p) for p in RECIPROCAL.get(model_name, ()))
+    model = type(MODELS[model_name]()).__name__
     return build_c_model_fmu(out_dir, C_FMU_NAMES[model_name], fmi_version, table, prefix="estimator",
                              model_dir=fmu_sources("estimator"), model_files=_CORE_FILES,
                              description=f"duffid online algebraic identification of {model} (C estimator core)",
-                             types=variable_types(model_name), defines={"MODEL": MODEL_CODES[model_name]},
+                             types=variable_types(model_name),
+                             defines={"MODEL": MODEL_CODES[model_name], "RECIPROCAL_MASK": mask},
                              sample_period=DEFAULT_SAMPLE_PERIOD, compiler=compiler, platforms=platforms)
 
 
 def build_estimator_fmus(out_dir: str | Path = Path("build/fmus"), *, python: bool = True,
                          platforms: Sequence[Platform] | None = None) -> list[Path]:
-    """Build the four C estimator FMUs and (``python=True``) the two pythonfmu fallbacks.
+    """Build the C estimator FMUs (FMI 2 and 3 of every model of
+    :data:`~duffid.fmu.estimator_table.C_FMU_NAMES`) and (``python=True``) the pythonfmu
+    fallbacks of the Duffing models.
 
     Parameters
     ----------
@@ -105,5 +115,5 @@ def build_estimator_fmus(out_dir: str | Path = Path("build/fmus"), *, python: bo
     paths = [build_estimator_fmu(name, out_dir, version, platforms=platforms)
              for name in C_FMU_NAMES for version in (2, 3)]
     if python:
-        paths += [build_python_fmu(name, out_dir) for name in C_FMU_NAMES]
+        paths += [build_python_fmu(name, out_dir) for name in FMU_NAMES]
     return paths

@@ -13,24 +13,28 @@ from __future__ import annotations
 from ..errors import InputError
 from ..identification.engine import status_codes
 from ..identification.options import ONLINE_METHODS, fmu_parameters
-from ..models.chain import Duffing1, Duffing2
+from ..models.chain import Duffing1, Duffing2, DuffingCircuit
 from .variables import FmuVariable
 
-__all__ = ["C_FMU_NAMES", "MODELS", "MODEL_CODES", "INPUTS", "PARAMETER_UNITS", "parameter_unit", "OPTIONS",
+__all__ = ["C_FMU_NAMES", "MODELS", "MODEL_CODES", "RECIPROCAL", "INPUTS", "PARAMETER_UNITS", "parameter_unit", "OPTIONS",
            "DEFAULT_SAMPLE_PERIOD", "SAMPLE_PERIOD_DESCRIPTION", "TYPES", "variable_types", "estimator_variables"]
 
 #: Model name -> model identifier of the C FMUs (FMI 3 files get a ``_fmi3`` suffix).
-C_FMU_NAMES = {"duffing1": "DuffingEstimator1", "duffing2": "DuffingEstimator2"}
+C_FMU_NAMES = {"duffing1": "DuffingEstimator1", "duffing2": "DuffingEstimator2", "circuit": "DuffingCircuitEstimator"}
 #: Model name -> the model (a :class:`~duffid.models.chain.Chain`) estimated.
-MODELS = {"duffing1": Duffing1, "duffing2": Duffing2}
-#: Model name -> the C core's model code (DUFFID_DUFFING1, DUFFID_DUFFING2).
-MODEL_CODES = {"duffing1": 1, "duffing2": 2}
+MODELS = {"duffing1": Duffing1, "duffing2": Duffing2, "circuit": DuffingCircuit}
+#: Model name -> the C core's model code (DUFFID_DUFFING1, DUFFID_DUFFING2; the circuit is the
+#: Duffing1 equation with L = m, R = b, 1/C = k, a = kp).
+MODEL_CODES = {"duffing1": 1, "duffing2": 2, "circuit": 1}
+#: Model name -> its parameters that are the reciprocal of the core's (output as 1/value).
+RECIPROCAL = {"circuit": ("C",)}
 #: Model name -> the inputs (name, unit, description): displacements, then forces.
 INPUTS = {"duffing1": (("x", "m", "displacement of the mass"), ("f", "N", "force on the mass")),
            "duffing2": (("x1", "m", "displacement of m1"), ("x2", "m", "displacement of m2"),
-                        ("f1", "N", "force on m1"))}
+                        ("f1", "N", "force on m1")),
+           "circuit": (("q", "C", "charge of the capacitor"), ("u", "V", "source voltage"))}
 #: Unit of a parameter by its name without the index.
-PARAMETER_UNITS = {"m": "kg", "b": "N.s/m", "k": "N/m", "kp": "N/m3"}
+PARAMETER_UNITS = {"m": "kg", "b": "N.s/m", "k": "N/m", "kp": "N/m3", "L": "H", "R": "Ohm", "C": "F", "a": "V/C3"}
 #: Parameters in value-reference order (name, unit, description): the method, then the
 #: options of the schema (duffid.identification.options), which also generates the C table.
 OPTIONS = (("method", None, "identification method: " + ", ".join(f"{i} {m}" for i, m in enumerate(ONLINE_METHODS))),
