@@ -149,9 +149,15 @@ def test_signals_keep_the_rows_and_clean_up(loop_fmus, tmp_path, signals, loop, 
     config.write_text(f'[components.plant]\nfmu = "{loop_fmus["Oscillator1DOF"]}"\n[inputs]\n"plant.f" = 1.0\n'
                       f'[run]\nstop_time = {stop_time}\nstep = 0.001\nrecord = ["plant.x"]\nloop = "{loop}"\n')
     out = tmp_path / "run.csv"
+    before = {n for n in os.listdir(tempfile.gettempdir()) if n.startswith("duffid-cosim-")}
     process = subprocess.Popen([str(Path(sys.executable).with_name("duffid")), "cosim", str(config), "-o", str(out)],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(4.0)  # past the start-up, inside the loop
+    # the run has started once its folder of extracted FMUs exists (however loaded the machine)
+    deadline = time.monotonic() + 120.0
+    while not {n for n in os.listdir(tempfile.gettempdir()) if n.startswith("duffid-cosim-")} - before:
+        assert process.poll() is None and time.monotonic() < deadline, "the run did not start"
+        time.sleep(0.05)
+    time.sleep(1.0)  # past the instantiation, inside the loop
     for name in signals:
         process.send_signal(getattr(signal, name))
         time.sleep(0.02)
