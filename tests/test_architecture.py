@@ -30,6 +30,7 @@ LAYERS = (
     ("modelica",),
     ("cosim",),
     ("control",),
+    ("campaign",),
     ("apps",),
     ("cli",),
 )

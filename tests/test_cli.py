@@ -182,3 +182,15 @@ def test_nonlinearity_stepped_rejects_single_record_options(capsys, nonlinearity
     assert code == 2 and "--estimator applies to single records" in err
     code, _, err = _run(capsys, "nonlinearity", *files, "--stepped", "--group", "a,a")
     assert code == 2 and "--group applies to separate records" in err
+
+
+def test_ctrl_c_is_a_message_and_status_130_not_a_traceback(monkeypatch, capsys):
+    """Ctrl-C outside a co-simulation run (which keeps its rows): one line, exit status 130."""
+    from duffid.cli import COMMANDS
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(COMMANDS["simulate"], "run", interrupted)
+    assert main(["simulate", "-o", "x.csv"]) == 130
+    assert capsys.readouterr().err.strip() == "duffid simulate: interrupted"

@@ -1,5 +1,5 @@
 """The command-line interface ``duffid``: one module per subcommand (identify, simulate,
-nonlinearity, silverbox, build-fmus, cosim, demo, paper-cases), each with ``add_parser``
+nonlinearity, silverbox, build-fmus, cosim, campaign, demo, paper-cases), each with ``add_parser``
 and ``run``."""
 from __future__ import annotations
 
@@ -8,14 +8,25 @@ import sys
 from typing import Sequence
 
 from ..errors import DuffidError
-from . import build_estimator, build_fmus, cosim, demo, identify, nonlinearity, paper_cases, silverbox, simulate
+from . import (
+    build_estimator,
+    build_fmus,
+    campaign,
+    cosim,
+    demo,
+    identify,
+    nonlinearity,
+    paper_cases,
+    silverbox,
+    simulate,
+)
 
 __all__ = ["main", "build_parser", "COMMANDS"]
 
 #: Subcommand -> its module (``add_parser(sub)``, ``run(args)``), in the order of ``duffid --help``.
 COMMANDS = {"identify": identify, "simulate": simulate, "nonlinearity": nonlinearity, "silverbox": silverbox,
-            "build-fmus": build_fmus, "build-estimator": build_estimator, "cosim": cosim, "demo": demo,
-            "paper-cases": paper_cases}
+            "build-fmus": build_fmus, "build-estimator": build_estimator, "cosim": cosim, "campaign": campaign,
+            "demo": demo, "paper-cases": paper_cases}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -45,3 +56,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"duffid {args.command}: error: {exc.strerror or exc}"
               + (f": {exc.filename}" if exc.filename else ""), file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"duffid {args.command}: interrupted", file=sys.stderr)
+        return 130
