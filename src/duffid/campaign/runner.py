@@ -26,6 +26,7 @@ from distributed import Client, LocalCluster, as_completed
 from distributed.diagnostics.plugin import WorkerPlugin
 from tqdm import tqdm
 
+from ..cosim.instances import InstancePool, activate, deactivate
 from ..errors import InputError
 from .spec import CampaignSpec, load_spec
 from .store import ResultStore
@@ -36,18 +37,21 @@ __all__ = ["CampaignRun", "WorkerFolder", "run_campaign"]
 
 
 class WorkerFolder(WorkerPlugin):
-    """Gives each worker process its own folder for the files of its tasks (the extracted
-    FMUs of co-simulation runs, configurations with overrides) and removes it when the
-    worker closes."""
+    """Gives each worker process its own folder for the files of its tasks (the FMUs of
+    co-simulation runs, extracted once, and their instances, reused; configurations with
+    overrides) and frees and removes it all when the worker closes."""
 
     name = "duffid-campaign-folder"
 
     def setup(self, worker: Any) -> None:
-        """Create the folder and make it the process's folder for temporary files."""
-        worker_folder(temporary_files=True)
+        """Create the folder, make it the process's folder for temporary files, and extract
+        FMUs there once and reuse their instances across runs
+        (:mod:`duffid.cosim.instances`)."""
+        activate(InstancePool(worker_folder(temporary_files=True) / "fmus"))
 
     def teardown(self, worker: Any) -> None:
-        """Remove the folder."""
+        """Free the kept instances and remove the folder."""
+        deactivate()
         remove_worker_folder()
 
 

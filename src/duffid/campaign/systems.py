@@ -2,10 +2,11 @@
 and the per-process folder where workers keep their files.
 
 Each worker process has one folder (:func:`worker_folder`): the configurations with
-overrides are written there and every co-simulation run extracts its FMUs below it, each
-run in a folder of its own, so that two runs never share an extraction. The folder is
-removed when the worker closes (:class:`duffid.campaign.runner.WorkerFolder`) or the
-process exits; the folders of killed processes are removed by the next worker on the host.
+overrides are written there, and the worker's co-simulation runs extract each FMU once below
+it and reuse their instances (:mod:`duffid.cosim.instances`, made active by
+:class:`duffid.campaign.runner.WorkerFolder`). The folder is removed when the worker closes
+or the process exits; the folders of killed processes are removed by the next worker on the
+host.
 """
 from __future__ import annotations
 

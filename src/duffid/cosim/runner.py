@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Iterator
 import numpy as np
 
 from ..errors import CosimError
-from . import compiled_loop
+from . import compiled_loop, instances
 from .compiled_loop import CompiledLoop
 from .elements import (
     DTYPES,
@@ -117,6 +117,8 @@ class _Instance:
         self.failed_status = 0
         self.messages: deque[str] = deque(maxlen=N_MESSAGES)
         self.callbacks: Any = None
+        self.holder: list = [self]     # the run the FMU's log callback reports to (a reused instance moves)
+        self.pool_key: tuple | None = None  # set when the instance may be kept in the active pool
 
     def log(self, status: int, category: bytes | None, message: bytes | None) -> None:
         cat = category.decode("utf-8", "replace") if category else ""
@@ -223,13 +225,28 @@ class Runner:
 
         comp = inst.comp
         assert self.tmp is not None
-        unzipdir = fmpy.extract(str(comp.path), str(Path(self.tmp) / comp.name))
+        pool = instances.active()
+        if pool is None:
+            unzipdir = fmpy.extract(str(comp.path), str(Path(self.tmp) / comp.name))
+        else:
+            unzipdir = pool.unzipdir(comp.path)
+            if pool.reusable(comp.md.generationTool):
+                inst.pool_key = (pool.file_key(comp.path), comp.name, comp.version, comp.logging)
+                pooled = pool.take(inst.pool_key)
+                if pooled is not None:  # reset at the end of an earlier run: as if just instantiated
+                    inst.slave, inst.callbacks, inst.holder = pooled
+                    inst.holder[0] = inst
+                    inst.state = "instantiated"
+                    return
+            pool.count_instantiation()
         ident = comp.md.coSimulation.modelIdentifier
         inst.slave = self._load(inst, unzipdir, ident)
+        holder = inst.holder
         if comp.version == 2:
 
             def logger(env: Any, name: Any, status: int, category: bytes, message: bytes) -> None:
-                inst.log(status, category, message.replace(b"%%", b"%") if message else message)
+                if holder[0] is not None:
+                    holder[0].log(status, category, message.replace(b"%%", b"%") if message else message)
 
             callbacks = fmi2CallbackFunctions()
             callbacks.logger = fmi2CallbackLoggerTYPE(logger)
@@ -244,7 +261,8 @@ class Runner:
         else:
 
             def log3(env: Any, status: int, category: bytes, message: bytes) -> None:
-                inst.log(status, category, message)
+                if holder[0] is not None:
+                    holder[0].log(status, category, message)
 
             try:
                 inst.slave.instantiate(loggingOn=comp.logging, logMessage=log3)  # fmpy keeps the callback
@@ -652,12 +670,14 @@ class Runner:
         return Failure(None, None, float(self.t_fail), "run", f"{type(exc).__name__}: {exc}".rstrip(": "))
 
     def _release(self, failure: Failure | None) -> None:
-        """terminate (where allowed) and freeInstance every instance; delete the directory
-        (Ctrl-C and SIGTERM wait until it is done)."""
+        """terminate (where allowed) and freeInstance every instance, or, after a run that did
+        not fail, reset and keep it in the active pool (:mod:`duffid.cosim.instances`); delete
+        the directory (Ctrl-C and SIGTERM wait until it is done)."""
         with signals_held():
-            self._release_all()
+            self._release_all(keep=failure is None)
 
-    def _release_all(self) -> None:
+    def _release_all(self, keep: bool = False) -> None:
+        pool = instances.active()
         try:
             for inst in reversed(self.instances):
                 slave = inst.slave
@@ -671,7 +691,12 @@ class Runner:
                     healthy = inst.state == "stepping"
                     discarded = inst.state == "failed" and inst.failed_status == 2
                     if healthy or discarded:
-                        slave._functions["fmi2Terminate" if version == 2 else "fmi3Terminate"](slave.component)
+                        status = slave._functions["fmi2Terminate" if version == 2 else "fmi3Terminate"](slave.component)
+                        if keep and healthy and pool is not None and inst.pool_key is not None and status <= 1 and \
+                                slave._functions["fmi2Reset" if version == 2 else "fmi3Reset"](slave.component) <= 1:
+                            pool.give(inst.pool_key, slave, inst.callbacks, inst.holder)
+                            inst.state, inst.slave, inst.callbacks = "freed", None, None
+                            continue
                     slave.freeInstance()
                 except Exception:  # keep releasing the others
                     pass
