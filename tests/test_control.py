@@ -192,6 +192,25 @@ def test_step_size_and_inputs_are_checked():
     c.step(0.0, H, row)  # NaN estimates are fine
 
 
+def test_a_diverging_step_is_refused_and_leaves_the_controller_unchanged():
+    """A position so large that the observer overflows: ArithmeticError naming what would not be
+    finite, and the controller as before (the next steps equal those of a controller that never
+    saw it), as the C controller refuses such a step (the FMU: Discard, logged)."""
+    rows = _inputs(100)
+    a, b = (AdaptiveController(1, design(H), mode="fixed", switch_time=0.01) for _ in range(2))
+    a.initialize(0.0)
+    b.initialize(0.0)
+    for k in range(40):
+        row = {name: v[k] for name, v in rows.items()}
+        assert a.step(k * H, H, row) == b.step(k * H, H, row)
+    row = {name: v[40] for name, v in rows.items()}
+    with pytest.raises(ArithmeticError, match="diverged at t = .* would not be finite"):
+        a.step(40 * H, H, {**row, "x": 1e308})
+    for k in range(40, 60):
+        row = {name: v[k] for name, v in rows.items()}
+        assert a.step(k * H, H, row) == b.step(k * H, H, row)
+
+
 # ---------------------------------------------------------------------- closed loop
 def reference_1dof(t):
     return 4e-3 + 3e-3 * math.sin(2 * math.pi * t) + 1e-3 * math.sin(2 * math.pi * 3 * t)

@@ -338,3 +338,36 @@ def test_get_set_and_serialized_fmu_state(fmus, records, tmp_path):
     finally:
         fmu.freeInstance()
         other.freeInstance()
+
+
+def test_a_diverging_step_is_refused_like_the_python_controller(fmus, records, tmp_path):
+    """A position so large that the observer overflows after the switch: the C FMU discards
+    the step with a logged reason (FMI 2: the run ends there) and the Python controller raises
+    ArithmeticError and stays as before, so its following steps equal a run that never saw it."""
+    params = controller_parameters(design(H), mode="fixed", switch_time=0.05)
+    rows = input_sequence(1, records[1])[:120]
+    clean = run_python(params, rows)
+    messages = []
+    controller = AdaptiveController(1, parameters=params)
+    fmu, vr = start_fmi2(fmus["AdaptiveController1.fmu"], tmp_path, messages, params, TYPES, name="ctrl")
+    reals = [n for n in controller.input_names if n != "identified"]
+    try:
+        for k, row in enumerate(rows[:101]):
+            row = {**row, "x": 1e308} if k == 100 else row
+            fmu.setReal([vr[n] for n in reals], [row[n] for n in reals])
+            fmu.setBoolean([vr["identified"]], [bool(row["identified"])])
+            if k < 100:
+                fmu.doStep(currentCommunicationPoint=k * H, communicationStepSize=H)
+                assert_same([_read2(fmu, vr, controller)], [clean[k + 1]])
+        with pytest.raises(FMICallException, match="status 2"):  # fmi2Discard
+            fmu.doStep(currentCommunicationPoint=100 * H, communicationStepSize=H)
+    finally:
+        fmu.freeInstance()
+    assert any("diverged at t = 0.1" in text for _, _, text in messages), messages
+    python = AdaptiveController(1, parameters=params)
+    python.initialize(0.0)
+    for k, row in enumerate(rows):
+        if k == 100:
+            with pytest.raises(ArithmeticError, match="diverged"):
+                python.step(k * H, H, {**row, "x": 1e308})
+        assert_same([python.step(k * H, H, row)], [clean[k + 1]])

@@ -72,6 +72,7 @@ reference model 30 rad/s (triple pole), 10 N step excitation, force limit 20 N, 
 """
 from __future__ import annotations
 
+import copy
 import math
 import numbers
 from typing import Any, Mapping
@@ -367,8 +368,33 @@ class AdaptiveController:
         applied over ``[t_{k+1}, t_{k+2})``).
 
         Raises ValueError when ``h`` differs from ``sample_period`` or a position, the
-        reference or one of its derivatives is not finite (the FMU: Discard or Error, logged).
+        reference or one of its derivatives is not finite (the FMU: Discard or Error, logged);
+        ArithmeticError, the controller unchanged, when the step would leave a force or the
+        observer not finite (it diverged; the FMU refuses such a step the same way).
         """
+        saved = copy.deepcopy(self.__dict__)
+        out = self._step(t, h, inputs)
+        bad = self._diverged()
+        if bad is not None:
+            self.__dict__ = saved
+            raise ArithmeticError(f"the controller diverged at t = {t!r} (its {bad} would not be finite); "
+                                  "step refused")
+        return out
+
+    def _diverged(self) -> str | None:
+        """The first value the controller cannot have computed (as the C core's check), or None."""
+        limit = self.parameters["force_limit"]
+        for name, f in (("force", self._f), ("force sample", self._f_sample)):
+            if not (math.isfinite(f) and abs(f) <= limit):
+                return name
+        if self._phase == 1:
+            n = self.dofs
+            values = [*self._xh[:n], *self._vh[:n], *self._ref, *self._theta]
+            if not all(math.isfinite(v) for v in values):
+                return "observer, reference model or law parameters"
+        return None
+
+    def _step(self, t: float, h: float, inputs: Mapping[str, float]) -> dict[str, float]:
         if self._t0 is None:
             raise RuntimeError("call initialize(t0) before step")
         p = self.parameters
