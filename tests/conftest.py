@@ -36,3 +36,19 @@ def loop_fmus(tmp_path_factory):
     from duffid.control.closed_loop import ensure_fmus
 
     return ensure_fmus(tmp_path_factory.mktemp("loop_fmus"))
+
+
+@pytest.fixture
+def freed(monkeypatch):
+    """Names of the instances whose freeInstance was called (FMI 2 and 3)."""
+    from fmpy.fmi2 import FMU2Slave
+    from fmpy.fmi3 import FMU3Slave
+
+    names: list[str] = []
+    for cls in (FMU2Slave, FMU3Slave):
+        def tracking(self, real=cls.freeInstance):
+            names.append(self.instanceName)
+            return real(self)
+
+        monkeypatch.setattr(cls, "freeInstance", tracking)
+    return names

@@ -101,22 +101,6 @@ def no_leftovers(monkeypatch):
     assert after <= before
 
 
-@pytest.fixture
-def freed(monkeypatch):
-    """Names of the instances whose freeInstance was called (FMI 2 and 3)."""
-    from fmpy.fmi2 import FMU2Slave
-    from fmpy.fmi3 import FMU3Slave
-
-    names: list[str] = []
-    for cls in (FMU2Slave, FMU3Slave):
-        def tracking(self, real=cls.freeInstance):
-            names.append(self.instanceName)
-            return real(self)
-
-        monkeypatch.setattr(cls, "freeInstance", tracking)
-    return names
-
-
 # ------------------------------------------------------------------------------ 1. analytic chain
 @pytest.mark.parametrize("versions", [(2, 2, 2), (3, 3, 3), (3, 2, 3)])
 def test_jacobi_chain_gives_left_riemann_sums(fmus, versions, no_leftovers):

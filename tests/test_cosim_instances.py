@@ -41,20 +41,6 @@ def _same(a, b) -> None:
         np.testing.assert_array_equal(a[name], b[name], err_msg=name)
 
 
-@pytest.fixture
-def freed(monkeypatch):
-    from fmpy.fmi2 import FMU2Slave
-    from fmpy.fmi3 import FMU3Slave
-
-    names = []
-    for cls in (FMU2Slave, FMU3Slave):
-        def tracking(self, real=cls.freeInstance):
-            names.append(self.instanceName)
-            return real(self)
-        monkeypatch.setattr(cls, "freeInstance", tracking)
-    return names
-
-
 def test_reused_instances_give_the_same_runs_bit_for_bit(fmus, freed, tmp_path):
     """FMI 2 and FMI 3 components, Jacobi and Gauss-Seidel: three runs on reset instances equal
     runs on new ones; each FMU extracted once, instantiated once; at the end everything freed
