@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from rounding import assert_close, final_spread
 
-from duffid import Duffing1, Duffing2, Record, RecordError, identify, measure
+from duffid import Duffing1, Duffing2, Record, RecordError, Step, identify, measure, simulate
 from duffid.identification.batch import estimate
 from duffid.identification.buffered import (
     BufferedIdentification,
@@ -147,3 +147,18 @@ def test_identify_buffered_accepts_a_regression(case_a_exact):
     direct = identify_buffered(case_a_exact, regression_from_model(Duffing1()))
     via_model = estimate(case_a_exact, Duffing1(), "legendre")
     assert direct.parameters == via_model.parameters  # the same computation: bit for bit
+
+
+def test_a_window_without_force_holds_the_last_values_never_zero():
+    """A ring-down after the excitation: a window whose rows carry no force leaves the scale
+    free (the least-squares solution would be m = b = k = kp = 0); the last determined values
+    are held, and before any force the values are NaN."""
+    forced = simulate(Duffing1(), Step(10.0) + Step(-10.0, 1.0), 2.0, 1e-3)  # force off from t = 1 s
+    result = identify_buffered(forced, Duffing1(), "legendre", window=0.25)
+    at_1s = int(np.argmin(np.abs(result.t - 1.0)))  # the end of the last window with force
+    for name, value in result.parameters.items():
+        assert np.isfinite(value) and value != 0.0, name
+        assert value == result.history[name][at_1s], name
+    rest = simulate(Duffing1(), Step(10.0, 1.0), 2.0, 1e-3)  # no force before t = 1 s
+    early = identify_buffered(rest.slice(0.0, 0.6), Duffing1(), "legendre", window=0.25)
+    assert all(np.isnan(v) for v in early.parameters.values())

@@ -78,24 +78,28 @@ def summary_lines(table: pa.Table, spec: CampaignSpec) -> list[str]:
         lines.append("median |error| [%] over the seeds (90th percentile in brackets), runs without a value "
                      "(NaN) left out and counted" + ("; published: share of the runs that published the value"
                                                      if checked else ""))
-        lines.append(f"{'group':<{w}}{'runs':>6}{'failed':>7}{'no value':>9}" + "".join(f"{p:>20}" for p in parameters))
+        body = []
         for group, rows in groups.items():
             cells = []
             for p in parameters:
                 errors = np.abs(_values(rows, f"error_{p}"))
                 errors = errors[np.isfinite(errors)]
-                cell = f"{_cell(np.median(errors) if len(errors) else math.nan)} " \
-                       f"[{_cell(np.percentile(errors, 90) if len(errors) else math.nan)}]"
+                cell = f"{_cell(np.median(errors) if len(errors) else math.nan, '.3g')} " \
+                       f"[{_cell(np.percentile(errors, 90) if len(errors) else math.nan, '.3g')}]"
                 if checked:
                     ok = [r for r in rows if r.get("status") == "ok"]
                     share = np.mean([r.get(f"status_{p}") == "published" for r in ok]) if ok else math.nan
                     cell += f" {_cell(100 * share, '.0f')}%"
-                cells.append(f"{cell:>20}")
+                cells.append(cell)
             failed = sum(r.get("status") != "ok" for r in rows)
             missing = sum(r.get("status") == "ok" and not all(
                 r.get(f"estimate_{p}") is not None and math.isfinite(r[f"estimate_{p}"]) for p in parameters)
                 for r in rows)
-            lines.append(f"{_label(group):<{w}}{len(rows):>6}{failed:>7}{missing:>9}" + "".join(cells))
+            body.append((group, len(rows), failed, missing, cells))
+        cw = max([len(p) for p in parameters] + [len(c) for *_, cells in body for c in cells]) + 2
+        lines.append(f"{'group':<{w}}{'runs':>6}{'failed':>7}{'no value':>9}" + "".join(f"{p:>{cw}}" for p in parameters))
+        for group, n, failed, missing, cells in body:
+            lines.append(f"{_label(group):<{w}}{n:>6}{failed:>7}{missing:>9}" + "".join(f"{c:>{cw}}" for c in cells))
     elif spec.kind == "nonlinearity":
         w += 10  # room for the seed
         lines.append(f"{'group':<{w}}{'eta':>10}{'uncorr.':>10}{'D [dB]':>9}  verdict")

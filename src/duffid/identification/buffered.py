@@ -391,6 +391,14 @@ class BufferedIdentifier(Identifier):
                 rows += self._rows[g]
             self._factors[g], self._rows[g] = R, rows
             theta, c, rse = solve_factor(R, rows, 1.0)[:3]
+            if not np.any(R[:, -1]):
+                # no force (or other known term) in the rows, e.g. a ring-down: the scale is free
+                # (the least-squares solution would be 0); the last determined values are held
+                for i in eqs:
+                    solutions[i] = dict(self._solutions[i]) if self._solutions is not None else \
+                        {k: np.nan for k in self.regression.unknowns[i]}
+                cond, worst = np.inf, np.inf
+                continue
             cond = max(cond, c)
             worst = max(worst, float(np.max(rse)) if len(rse) else 0.0)
             values = dict(zip(names, theta))
