@@ -31,6 +31,8 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/cosim.py
 	$(BIN)/python benchmarks/trust.py
 	$(BIN)/python benchmarks/platforms.py
+	$(BIN)/python benchmarks/equations.py
+	$(BIN)/python benchmarks/campaign.py
 
 # files generated from one source: the C tables of the estimator options and the controller
 # parameters, from duffid.identification.options and duffid.control.settings
