@@ -202,7 +202,8 @@ def test_cosim_campaign_on_a_dask_cluster_records_a_failing_task_and_goes_on(clu
         assert ok["m_hat"] == pytest.approx(m, rel=0.02)            # the estimator sees the swept mass
 
 
-def test_resume_after_an_interrupt_runs_only_what_is_missing(cluster, tmp_path):
+@pytest.mark.parametrize("interrupt", [signal.SIGINT, signal.SIGTERM])
+def test_resume_after_an_interrupt_runs_only_what_is_missing(cluster, tmp_path, interrupt):
     spec = _write(tmp_path, "many.toml", IDENTIFICATION.replace("seeds = [3, 7]", "seeds = 6")
                   .replace('engine = "c"', 'engine = "python"\ncheck = false')
                   .replace("check = [false, true]", 'method = ["paper", "robust"]'))
@@ -215,7 +216,7 @@ def test_resume_after_an_interrupt_runs_only_what_is_missing(cluster, tmp_path):
         deadline = time.monotonic() + 120
         while not any(parts.glob("part-*.parquet")) and proc.poll() is None and time.monotonic() < deadline:
             time.sleep(0.05)
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(interrupt)
         stdout, stderr = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:

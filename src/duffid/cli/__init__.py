@@ -4,7 +4,9 @@ and ``run``."""
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 from typing import Sequence
 
 from ..errors import DuffidError
@@ -47,6 +49,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     surfaces as a traceback.
     """
     args = build_parser().parse_args(identify.bare_offset(sys.argv[1:] if argv is None else argv))
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _terminated) if main_thread else None
     try:
         return COMMANDS[args.command].run(args)
     except DuffidError as exc:
@@ -59,3 +63,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"duffid {args.command}: interrupted", file=sys.stderr)
         return 130
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _terminated(signum: int, frame: object) -> None:
+    """SIGTERM stops a command as Ctrl-C does (what it has done is kept: a co-simulation's rows,
+    a campaign's results)."""
+    raise KeyboardInterrupt("SIGTERM")
