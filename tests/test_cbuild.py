@@ -60,3 +60,17 @@ def test_windows_binaries_are_dlls_with_the_c_runtime_linked_in(tmp_path):
     out = tmp_path / "f.dll"
     cbuild.compile_shared_library([source], out, flags=("-shared",), platform=PLATFORMS["win64"])
     assert out.read_bytes()[:2] == b"MZ"
+
+
+@pytest.mark.skipif(cbuild.platform_compiler(PLATFORMS["win64"]) is None,
+                    reason="needs the Debian package gcc-mingw-w64-x86-64")
+def test_your_own_modelica_model_gets_the_platforms_you_ask_for(tmp_path):
+    """export_fmu (a user's model, not only the library's plants) takes the platforms too."""
+    from duffid.modelica.export import export_fmu, library_path
+
+    platforms, _ = resolve_platforms([HOST_PLATFORM.name, "win64"])
+    fmu = export_fmu(library_path(), "Duffid.Examples.Oscillator1DOF", tmp_path / "Mine.fmu", 3, "cs",
+                     platforms=platforms)
+    with zipfile.ZipFile(fmu) as z:
+        folders = {n.split("/")[1] for n in z.namelist() if n.startswith("binaries/") and n.count("/") == 2}
+    assert folders == {HOST_PLATFORM.fmi3, "x86_64-windows"}

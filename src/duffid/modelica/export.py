@@ -88,7 +88,8 @@ def _model_identifier(class_name: str) -> str:
 
 def export_fmu(mo_path: Path | str | Iterable[Path | str], class_name: str, out: Path | str,
                fmi_version: int = 2, kind: str = "both", *, tolerance: float = DEFAULT_TOLERANCE,
-               structural_parameters: Mapping[str, int | bool] | None = None, compiler: str | None = None) -> Path:
+               structural_parameters: Mapping[str, int | bool] | None = None, compiler: str | None = None,
+               platforms: Sequence[Platform] | None = None) -> Path:
     """Export a Modelica model as an FMU with sources.
 
     Parameters
@@ -111,6 +112,9 @@ def export_fmu(mo_path: Path | str | Iterable[Path | str], class_name: str, out:
         Integer/Boolean parameters fixed at export, e.g. ``{"n": 5}`` for ``ChainNDOF``.
     compiler : str
         C compiler; default: the one :func:`duffid.cbuild.find_compiler` finds.
+    platforms : sequence of Platform, optional
+        Targets of the binaries (default: this machine; e.g.
+        ``duffid.cbuild.resolve_platforms(["linux64", "win64"])[0]``).
 
     Returns
     -------
@@ -125,7 +129,7 @@ def export_fmu(mo_path: Path | str | Iterable[Path | str], class_name: str, out:
     """
     _check_options(fmi_version, kind, tolerance)
     ode = translate(mo_path, class_name, structural_parameters=structural_parameters)
-    return _write_fmu(ode, Path(out), fmi_version, kind, tolerance, compiler)
+    return _write_fmu(ode, Path(out), fmi_version, kind, tolerance, compiler, platforms)
 
 
 def _check_options(fmi_version: int, kind: str, tolerance: float) -> None:
