@@ -113,3 +113,28 @@ def test_build_estimator_cli(tmp_path, capsys):
         build_equation_fmu(DAMPING, tmp_path, name="2fast")
     with pytest.raises(EquationError):
         build_equation_fmu("m*der(x,2) = ", tmp_path, name="Bad")
+
+
+@pytest.mark.slow
+def test_chain_estimator_fmu_equals_the_online_identifier(tmp_path):
+    """duffid build-estimator --chain 3: inputs x1..x3 [m], f1 [N], the chain's parameters with
+    their units, at every sample what OnlineIdentifier of the same chain gives."""
+    from duffid import Multisine, model_from_name
+
+    assert main(["build-estimator", "--chain", "3", "-o", str(tmp_path / "ChainEstimator3.fmu")]) == 0
+    fmu = tmp_path / "ChainEstimator3.fmu"
+    assert validate_fmu(str(fmu)) == []
+    units = {v.name: v.unit for v in fmpy.read_model_description(str(fmu)).modelVariables}
+    assert (units["x3"], units["f1"], units["m2_hat"], units["b3_hat"], units["k2_1_hat"], units["k3_3_hat"]) == \
+        ("m", "N", "kg", "N.s/m", "N/m", "N/m3")
+    plant = model_from_name("chain", 3)
+    record = measure(simulate(plant, Multisine(5.0, 1.0, 30.0, 2.0, phases="random", seed=5), 2.0, 1e-3),
+                     snr_db=60, seed=2)
+    result = simulate_record(fmu, record, ["x1", "x2", "x3", "f1"])
+    ident = OnlineIdentifier(model_from_name("chain", 3), record.dt)
+    for k in range(record.n_samples):
+        estimate = ident.update(record.x[k], record.f[k])
+        for name in plant.parameters:
+            np.testing.assert_array_equal(result[k + 1][f"{name}_hat"], estimate.parameters[name], err_msg=name)
+            assert result[k + 1][f"{name}_status"] == STATUSES.index(estimate.status[name])
+    assert any(s == "published" for s in estimate.status.values())

@@ -34,9 +34,15 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                                    "condition, uncertainty, window_length and outliers; parameters are the "
                                    "estimator options, <param>_nominal and sample_period (each doStep consumes "
                                    "one sample). The FMU runs in a Python host (fmpy, ...) with duffid installed.")
-    p.add_argument("--equation", required=True, metavar="TEXT",
-                   help='e.g. "m*der(x,2) + b*der(x) + c*x^2*der(x) + k*x + kp*x^3 = f" (several: separated by ;)')
-    p.add_argument("--name", default="EquationEstimator", help="model name and file stem (default EquationEstimator)")
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--equation", metavar="TEXT",
+                      help='e.g. "m*der(x,2) + b*der(x) + c*x^2*der(x) + k*x + kp*x^3 = f" (several: separated by ;)')
+    what.add_argument("--chain", type=int, metavar="N",
+                      help="a chain of N masses from a wall, force on mass 1 (inputs x1..xN [m], f1 [N])")
+    p.add_argument("--orders", default="1,3", help="--chain: the springs' stiffness orders (default 1,3)")
+    p.add_argument("--coulomb", action="store_true", help="--chain: Coulomb friction on each mass")
+    p.add_argument("--name", default=None,
+                   help="model name and file stem (default EquationEstimator, or ChainEstimator<N>)")
     p.add_argument("--columns", default="t,f,x", metavar="LIST",
                    help="the signals as record columns (default t,f,x; 2 DOF: t,f,x1,x2)")
     p.add_argument("--units", type=unit_assignments, default=None, metavar="LIST",
@@ -48,18 +54,28 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """Build the FMU; print its path and its variables' units."""
-    from ..fmu.python_estimator import build_equation_fmu
+    from ..fmu.python_estimator import build_chain_fmu, build_equation_fmu
 
     columns = [c.strip() for c in args.columns.split(",") if c.strip()]
-    output = args.output or Path(f"{args.name}.fmu")
+    name = args.name or ("EquationEstimator" if args.equation is not None else f"ChainEstimator{args.chain}")
+    output = args.output or Path(f"{name}.fmu")
     if output.suffix != ".fmu":
         raise InputError(f"-o {output}: the file must end in .fmu")
-    if output.stem != args.name:
+    if output.stem != name:
         raise InputError(f"-o {output}: an FMU's file stem is its model name; use --name {output.stem} "
-                         f"or -o {args.name}.fmu")
+                         f"or -o {name}.fmu")
     import fmpy
 
-    path = build_equation_fmu(args.equation, output.parent, name=args.name, columns=columns, units=args.units)
+    if args.chain is not None:
+        if args.units:
+            raise InputError("--units applies to --equation; a chain is in m, N and s")
+        try:
+            orders = [int(o) for o in args.orders.split(",") if o.strip()]
+        except ValueError:
+            raise InputError(f"--orders must be integers separated by commas, got {args.orders!r}") from None
+        path = build_chain_fmu(args.chain, output.parent, orders=orders, coulomb=args.coulomb, name=name)
+    else:
+        path = build_equation_fmu(args.equation, output.parent, name=name, columns=columns, units=args.units)
     print(path)
     md = fmpy.read_model_description(str(path))
     for v in md.modelVariables:

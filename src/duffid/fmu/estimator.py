@@ -46,8 +46,15 @@ from typing import Sequence
 from ..assets import fmu_sources
 from ..cbuild import Platform
 from .c_model import build_c_model_fmu
-from .estimator_table import (C_FMU_NAMES, DEFAULT_SAMPLE_PERIOD, MODEL_CODES, MODELS, RECIPROCAL, estimator_variables,
-                              variable_types)
+from .estimator_table import (
+    C_FMU_NAMES,
+    DEFAULT_SAMPLE_PERIOD,
+    MODEL_CODES,
+    MODELS,
+    RECIPROCAL,
+    estimator_variables,
+    variable_types,
+)
 from .python_estimator import FMU_NAMES, build_python_fmu
 
 __all__ = ["build_estimator_fmus", "build_estimator_fmu"]

@@ -59,6 +59,7 @@ from __future__ import annotations
 import json
 import keyword
 import math
+import re
 import sys
 import tempfile
 from pathlib import Path
@@ -68,11 +69,18 @@ from xml.etree.ElementTree import Element, SubElement
 from ..errors import InputError
 from ..identification.engine import STATUSES, OnlineIdentifier, status_codes
 from ..identification.options import fmu_parameters, from_c, to_c
-from .estimator_table import (DEFAULT_SAMPLE_PERIOD, INPUTS, MODELS, OPTIONS, SAMPLE_PERIOD_DESCRIPTION,
-                              estimator_variables)
+from .estimator_table import (
+    DEFAULT_SAMPLE_PERIOD,
+    INPUTS,
+    MODELS,
+    OPTIONS,
+    SAMPLE_PERIOD_DESCRIPTION,
+    estimator_variables,
+)
 from .fmi_xml import unit_definitions
 
-__all__ = ["build_python_fmu", "build_equation_fmu", "FMU_NAMES", "EstimatorSlave"]
+__all__ = ["build_python_fmu", "build_equation_fmu", "build_chain_fmu", "chain_parameter_unit", "FMU_NAMES",
+           "EstimatorSlave"]
 
 #: Model name -> FMU model name (and file stem).
 FMU_NAMES = {"duffing1": "DuffingEstimator1_python", "duffing2": "DuffingEstimator2_python"}
@@ -156,12 +164,18 @@ class EstimatorSlave:
     runs one :meth:`OnlineIdentifier.update` per step.
     """
 
-    def __init__(self, slave: Any, model_name: str, equation: dict[str, Any] | None = None) -> None:
+    def __init__(self, slave: Any, model_name: str, equation: dict[str, Any] | None = None,
+                 chain: dict[str, Any] | None = None) -> None:
         Real, Integer, Boolean, String, causality, initial, variability = _variable_types()
         self.slave = slave
         self.model_name = model_name
         self.equation = equation
-        if equation is None:
+        self.chain = chain
+        if chain is not None:
+            self.fmu_name = model_name
+            self.x_names = [f"x{i + 1}" for i in range(int(chain["n_dof"]))]
+            self.f_names = ["f1"]
+        elif equation is None:
             if model_name not in MODELS:
                 raise InputError(f"unknown model {model_name!r}; choose {', '.join(MODELS)}")
             self.fmu_name = FMU_NAMES[model_name]
@@ -181,7 +195,7 @@ class EstimatorSlave:
         for name in self.x_names + self.f_names:
             setattr(slave, name, 0.0)
             text = "displacement" if name[0] == "x" else "force"
-            if equation is None:
+            if equation is None:  # a built-in model or a chain: SI units
                 text += " [m]" if name[0] == "x" else " [N]"
             slave.register_variable(Real(name, causality=causality.input, variability=variability.continuous,
                                          description=f"{text} (one sample per doStep)"))
@@ -232,7 +246,12 @@ class EstimatorSlave:
                                      description=SAMPLE_PERIOD_DESCRIPTION))
 
     def _model(self) -> Any:
-        """A new instance of the model estimated (a built-in chain or the FMU's equations)."""
+        """A new instance of the model estimated (a built-in model, a chain or the FMU's equations)."""
+        if self.chain is not None:
+            from ..models.chain import model_from_name
+
+            return model_from_name("chain", int(self.chain["n_dof"]), orders=self.chain["orders"],
+                                   coulomb=bool(self.chain["coulomb"]))
         if self.equation is None:
             return MODELS[self.model_name]()
         from ..models.equation_model import EquationModel
@@ -242,10 +261,14 @@ class EstimatorSlave:
     def _units(self) -> dict[str, str]:
         """Variable name -> unit: the C FMUs' table for a built-in model; for equations the
         signals' units, the parameters' derived ones, and the options' own."""
-        if self.equation is None:
+        if self.equation is None and self.chain is None:
             return {v.name: v.unit for v in estimator_variables(self.model_name) if v.unit}
-        units = dict(self.equation.get("units") or {})
-        params = self.equation.get("parameter_units") or {}
+        if self.chain is not None:
+            units = {**{x: "m" for x in self.x_names}, "f1": "N"}
+            params = {name: chain_parameter_unit(name) for name in self.names}
+        else:
+            units = dict(self.equation.get("units") or {})
+            params = self.equation.get("parameter_units") or {}
         units.update({f"{k}_hat": u for k, u in params.items()})
         units.update({f"{k}_nominal": u for k, u in params.items()})
         units.update({name: unit for name, unit, _ in OPTIONS if unit})
@@ -462,6 +485,49 @@ def build_equation_fmu(equation: str | Sequence[str], out_dir: str | Path, *, na
                             imports="import json\n", slave_arguments=f", equation=json.loads({json.dumps(spec)!r})",
                             description="Online algebraic identification of " + "; ".join(model.texts)
                                         + " (duffid OnlineIdentifier)")
+    return _build(script, name, out_dir, needs_execution_tool)
+
+
+def chain_parameter_unit(name: str) -> str:
+    """The unit of a chain parameter: ``m<i>`` kg, ``b<i>`` N.s/m, ``k<i>_<j>`` N/m^j,
+    ``fc<i>`` and ``c<i>`` N."""
+    match = re.fullmatch(r"k\d+_(\d+)", name)
+    if match:
+        power = int(match.group(1))
+        return "N/m" if power == 1 else f"N/m{power}"
+    units = {"m": "kg", "b": "N.s/m", "fc": "N", "c": "N"}
+    return units[name.rstrip("0123456789")]
+
+
+def build_chain_fmu(n_dof: int, out_dir: str | Path, *, orders: Sequence[int] = (1, 3), coulomb: bool = False,
+                    name: str | None = None, needs_execution_tool: bool = True) -> Path:
+    """Build ``ChainEstimator<n>.fmu``: the online identifier of a chain of ``n_dof`` masses
+    from a wall (:func:`duffid.models.chain.model_from_name` ``"chain"``: springs of the
+    stiffness ``orders`` and optionally Coulomb friction per mass, force on mass 1), pythonfmu,
+    FMI 2.0 co-simulation, the interface of the module documentation: inputs ``x1 .. x<n>``
+    [m] and ``f1`` [N]; outputs ``<param>_hat`` (``m<i>`` kg, ``b<i>`` N.s/m, ``k<i>_<j>``
+    N/m^j, ``fc<i>`` N) with statuses.
+
+    Raises
+    ------
+    InputError
+        A chain of fewer than 1 mass, no stiffness order, or a name that is not an identifier.
+    """
+    from ..models.chain import model_from_name
+
+    orders = sorted({int(o) for o in orders})
+    if not orders or min(orders) < 1:
+        raise InputError(f"--orders must be positive stiffness orders, got {orders}")
+    model_from_name("chain", int(n_dof), orders=orders, coulomb=coulomb)  # checks n_dof
+    name = name or f"ChainEstimator{int(n_dof)}"
+    if not name.isidentifier() or keyword.iskeyword(name):
+        raise InputError(f"--name {name!r} must be a Python identifier (letters, digits, _; not starting with a digit)")
+    spec = {"n_dof": int(n_dof), "orders": orders, "coulomb": bool(coulomb)}
+    script = _SCRIPT.format(model_name=name, class_name=name, sample_period=DEFAULT_SAMPLE_PERIOD,
+                            imports="import json\n", slave_arguments=f", chain=json.loads({json.dumps(spec)!r})",
+                            description=f"Online algebraic identification of a chain of {n_dof} masses (stiffness "
+                                        f"orders {orders}{', Coulomb friction' if coulomb else ''}; duffid "
+                                        "OnlineIdentifier)")
     return _build(script, name, out_dir, needs_execution_tool)
 
 
