@@ -72,7 +72,6 @@ reference model 30 rad/s (triple pole), 10 N step excitation, force limit 20 N, 
 """
 from __future__ import annotations
 
-import copy
 import math
 import numbers
 from typing import Any, Mapping
@@ -80,7 +79,7 @@ from typing import Any, Mapping
 from ..errors import InputError, OptionError
 from ..models.chain import Duffing1, Duffing2
 from .design import ControllerDesign
-from .design import design as _design
+from .design import design as default_design
 from .settings import MAX_DIFFERENTIATOR_SAMPLES, PARAMETERS, SETTINGS, coded
 from .settings import check_parameters as check_settings
 
@@ -212,13 +211,13 @@ class AdaptiveController:
             if design is not None or settings:
                 raise OptionError("give either parameters or design and settings")
             params = dict(parameters)
-            expected = set(controller_parameters(_design(float(params["sample_period"])), dofs=dofs))
+            expected = set(controller_parameters(default_design(float(params["sample_period"])), dofs=dofs))
             if set(params) != expected:
                 raise InputError(f"parameters need exactly {sorted(expected)}; got {sorted(params)}")
             check_parameters(params, dofs)
         else:
             if design is None:
-                design = _design(1e-3)
+                design = default_design(1e-3)
             params = controller_parameters(design, dofs=dofs, **settings)
         self.dofs = dofs
         self.parameters = params
@@ -372,7 +371,7 @@ class AdaptiveController:
         ArithmeticError, the controller unchanged, when the step would leave a force or the
         observer not finite (it diverged; the FMU refuses such a step the same way).
         """
-        saved = copy.deepcopy(self.__dict__)
+        saved = self._snapshot()
         out = self._step(t, h, inputs)
         bad = self._diverged()
         if bad is not None:
@@ -380,6 +379,13 @@ class AdaptiveController:
             raise ArithmeticError(f"the controller diverged at t = {t!r} (its {bad} would not be finite); "
                                   "step refused")
         return out
+
+    def _snapshot(self) -> dict[str, Any]:
+        """The state a step may change: every attribute, its lists (the positions' buffers,
+        observer, reference model, parameters) copied two levels deep (the parameters' dict is
+        never changed by a step)."""
+        return {k: [list(r) if isinstance(r, list) else r for r in v] if isinstance(v, list) else v
+                for k, v in self.__dict__.items()}
 
     def _diverged(self) -> str | None:
         """The first value the controller cannot have computed (as the C core's check), or None."""
