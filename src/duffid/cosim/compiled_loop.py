@@ -147,16 +147,19 @@ class CompiledLoop:
                  moves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray | None, int, int]],
                  on_step: Callable[[int, int, int], bool]) -> None:
         self.library, self.grid, self.step = library, np.ascontiguousarray(grid, dtype=np.float64), float(step)
-        self.stage_lists = list(stages)
         self._keep: list[Any] = []
         sets, steps, gets, posts, stage_bounds = [], [], [], [], []
+        #: The runner's set, step and get entries in the order of the C arrays (failures name them by index).
+        self.set_entries: list[tuple] = []
         self.step_entries: list[tuple] = []
+        self.get_entries: list[tuple] = []
         for stage_sets, stage_steps, stage_gets, stage_posts in stages:
             lo = (len(sets), len(steps), len(gets), len(posts))
+            self.set_entries += stage_sets
+            self.step_entries += stage_steps
+            self.get_entries += stage_gets
             sets += [self._io(op[3], op[4], op[0], op[1], op[2]) for op in stage_sets]
-            for entry in stage_steps:
-                steps.append(self._step(entry))
-                self.step_entries.append(entry)
+            steps += [self._step(entry) for entry in stage_steps]
             gets += [self._io(op[0], op[1], None, None, None) for op in stage_gets]
             posts += [self._move(dst, src, None, 0, 0) for dst, src in stage_posts]
             stage_bounds.append(_Stage(lo[0], len(sets), lo[1], len(steps), lo[2], len(gets), lo[3], len(posts)))

@@ -544,7 +544,6 @@ class Runner:
         if self.loop_mode == "python" or compiled_loop.obstacles(
                 [inst.comp for inst in self.instances], self.system._externals.values()):
             return None  # System.run refused loop="compiled" for these
-        library = compiled_loop.load()
         moves = [(view, table, None, 0, table.strides[0]) for view, table in self.tables.values()]
         moves += [(rec, self.g[kind], None if identity else idx, rec.strides[0], 0)
                   for kind, (rec, idx, identity) in self.records.items()]
@@ -554,23 +553,21 @@ class Runner:
             self._ended(ci, fname, status, flags, float(self.grid[k]))  # raises unless the FMU ended the run
             return True
 
-        loop = CompiledLoop(library, self.grid, self.step, stages, moves, on_step)
+        loop = CompiledLoop(compiled_loop.load(), self.grid, self.step, stages, moves, on_step)
         return loop
 
     def _run_compiled(self, loop: CompiledLoop) -> None:
         """The macro steps in C, in chunks (Ctrl-C and SIGTERM act between them)."""
-        sets = [op for stage in loop.stage_lists for op in stage[0]]  # in the C arrays' order
-        gets = [op for stage in loop.stage_lists for op in stage[2]]
         self.loop_used = "compiled"
         try:
             for start, stop in self._chunks(_COMPILED_CHUNK):
                 code = loop.run(start, stop)
                 k = loop.failed_step.value
                 if code == compiled_loop.SET_FAILED:
-                    _, _, _, _, _, ci, fname = sets[loop.failed_op.value]
+                    _, _, _, _, _, ci, fname = loop.set_entries[loop.failed_op.value]
                     raise _StepFailure(ci, fname, loop.failed_status.value, float(self.grid[k]))
                 if code == compiled_loop.GET_FAILED:
-                    _, _, ci, fname = gets[loop.failed_op.value]
+                    _, _, ci, fname = loop.get_entries[loop.failed_op.value]
                     raise _StepFailure(ci, fname, loop.failed_status.value, float(self.grid[k + 1]))
                 if code == compiled_loop.ENDED:
                     raise self.ending
