@@ -171,22 +171,19 @@ class EstimatorSlave:
         self.model_name = model_name
         self.equation = equation
         self.chain = chain
+        if equation is None and chain is None and model_name not in MODELS:
+            raise InputError(f"unknown model {model_name!r}; choose {', '.join(MODELS)}")
+        model = self._model()
+        self.names = list(model.parameters)
+        self.fmu_name = model_name if equation is not None or chain is not None else FMU_NAMES[model_name]
         if chain is not None:
-            self.fmu_name = model_name
-            self.x_names = [f"x{i + 1}" for i in range(int(chain["n_dof"]))]
-            self.f_names = ["f1"]
-        elif equation is None:
-            if model_name not in MODELS:
-                raise InputError(f"unknown model {model_name!r}; choose {', '.join(MODELS)}")
-            self.fmu_name = FMU_NAMES[model_name]
+            self.x_names, self.f_names = [f"x{i + 1}" for i in range(model.n_dof)], ["f1"]
+        elif equation is not None:
+            self.x_names, self.f_names = list(model.regressor.signals.x_names), list(model.regressor.signals.f_names)
+        else:
             inputs = [name for name, _, _ in INPUTS[model_name]]
             self.x_names = [name for name in inputs if name.startswith("x")]
             self.f_names = [name for name in inputs if not name.startswith("x")]
-        else:
-            self.fmu_name = model_name
-            signals = self._model().regressor.signals
-            self.x_names, self.f_names = list(signals.x_names), list(signals.f_names)
-        self.names = list(self._model().parameters)
         self.ident: OnlineIdentifier | None = None
         self.used: dict[str, Any] = {}
         self.last_error: str | None = None
