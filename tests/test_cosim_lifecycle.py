@@ -141,7 +141,9 @@ def test_signals_keep_the_rows_and_clean_up(loop_fmus, tmp_path, signals, loop, 
     """SIGTERM, or Ctrl-C twice (the second during the clean-up): every instance freed, the
     extracted FMUs deleted, the rows so far written, no traceback; in either inner loop (the
     compiled one runs chunks of macro steps between which the signals are acted on)."""
+    import re
     import signal
+    import threading
     import time
 
     config = tmp_path / "long.toml"
@@ -149,19 +151,24 @@ def test_signals_keep_the_rows_and_clean_up(loop_fmus, tmp_path, signals, loop, 
     config.write_text(f'[components.plant]\nfmu = "{loop_fmus["Oscillator1DOF"]}"\n[inputs]\n"plant.f" = 1.0\n'
                       f'[run]\nstop_time = {stop_time}\nstep = 0.001\nrecord = ["plant.x"]\nloop = "{loop}"\n')
     out = tmp_path / "run.csv"
-    before = {n for n in os.listdir(tempfile.gettempdir()) if n.startswith("duffid-cosim-")}
-    process = subprocess.Popen([str(Path(sys.executable).with_name("duffid")), "cosim", str(config), "-o", str(out)],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    # the run has started once its folder of extracted FMUs exists (however loaded the machine)
+    process = subprocess.Popen([str(Path(sys.executable).with_name("duffid")), "cosim", str(config), "-o", str(out),
+                                "--progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    # the run is inside its loop once the progress bar has counted steps (however loaded the machine:
+    # a fixed wait after the extraction was too short on a 2-core CI runner)
+    err = bytearray()
+    reader = threading.Thread(target=lambda: [err.extend(b) for b in iter(lambda: os.read(process.stderr.fileno(),
+                                                                                            4096), b"")], daemon=True)
+    reader.start()
     deadline = time.monotonic() + 120.0
-    while not {n for n in os.listdir(tempfile.gettempdir()) if n.startswith("duffid-cosim-")} - before:
-        assert process.poll() is None and time.monotonic() < deadline, "the run did not start"
+    while not re.search(rb"\| *[1-9][0-9]*/[0-9]+ \[", bytes(err)):
+        assert process.poll() is None and time.monotonic() < deadline, f"the run did not start: {bytes(err)!r}"
         time.sleep(0.05)
-    time.sleep(1.0)  # past the instantiation, inside the loop
     for name in signals:
         process.send_signal(getattr(signal, name))
         time.sleep(0.02)
-    stdout, stderr = process.communicate(timeout=120)
+    process.wait(timeout=120)
+    reader.join(timeout=10)
+    stderr = err.decode(errors="replace")
     assert process.returncode == 1, stderr
     assert "Traceback" not in stderr and "the run failed" in stderr
     assert ("SIGTERM" in stderr) if signals == ("SIGTERM",) else ("KeyboardInterrupt" in stderr)
