@@ -351,6 +351,20 @@ def test_existing_results_are_not_overwritten_and_a_foreign_file_is_refused(tmp_
     assert math.isfinite(pq.read_table(out).column("eta").to_pylist()[0])
 
 
+def test_a_scheduler_address_where_nothing_listens_fails_at_once(tmp_path, capsys):
+    spec = _write(tmp_path, "eta.toml", NONLINEARITY.replace("count = 2", "count = 1"))
+    with socket.socket() as s:                       # a port that was free a moment ago
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    assert main(["campaign", str(spec), "-o", str(tmp_path / "eta.parquet"), "--scheduler",
+                 f"tcp://127.0.0.1:{port}", "--no-progress"]) == 2
+    err = capsys.readouterr().err                     # the probe's message, not Dask's after 30 s
+    assert f"cannot reach the Dask scheduler at tcp://127.0.0.1:{port}: nothing listens there" in err
+    assert main(["campaign", str(spec), "-o", str(tmp_path / "eta.parquet"), "--scheduler",
+                 "tcp://127.0.0.1:notaport", "--no-progress"]) == 2
+    assert "the port is not a number" in capsys.readouterr().err
+
+
 # ---------------------------------------------------------------------------- the example specs
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "campaigns"
 

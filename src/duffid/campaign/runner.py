@@ -14,12 +14,14 @@ from __future__ import annotations
 
 import logging
 import os
+import socket
 import time
 import uuid
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterator
+from urllib.parse import urlsplit
 
 import pyarrow as pa
 from distributed import Client, LocalCluster, as_completed
@@ -85,12 +87,31 @@ class CampaignRun:
     seconds: float
 
 
+def _probe(scheduler: str, timeout: float = 10.0) -> None:
+    """Fail at once when nothing listens at a ``tcp://host:port`` scheduler address (Dask's own
+    client retries a refused connection until its 30 s timeout); other addresses are left to Dask."""
+    split = urlsplit(scheduler if "://" in scheduler else f"tcp://{scheduler}")
+    if split.scheme != "tcp" or split.hostname is None:
+        return
+    try:
+        port = split.port
+    except ValueError:
+        raise InputError(f"--scheduler {scheduler}: the port is not a number (e.g. tcp://host:8786)") from None
+    try:
+        socket.create_connection((split.hostname, port or 8786), timeout=timeout).close()
+    except OSError as exc:
+        reason = "nothing listens there" if isinstance(exc, ConnectionRefusedError) else (str(exc) or type(exc).__name__)
+        raise InputError(f"cannot reach the Dask scheduler at {scheduler}: {reason} (start one with "
+                         f"`dask scheduler`, or leave out --scheduler for a local cluster)") from None
+
+
 @contextmanager
 def _client(scheduler: str | None, workers: int | None) -> Iterator[Client]:
     if scheduler is not None:
         if workers is not None:
             raise InputError("--workers sets the size of the local cluster; with --scheduler the cluster has "
                              "the workers started for it")
+        _probe(scheduler)
         try:
             client = Client(scheduler, timeout=30)
         except (OSError, TimeoutError) as exc:
