@@ -212,12 +212,12 @@ def test_options_are_validated_like_python():
         CIdentifier(Duffing1(), 1e-3, method="legendre")
     with pytest.raises(ValueError, match="dt"):
         CIdentifier(Duffing1(), 0.0)
-    with pytest.raises(ValueError, match="n_rows must be at most 12"):
-        CIdentifier(Duffing1(), 1e-3, n_rows=13)
-    with pytest.raises(ValueError, match="supports the models"):
-        CIdentifier(DuffingCircuit(), 1e-3)
-    with pytest.raises(ValueError, match="supports the models"):
-        CIdentifier(Chain(masses=(1.0,), damping=(1.0,), stiffness=({1: 1.0},)), 1e-3)
+    with pytest.raises(ValueError, match="n_rows must be at most 17"):
+        CIdentifier(Duffing1(), 1e-3, n_rows=18)
+    with pytest.raises(ValueError, match="at most 6 displacements"):
+        CIdentifier(Chain(masses=(1.0,) * 7, damping=(1.0,) * 7, stiffness=({1: 1.0},) * 7), 1e-3)
+    with pytest.raises(ValueError, match="needs a model"):
+        CIdentifier(42, 1e-3)
 
 
 def test_missing_compiler_is_a_clear_error(monkeypatch, tmp_path):

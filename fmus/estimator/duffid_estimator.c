@@ -1,13 +1,18 @@
 /*
  * duffid_estimator.c - portable C99 port of duffid.identification.engine.OnlineIdentifier.
  *
+ * The engine is generic over a model description (duffid_model.h): channels, blocks of
+ * equations as terms over the channels, the parameters' attributes. Duffing1 and Duffing2
+ * are described here (describe_builtin, channels by a switch); any other model comes as a
+ * generated description whose channel function CasADi wrote (DUFFID_GENERATED).
+ *
  * Section names follow the Python modules:
  *   channels        models.Channel / identification._Channels
  *   kernel bank     regressors.row_exponents, regressors.KernelBank
  *   moments         regressors.SlidingMoments, regressors.gregory_corrections
  *   robust solve    identification._QRLeastSquares, solve_factor
  *   paper method    identification.Integrators, OnlineIdentifier._paper_step
- *   combination     identification.combine_equations, auto_window
+ *   combination     Chain/EquationModel.combine_solutions, auto_window
  *   publication     OnlineIdentifier._publish, _window_ok, _after_publish
  *
  * The order of floating-point operations follows the Python code wherever it is defined
@@ -26,26 +31,28 @@
 #include <string.h>
 
 /* ------------------------------------------------------------------ maxima */
-#define MAX_CH 8                     /* distinct channels (Duffing2 + offset) */
-#define MAX_UNK 8                    /* unknowns per equation */
+#define MAX_CH DUFFID_MAX_CHANNELS
+#define MAX_UNK DUFFID_MAX_UNKNOWNS
 #define MAX_AUG (MAX_UNK + 1)        /* augmented factor [A D] */
-#define MAX_EQ DUFFID_MAX_DOF
-#define MAX_ORDER 2                  /* derivative orders 0..2 */
+#define MAX_EQ DUFFID_MAX_BLOCKS
+#define MAX_ORDER DUFFID_MAX_DERIVATIVE /* derivative orders 0..2 */
 #define N_ORD (MAX_ORDER + 1)
 #define MAX_DEG (DUFFID_MAX_ROWS + 4) /* highest moment power */
 #define MAX_POW (MAX_DEG + 1)
+#define MAX_BROWS (DUFFID_MAX_PARTS * DUFFID_MAX_ROWS) /* rows of one block per window */
 #define MAX_CORR 6                   /* quadrature end corrections */
 #define MIN_SAMPLES 8                /* identification._MIN_SAMPLES */
 #define MAX_CAPACITY 100000000L      /* longest robust window in samples */
+#define ANY_SIGN (DUFFID_ALLOW_POSITIVE | DUFFID_ALLOW_ZERO | DUFFID_ALLOW_NEGATIVE)
 
 #define DNAN ((double)NAN)      /* NAN and INFINITY are float constants in C99 */
 #define DINF ((double)INFINITY)
 
 static const double PI = 3.141592653589793238462643383279502884;
 
-/* channel kinds */
+/* channel kinds of the built-in models (a generated model computes its channels itself) */
 enum { CH_X = 0, CH_DEFL = 1, CH_FORCE = 2, CH_ONE = 3 };
-/* canonical parameter kinds, id = 4 * dof + kind for kind < 4; offsets 4 * n_dof + dof */
+/* canonical parameters of the built-in chains: id = 4 * dof + kind, offsets 4 * n_dof + dof */
 enum { P_M = 0, P_B = 1, P_K1 = 2, P_K3 = 3 };
 
 typedef struct {
@@ -58,14 +65,7 @@ typedef struct {
     int count;         /* samples pushed, saturated at 2 */
 } integrators_t;
 
-typedef struct {
-    int dof, forced, n_unk;
-    int param[MAX_UNK];      /* canonical id of each unknown (column) */
-    int ch[MAX_UNK], order[MAX_UNK];
-    double sign[MAX_UNK];
-    int rhs_ch, rhs_order;
-    double rhs_sign;
-    /* state */
+typedef struct { /* the state of one block of the description */
     double theta[MAX_UNK], rse[MAX_UNK], cond;
     double share[MAX_UNK], rhs_share; /* shares of the terms and of the right-hand side */
     double R[MAX_AUG * MAX_AUG]; /* robust: accumulated factor of [A D] */
@@ -75,10 +75,10 @@ typedef struct {
 
 struct duffid_estimator {
     duffid_config cfg;
+    duffid_model model;                    /* the description (a copy: the state is self-contained) */
     int n_dof, n_forces, n_params, n_ch, n_eq;
-    channel_t ch[MAX_CH];
+    channel_t ch[MAX_CH];                  /* built-in models: what each channel is */
     equation_t eq[MAX_EQ];
-    int canon_of_public[DUFFID_MAX_PARAMS];
     double nominal[DUFFID_MAX_PARAMS];     /* canonical order, |prior size| (0: none) */
 
     /* common state */
@@ -92,6 +92,8 @@ struct duffid_estimator {
     int status[DUFFID_MAX_PARAMS];         /* canonical order, DUFFID_STATUS_* */
     double held[DUFFID_MAX_PARAMS];        /* public order */
     int64_t settle_count;
+    int has_last_x;                        /* signs of velocity (identification._Channels) */
+    double last_x[DUFFID_MAX_DOF], sgn[DUFFID_MAX_DOF];
 
     /* robust */
     long capacity, target;
@@ -114,19 +116,21 @@ struct duffid_estimator {
     long corr_off[MAX_CORR];
     double corr_w[MAX_CORR * MAX_POW];      /* [m][k] */
     double *ring;                           /* (capacity + 2) x n_ch */
+    double *chan_work;                      /* workspace of a generated channel function */
     double main_acc[MAX_POW * MAX_CH], shadow[MAX_POW * MAX_CH], mom[MAX_POW * MAX_CH];
     int64_t start, shadow_from;
     double E[DUFFID_MAX_ROWS * N_ORD * MAX_CH];
 
     /* workspace of one update (no allocation, no large stack frames) */
     double g[MAX_CH];
-    double B[DUFFID_MAX_ROWS * MAX_AUG];
+    double B[MAX_BROWS * MAX_AUG];
     double W[MAX_AUG * MAX_AUG];
     double U[MAX_UNK * MAX_UNK], V[MAX_UNK * MAX_UNK], Rinv[MAX_UNK * MAX_UNK];
     double sv[MAX_UNK], scale[MAX_UNK], tmp[MAX_UNK * MAX_UNK];
     double u_in[3 * MAX_CH];
     double Ap[MAX_UNK * MAX_UNK], Dp[MAX_UNK], Aw[MAX_UNK * MAX_UNK];
     double canon[DUFFID_MAX_PARAMS], canon_rse[DUFFID_MAX_PARAMS], canon_share[DUFFID_MAX_PARAMS];
+    double lin[2 * DUFFID_MAX_DOF * DUFFID_MAX_DOF];
 
     /* isolated outliers (identification._OutlierGuard) */
     int64_t received;                      /* index of the newest sample received */
@@ -201,22 +205,46 @@ static double max_builtin(double current, double candidate) /* Python max(curren
 static const char *const NAMES1[] = {"m", "b", "k", "kp", "c1"};
 static const char *const NAMES2[] = {"m1", "b1", "k1", "kp1", "b2", "k2", "kp2", "m2", "c1", "c2"};
 
+/* the generated description compiled in, NULL if none */
+static const duffid_model *generated_model(void)
+{
+#ifdef DUFFID_GENERATED_MODEL
+    return &duffid_generated_model;
+#else
+    return NULL;
+#endif
+}
+
 static int model_dofs(int model)
 {
+    if (model == DUFFID_GENERATED) {
+        return generated_model() != NULL ? generated_model()->n_dof : 0;
+    }
     return model == DUFFID_DUFFING1 ? 1 : (model == DUFFID_DUFFING2 ? 2 : 0);
 }
 
 static int public_count(int model, int offset)
 {
     int n = model_dofs(model);
+    if (model == DUFFID_GENERATED) {
+        return generated_model()->n_params;
+    }
     return 4 * n + (offset ? n : 0);
 }
 
-/* canonical id of public parameter i */
+/* canonical id of public parameter i of a built-in model */
 static int public_to_canon(int model, int i)
 {
     static const int map2[] = {0, 1, 2, 3, 5, 6, 7, 4, 8, 9};
     return model == DUFFID_DUFFING1 ? i : map2[i];
+}
+
+static const char *public_name(const duffid_config *cfg, int i)
+{
+    if (cfg->model == DUFFID_GENERATED) {
+        return generated_model()->publics[i].name;
+    }
+    return cfg->model == DUFFID_DUFFING1 ? NAMES1[i] : NAMES2[i];
 }
 
 /* ------------------------------------------------------------------ configuration */
@@ -262,10 +290,33 @@ static int check_CODE(const char *name, int used, int v, double minimum, int max
     return DUFFID_OK;
 }
 
+/* unknowns of block e */
+static int block_unknowns(const duffid_config *cfg, int e)
+{
+    if (cfg->model == DUFFID_GENERATED) {
+        return generated_model()->blocks[e].n_unknowns;
+    }
+    /* DOF 1: m1 b1 k1_1 k1_3 [b2 k2_1 k2_3] [c1]; DOF 2 (unforced): b2/m2 k2_1/m2 k2_3/m2 [c2/m2] */
+    if (e == 0) {
+        return (cfg->model == DUFFID_DUFFING2 ? 7 : 4) + (cfg->offset ? 1 : 0);
+    }
+    return 3 + (cfg->offset ? 1 : 0);
+}
+
+static int block_count(const duffid_config *cfg)
+{
+    return cfg->model == DUFFID_GENERATED ? generated_model()->n_blocks : model_dofs(cfg->model);
+}
+
 static int n_unknowns_max(const duffid_config *cfg)
 {
-    /* equation of DOF 1: m1 b1 k1_1 k1_3 [b2 k2_1 k2_3] [c1] */
-    return (cfg->model == DUFFID_DUFFING2 ? 7 : 4) + (cfg->offset ? 1 : 0);
+    int e, best = 0;
+    for (e = 0; e < block_count(cfg); e++) {
+        if (block_unknowns(cfg, e) > best) {
+            best = block_unknowns(cfg, e);
+        }
+    }
+    return best;
 }
 
 static int effective_rows(const duffid_config *cfg)
@@ -287,6 +338,21 @@ static long capacity_of(const duffid_config *cfg)
     return r < 2.0 ? 2L : (long)r;
 }
 
+/* distinct channels: x1 x1 x1^3 f1 (Duffing1) or x1 x1 x1^3 (x2-x1) (x2-x1)^3 f1 x2
+ * (Duffing2), x and the first deflection counted apart as in Python; + 1 with offsets */
+static int channel_count(const duffid_config *cfg)
+{
+    if (cfg->model == DUFFID_GENERATED) {
+        return generated_model()->n_channels;
+    }
+    return (model_dofs(cfg->model) == 1 ? 4 : 7) + (cfg->offset ? 1 : 0);
+}
+
+static int channel_work(const duffid_config *cfg)
+{
+    return cfg->model == DUFFID_GENERATED ? generated_model()->channel_work : 0;
+}
+
 int duffid_check_config(const duffid_config *cfg, char *msg, size_t size)
 {
     int i, rc, n_pub, method_bit;
@@ -295,7 +361,11 @@ int duffid_check_config(const duffid_config *cfg, char *msg, size_t size)
         return DUFFID_ERR_ARGUMENT;
     }
     if (model_dofs(cfg->model) == 0) {
-        set_msg(msg, size, "unknown model %d; choose DUFFID_DUFFING1 (1) or DUFFID_DUFFING2 (2)", cfg->model);
+        set_msg(msg, size,
+                cfg->model == DUFFID_GENERATED
+                    ? "model DUFFID_GENERATED (3): no generated model was compiled in (-DDUFFID_GENERATED_MODEL)"
+                    : "unknown model %d; choose DUFFID_DUFFING1 (1), DUFFID_DUFFING2 (2) or DUFFID_GENERATED (3)",
+                cfg->model);
         return DUFFID_ERR_CONFIG;
     }
     if (cfg->method != DUFFID_ROBUST && cfg->method != DUFFID_PAPER) {
@@ -306,16 +376,20 @@ int duffid_check_config(const duffid_config *cfg, char *msg, size_t size)
         set_msg(msg, size, "offset must be 0 or 1, got %d", cfg->offset);
         return DUFFID_ERR_CONFIG;
     }
+    if (cfg->offset && cfg->model == DUFFID_GENERATED) {
+        set_msg(msg, size, "offset must be 0 for the generated model (its description has its offsets)");
+        return DUFFID_ERR_CONFIG;
+    }
     if (!(is_finite(cfg->dt) && cfg->dt > 0.0)) {
         set_msg(msg, size, "dt must be a positive number of seconds, got %g", cfg->dt);
         return DUFFID_ERR_CONFIG;
     }
     n_pub = public_count(cfg->model, cfg->offset);
     for (i = 0; i < n_pub; i++) {
-        const char *name = cfg->model == DUFFID_DUFFING1 ? NAMES1[i] : NAMES2[i];
         double v = cfg->nominal[i];
         if (!is_finite(v)) {
-            set_msg(msg, size, "the prior size %s_nominal must be a finite number (0: none), got %g", name, v);
+            set_msg(msg, size, "the prior size %s_nominal must be a finite number (0: none), got %g",
+                    public_name(cfg, i), v);
             return DUFFID_ERR_CONFIG;
         }
     }
@@ -327,6 +401,17 @@ int duffid_check_config(const duffid_config *cfg, char *msg, size_t size)
     }
     DUFFID_OPTIONS(DUFFID_CHECK_OPTION)
 #undef DUFFID_CHECK_OPTION
+    if (cfg->method == DUFFID_PAPER && cfg->model == DUFFID_GENERATED) {
+        for (i = 0; i < generated_model()->n_blocks; i++) {
+            if (generated_model()->blocks[i].n_parts > 1) {
+                set_msg(msg, size,
+                        "the paper method solves each equation alone, and block %d has %d equations solved together: "
+                        "use the robust method",
+                        i + 1, generated_model()->blocks[i].n_parts);
+                return DUFFID_ERR_CONFIG;
+            }
+        }
+    }
     if (cfg->method == DUFFID_ROBUST) {
         if (effective_rows(cfg) > DUFFID_MAX_ROWS) {
             set_msg(msg, size, "n_rows must be at most %d in the C core, got %d", DUFFID_MAX_ROWS,
@@ -349,25 +434,16 @@ int duffid_check_config(const duffid_config *cfg, char *msg, size_t size)
 #define ALIGNMENT 8u /* doubles and 64-bit integers */
 #define ALIGN_UP(v) (((v) + (ALIGNMENT - 1u)) & ~(size_t)(ALIGNMENT - 1u))
 
-/* distinct channels: x1 x1 x1^3 f1 (Duffing1) or x1 x1 x1^3 (x2-x1) (x2-x1)^3 f1 x2
- * (Duffing2), x and the first deflection counted apart as in Python; + 1 with offsets */
-static int channel_count(const duffid_config *cfg)
-{
-    return (model_dofs(cfg->model) == 1 ? 4 : 7) + (cfg->offset ? 1 : 0);
-}
-
 static size_t dynamic_doubles(const duffid_config *cfg)
 {
-    int n_dof = model_dofs(cfg->model);
     int n_ch = channel_count(cfg);
+    size_t total = (size_t)channel_work(cfg);
     if (cfg->method == DUFFID_ROBUST) {
-        return (size_t)(capacity_of(cfg) + 2) * (size_t)n_ch;
+        return total + (size_t)(capacity_of(cfg) + 2) * (size_t)n_ch;
     } else {
-        size_t total = 0;
         int e;
-        for (e = 0; e < n_dof; e++) {
-            /* DOF 1: n_unknowns_max; DOF 2 (unforced): b2/m2 k2_1/m2 k2_3/m2 [c2/m2] */
-            int n_unk = e == 0 ? n_unknowns_max(cfg) : 3 + (cfg->offset ? 1 : 0);
+        for (e = 0; e < block_count(cfg); e++) {
+            int n_unk = block_unknowns(cfg, e);
             total += 3u * (size_t)(n_unk + 2) * (size_t)(3 * n_ch); /* regressor integrators */
             total += 3u * 3u * (size_t)(n_unk + 1);                 /* determinant integrators */
         }
@@ -387,65 +463,203 @@ size_t duffid_memory_size(const duffid_config *cfg)
 static int add_channel(duffid_estimator *est, int kind, int index, int power)
 {
     int i;
-    for (i = 0; i < est->n_ch; i++) {
+    for (i = 0; i < est->model.n_channels; i++) {
         if (est->ch[i].kind == kind && est->ch[i].index == index && est->ch[i].power == power) {
             return i;
         }
     }
-    est->ch[est->n_ch].kind = kind;
-    est->ch[est->n_ch].index = index;
-    est->ch[est->n_ch].power = power;
-    return est->n_ch++;
+    est->ch[i].kind = kind;
+    est->ch[i].index = index;
+    est->ch[i].power = power;
+    return est->model.n_channels++;
 }
 
-static void add_unknown(duffid_estimator *est, equation_t *eq, int param, int kind, int index, int power,
-                        int order, double sign)
+static void add_term(duffid_estimator *est, duffid_block *block, int unknown, int kind, int index, int power,
+                     int order, double coef)
 {
-    int u = eq->n_unk++;
-    eq->param[u] = param;
-    eq->ch[u] = add_channel(est, kind, index, power);
-    eq->order[u] = order;
-    eq->sign[u] = sign;
+    duffid_term *t = &block->terms[block->n_terms++];
+    t->part = 0;
+    t->unknown = unknown;
+    t->channel = add_channel(est, kind, index, power);
+    t->order = order;
+    t->coef = coef;
 }
 
-/* models.Chain.equations() for orders (1, 3), forced (0,), no Coulomb friction. The
- * channels are registered in first-use order (lhs then rhs terms, equation by equation). */
-static void build_structure(duffid_estimator *est)
+static void set_name(char *dst, const char *prefix, int i, const char *suffix)
 {
-    int i;
-    est->n_ch = 0;
-    est->n_eq = est->n_dof;
-    for (i = 0; i < est->n_dof; i++) {
-        equation_t *eq = &est->eq[i];
-        eq->dof = i;
-        eq->forced = i == 0;
-        eq->n_unk = 0;
-        if (eq->forced) {
-            add_unknown(est, eq, 4 * i + P_M, CH_X, i, 1, 2, 1.0);
+#ifdef DUFFID_NO_STDIO
+    size_t n = strlen(prefix);
+    memcpy(dst, prefix, n);
+    dst[n] = (char)('0' + i);
+    strcpy(dst + n + 1, suffix);
+#else
+    snprintf(dst, DUFFID_NAME_SIZE, "%s%d%s", prefix, i, suffix);
+#endif
+}
+
+static int block_unknown_of(const duffid_block *b, const int *param_of_unknown, int param)
+{
+    int u;
+    for (u = 0; u < b->n_unknowns; u++) {
+        if (param_of_unknown[u] == param) {
+            return u;
         }
-        add_unknown(est, eq, 4 * i + P_B, CH_DEFL, i, 1, 1, 1.0);
-        add_unknown(est, eq, 4 * i + P_K1, CH_DEFL, i, 1, 0, 1.0);
-        add_unknown(est, eq, 4 * i + P_K3, CH_DEFL, i, 3, 0, 1.0);
-        if (i + 1 < est->n_dof) {
-            add_unknown(est, eq, 4 * (i + 1) + P_B, CH_DEFL, i + 1, 1, 1, -1.0);
-            add_unknown(est, eq, 4 * (i + 1) + P_K1, CH_DEFL, i + 1, 1, 0, -1.0);
-            add_unknown(est, eq, 4 * (i + 1) + P_K3, CH_DEFL, i + 1, 3, 0, -1.0);
+    }
+    return -1;
+}
+
+/* The description of Duffing1/Duffing2 (models.Chain.equations() for orders (1, 3), a force on
+ * DOF 1, no Coulomb friction, and what Chain answers about its parameters). Channels are
+ * registered in first-use order (lhs then rhs terms, equation by equation). */
+static void describe_builtin(duffid_estimator *est)
+{
+    duffid_model *m = &est->model;
+    const int n = model_dofs(est->cfg.model), offset = est->cfg.offset;
+    int param_of[MAX_EQ][MAX_UNK];
+    int i, j, e, p;
+    m->n_dof = n;
+    m->n_forces = 1;
+    m->max_order = 2;
+    m->n_blocks = n;
+    m->n_params = 4 * n + (offset ? n : 0);
+    m->uses_sign = 0;
+    for (i = 0; i < n; i++) {
+        duffid_block *b = &est->model.blocks[i];
+        b->n_parts = 1;
+        b->forced = i == 0;
+        if (b->forced) {
+            param_of[i][b->n_terms] = 4 * i + P_M;
+            add_term(est, b, b->n_unknowns++, CH_X, i, 1, 2, 1.0);
         }
-        if (est->cfg.offset) {
-            add_unknown(est, eq, 4 * est->n_dof + i, CH_ONE, 0, 1, 0, 1.0);
+        param_of[i][b->n_terms] = 4 * i + P_B;
+        add_term(est, b, b->n_unknowns++, CH_DEFL, i, 1, 1, 1.0);
+        param_of[i][b->n_terms] = 4 * i + P_K1;
+        add_term(est, b, b->n_unknowns++, CH_DEFL, i, 1, 0, 1.0);
+        param_of[i][b->n_terms] = 4 * i + P_K3;
+        add_term(est, b, b->n_unknowns++, CH_DEFL, i, 3, 0, 1.0);
+        if (i + 1 < n) {
+            param_of[i][b->n_terms] = 4 * (i + 1) + P_B;
+            add_term(est, b, b->n_unknowns++, CH_DEFL, i + 1, 1, 1, -1.0);
+            param_of[i][b->n_terms] = 4 * (i + 1) + P_K1;
+            add_term(est, b, b->n_unknowns++, CH_DEFL, i + 1, 1, 0, -1.0);
+            param_of[i][b->n_terms] = 4 * (i + 1) + P_K3;
+            add_term(est, b, b->n_unknowns++, CH_DEFL, i + 1, 3, 0, -1.0);
         }
-        if (eq->forced) {
-            eq->rhs_ch = add_channel(est, CH_FORCE, 0, 1);
-            eq->rhs_order = 0;
-            eq->rhs_sign = 1.0;
+        if (offset) {
+            param_of[i][b->n_terms] = 4 * n + i;
+            add_term(est, b, b->n_unknowns++, CH_ONE, 0, 1, 0, 1.0);
+        }
+        if (b->forced) {
+            add_term(est, b, -1, CH_FORCE, 0, 1, 0, 1.0);
         } else {
-            eq->rhs_ch = add_channel(est, CH_X, i, 1);
-            eq->rhs_order = 2;
-            eq->rhs_sign = -1.0;
+            add_term(est, b, -1, CH_X, i, 1, 2, -1.0);
         }
+    }
+    for (p = 0; p < m->n_params; p++) {
+        duffid_parameter *q = &m->params[p];
+        const int dof = p < 4 * n ? p / 4 : p - 4 * n, kind = p < 4 * n ? p % 4 : -1;
+        static const char *const prefix[] = {"m", "b", "k", "k"};
+        set_name(q->name, kind < 0 ? "c" : prefix[kind], dof + 1, kind == P_K1 ? "_1" : (kind == P_K3 ? "_3" : ""));
+        q->physical = kind == P_M ? DUFFID_ALLOW_POSITIVE
+                                  : (kind == P_B ? DUFFID_ALLOW_POSITIVE | DUFFID_ALLOW_ZERO : ANY_SIGN);
+        q->period = kind == P_M || kind == P_K1;
+        q->offset = kind < 0;
+        q->scale_of = kind == P_M && !m->blocks[dof].forced ? dof : -1;
+        for (j = 0; j < n; j++) {
+            int u = block_unknown_of(&m->blocks[j], param_of[j], p);
+            if (u >= 0) {
+                if (q->scale_of < 0) {
+                    q->sources[q->n_sources].block = j;
+                    q->sources[q->n_sources++].unknown = u;
+                }
+                q->shares[q->n_shares].block = j;
+                q->shares[q->n_shares++].unknown = u;
+            } else if (kind == P_M && dof == j && !m->blocks[j].forced) {
+                q->shares[q->n_shares].block = j;
+                q->shares[q->n_shares++].unknown = -1;
+            }
+        }
+    }
+    for (i = 0; i < n; i++) { /* scale rules of the unforced DOFs (Chain.combine_solutions) */
+        duffid_block *b = &m->blocks[i];
+        if (b->forced) {
+            continue;
+        }
+        for (e = i + 1; e <= i + 2 && e <= n; e++) { /* 1-based elements of mass i */
+            int u = block_unknown_of(b, param_of[i], 4 * (e - 1) + P_K1);
+            if (u < 0) {
+                continue;
+            }
+            for (j = e - 2; j <= e - 1; j++) { /* the equations that contain element e */
+                int v;
+                if (j == i || j < 0 || j >= n) {
+                    continue;
+                }
+                v = block_unknown_of(&m->blocks[j], param_of[j], 4 * (e - 1) + P_K1);
+                if (v >= 0) {
+                    b->rules[b->n_rules].unknown = u;
+                    b->rules[b->n_rules].other = j;
+                    b->rules[b->n_rules++].other_unknown = v;
+                }
+            }
+        }
+    }
+    for (i = 0; i < m->n_params; i++) {
+        const char *name = est->cfg.model == DUFFID_DUFFING1 ? NAMES1[i] : NAMES2[i];
+        strcpy(m->publics[i].name, name);
+        m->publics[i].canonical = public_to_canon(est->cfg.model, i);
+        m->publics[i].reciprocal = 0;
+    }
+    /* linearisation: M = diag(m), K = the chain matrix of the linear stiffnesses */
+    m->linear = 1;
+    for (i = 0; i < n; i++) {
+        duffid_linear *l = &m->mass[m->n_mass++];
+        l->row = l->col = i;
+        l->param = 4 * i + P_M;
+        l->coef = 1.0;
+    }
+    for (i = 0; i < n; i++) {
+        duffid_linear *l = &m->stiffness[m->n_stiffness++];
+        l->row = l->col = i;
+        l->param = 4 * i + P_K1;
+        l->coef = 1.0;
+    }
+    for (i = 0; i + 1 < n; i++) {
+        duffid_linear *l = &m->stiffness[m->n_stiffness++];
+        l->row = l->col = i;
+        l->param = 4 * (i + 1) + P_K1;
+        l->coef = 1.0;
+    }
+    for (i = 0; i + 1 < n; i++) {
+        duffid_linear *l = &m->stiffness[m->n_stiffness++];
+        l->row = i;
+        l->col = i + 1;
+        l->param = 4 * (i + 1) + P_K1;
+        l->coef = -1.0;
+        l = &m->stiffness[m->n_stiffness++];
+        l->row = i + 1;
+        l->col = i;
+        l->param = 4 * (i + 1) + P_K1;
+        l->coef = -1.0;
     }
 }
 
+/* est->model from the configuration; the counts the engine reads in est */
+static void build_structure(duffid_estimator *est)
+{
+    memset(&est->model, 0, sizeof est->model);
+    memset(est->ch, 0, sizeof est->ch);
+    if (est->cfg.model == DUFFID_GENERATED) {
+        est->model = *generated_model();
+    } else {
+        describe_builtin(est);
+    }
+    est->n_dof = est->model.n_dof;
+    est->n_forces = est->model.n_forces;
+    est->n_params = est->model.n_params;
+    est->n_ch = est->model.n_channels;
+    est->n_eq = est->model.n_blocks;
+}
 static uint64_t factorial_u64(int n)
 {
     uint64_t r = 1;
@@ -512,7 +726,7 @@ static void build_kernel_bank(duffid_estimator *est)
                 est->expo[idx] = (double)(b - m);
             }
         }
-        est->raw_b[r] = (a == 1 && MAX_ORDER >= 2) ? b : -1;
+        est->raw_b[r] = (a == 1 && est->model.max_order >= 2) ? b : -1;
         for (k = b + 1; k <= a + b + 1; k++) {
             prod *= (uint64_t)k; /* (a+b+1)! / b! */
         }
@@ -578,19 +792,17 @@ int duffid_init(duffid_estimator **out, void *memory, size_t size, const duffid_
     est = (duffid_estimator *)base;
     memset(est, 0, sizeof *est);
     est->cfg = *cfg;
-    est->n_dof = model_dofs(cfg->model);
-    est->n_forces = 1;
-    est->n_params = public_count(cfg->model, cfg->offset);
-    for (i = 0; i < est->n_params; i++) {
-        est->canon_of_public[i] = public_to_canon(cfg->model, i);
-        est->nominal[est->canon_of_public[i]] = fabs(cfg->nominal[i]);
-    }
     build_structure(est);
+    for (i = 0; i < est->n_params; i++) {
+        est->nominal[est->model.publics[i].canonical] = fabs(cfg->nominal[i]);
+    }
     if (est->n_ch != channel_count(cfg)) { /* cannot happen: the layout below relies on it */
         set_msg(msg, msg_size, "internal error: %d channels, expected %d", est->n_ch, channel_count(cfg));
         return DUFFID_ERR_CONFIG;
     }
     dyn = (double *)(base + ALIGN_UP(sizeof(struct duffid_estimator)));
+    est->chan_work = dyn;
+    dyn += est->model.channel_work;
     if (cfg->method == DUFFID_ROBUST) {
         est->capacity = capacity_of(cfg);
         est->auto_window = !(cfg->window > 0.0);
@@ -606,8 +818,9 @@ int duffid_init(duffid_estimator **out, void *memory, size_t size, const duffid_
     } else {
         for (i = 0; i < est->n_eq; i++) {
             equation_t *eq = &est->eq[i];
-            dyn = integrators_setup(&eq->reg, 3 * est->n_ch, eq->n_unk + 1, dyn);
-            dyn = integrators_setup(&eq->det, eq->n_unk + 1, 2, dyn);
+            const int n_unk = est->model.blocks[i].n_unknowns;
+            dyn = integrators_setup(&eq->reg, 3 * est->n_ch, n_unk + 1, dyn);
+            dyn = integrators_setup(&eq->det, n_unk + 1, 2, dyn);
         }
     }
     duffid_reset(est);
@@ -627,13 +840,16 @@ duffid_estimator *duffid_relocate(void *memory)
     base = ((uintptr_t)memory + (ALIGNMENT - 1u)) & ~(uintptr_t)(ALIGNMENT - 1u);
     est = (duffid_estimator *)base;
     dyn = (double *)(base + ALIGN_UP(sizeof(struct duffid_estimator)));
+    est->chan_work = dyn;
+    dyn += est->model.channel_work;
     if (est->cfg.method == DUFFID_ROBUST) {
         est->ring = dyn;
     } else {
         for (i = 0; i < est->n_eq; i++) {
             equation_t *eq = &est->eq[i];
-            dyn = integrators_setup(&eq->reg, 3 * est->n_ch, eq->n_unk + 1, dyn);
-            dyn = integrators_setup(&eq->det, eq->n_unk + 1, 2, dyn);
+            const int n_unk = est->model.blocks[i].n_unknowns;
+            dyn = integrators_setup(&eq->reg, 3 * est->n_ch, n_unk + 1, dyn);
+            dyn = integrators_setup(&eq->det, n_unk + 1, 2, dyn);
         }
     }
     est->block = NULL;
@@ -678,15 +894,13 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     }
     /* structure: everything duffid_init derives from the configuration */
     STATE_SAME(n_dof) STATE_SAME(n_forces) STATE_SAME(n_params) STATE_SAME(n_ch) STATE_SAME(n_eq)
-    STATE_SAME(ch) STATE_SAME(canon_of_public) STATE_SAME(nominal) STATE_SAME(settle_count)
+    STATE_SAME(ch) STATE_SAME(model) STATE_SAME(nominal) STATE_SAME(settle_count)
     STATE_SAME(capacity) STATE_SAME(auto_window) STATE_SAME(n_rows) STATE_SAME(degree) STATE_SAME(lam)
     STATE_SAME(sqrt_lam) STATE_SAME(row_a) STATE_SAME(row_b) STATE_SAME(raw_b) STATE_SAME(coef)
     STATE_SAME(expo) STATE_SAME(norm) STATE_SAME(norm_power) STATE_SAME(d_scale) STATE_SAME(t_ref)
     STATE_SAME(shift)
     for (i = 0; i < est->n_eq; i++) {
-        STATE_SAME(eq[i].dof) STATE_SAME(eq[i].forced) STATE_SAME(eq[i].n_unk) STATE_SAME(eq[i].param)
-        STATE_SAME(eq[i].ch) STATE_SAME(eq[i].order) STATE_SAME(eq[i].sign) STATE_SAME(eq[i].rhs_ch)
-        STATE_SAME(eq[i].rhs_order) STATE_SAME(eq[i].rhs_sign) STATE_SAME(eq[i].reg.n_in)
+        STATE_SAME(eq[i].reg.n_in)
         STATE_SAME(eq[i].reg.depth) STATE_SAME(eq[i].det.n_in) STATE_SAME(eq[i].det.depth)
         STATE_RANGE(est->eq[i].reg.count, 0, 2)
         STATE_RANGE(est->eq[i].det.count, 0, 2)
@@ -695,6 +909,7 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     n = est->n;
     STATE_RANGE(n, -1, limit)
     STATE_RANGE(est->window_fixed, 0, 1)
+    STATE_RANGE(est->has_last_x, 0, 1)
     STATE_RANGE(est->pending, 0, 1)
     STATE_RANGE(est->received, n + est->pending, n + est->pending) /* a held sample is not processed yet */
     STATE_RANGE(est->g_count, 0, est->received + 1)
@@ -787,6 +1002,9 @@ void duffid_reset(duffid_estimator *est)
     }
     est->n = -1;
     est->window_fixed = 0;
+    est->has_last_x = 0;
+    memset(est->last_x, 0, sizeof est->last_x);
+    memset(est->sgn, 0, sizeof est->sgn);
     est->received = -1;
     memset(est->gh, 0, sizeof est->gh);
     est->g_count = 0;
@@ -846,6 +1064,24 @@ void duffid_reset(duffid_estimator *est)
 static void evaluate_channels(duffid_estimator *est, const double *x, const double *f)
 {
     int i;
+    if (est->model.uses_sign) { /* _Channels: sgn(dx) where |dx| > deadband, else the previous sign */
+        for (i = 0; i < est->n_dof && est->has_last_x; i++) {
+            double dx = x[i] - est->last_x[i];
+            if (fabs(dx) > est->cfg.deadband) {
+                est->sgn[i] = sign_of(dx);
+            }
+        }
+        for (i = 0; i < est->n_dof; i++) {
+            est->last_x[i] = x[i];
+        }
+        est->has_last_x = 1;
+    }
+    if (est->cfg.model == DUFFID_GENERATED) {
+#ifdef DUFFID_GENERATED_MODEL
+        duffid_generated_channels(x, f, (double)est->n * est->cfg.dt, est->sgn, est->g, est->chan_work);
+#endif
+        return;
+    }
     for (i = 0; i < est->n_ch; i++) {
         const channel_t *c = &est->ch[i];
         double v;
@@ -1041,25 +1277,28 @@ static void kernel_entries(duffid_estimator *est, long L)
     }
 }
 
-/* rows of [A D] of one equation (identification._Assembly) into B (n_rows x (n_unk + 1)) */
-static void assemble(const equation_t *eq, const double *E, int n_rows, double *B)
+/* rows of [A D] of one block (identification._Assembly) into B (parts * n_rows x (n_unk + 1)):
+ * the rows of each equation of the block, one equation after the other */
+static void assemble(const duffid_block *b, const double *E, int n_rows, double *B)
 {
-    const int p = eq->n_unk + 1;
-    int r, u;
-    for (r = 0; r < n_rows; r++) {
-        for (u = 0; u < eq->n_unk; u++) {
-            B[r * p + u] = eq->sign[u] * E[(r * N_ORD + eq->order[u]) * MAX_CH + eq->ch[u]];
+    const int p = b->n_unknowns + 1;
+    int r, k;
+    memset(B, 0, (size_t)(b->n_parts * n_rows * p) * sizeof(double));
+    for (k = 0; k < b->n_terms; k++) {
+        const duffid_term *t = &b->terms[k];
+        const int col = t->unknown >= 0 ? t->unknown : b->n_unknowns;
+        for (r = 0; r < n_rows; r++) {
+            B[(t->part * n_rows + r) * p + col] += t->coef * E[(r * N_ORD + t->order) * MAX_CH + t->channel];
         }
-        B[r * p + eq->n_unk] = eq->rhs_sign * E[(r * N_ORD + eq->rhs_order) * MAX_CH + eq->rhs_ch];
     }
 }
 
 /* ------------------------------------------------------------------ least squares */
 /* identification.solve_factor on the p x p factor Raug (p = n + 1) */
-static void solve_factor(duffid_estimator *est, equation_t *eq, const double *Raug, double rows,
+static void solve_factor(duffid_estimator *est, equation_t *eq, int n, const double *Raug, double rows,
                          double overlap)
 {
-    const int n = eq->n_unk, p = n + 1;
+    const int p = n + 1;
     double cond, dof, s2;
     int i, j, k;
     for (j = 0; j < n; j++) { /* column norms: np.linalg.norm(R, axis=0), rows in order */
@@ -1163,18 +1402,19 @@ static long robust_step(duffid_estimator *est)
     full = L >= est->target;
     for (e = 0; e < est->n_eq; e++) {
         equation_t *eq = &est->eq[e];
-        const int p = eq->n_unk + 1;
-        assemble(eq, est->E, est->n_rows, est->B);
+        const duffid_block *b = &est->model.blocks[e];
+        const int n = b->n_unknowns, p = n + 1, m = b->n_parts * est->n_rows;
+        assemble(b, est->E, est->n_rows, est->B);
         if (full) {
-            duffid_la_qr_accumulate(eq->R, p, est->sqrt_lam, est->B, est->n_rows);
-            eq->rows = est->lam * eq->rows + (double)est->n_rows;
-            solve_factor(est, eq, eq->R, eq->rows, (double)L);
+            duffid_la_qr_accumulate(eq->R, p, est->sqrt_lam, est->B, m);
+            eq->rows = est->lam * eq->rows + (double)m;
+            solve_factor(est, eq, n, eq->R, eq->rows, (double)L);
         } else {
             for (i = 0; i < p * p; i++) {
                 est->W[i] = 0.0;
             }
-            duffid_la_qr_accumulate(est->W, p, 1.0, est->B, est->n_rows);
-            solve_factor(est, eq, est->W, (double)est->n_rows, 1.0);
+            duffid_la_qr_accumulate(est->W, p, 1.0, est->B, m);
+            solve_factor(est, eq, n, est->W, (double)m, 1.0);
         }
     }
     return L;
@@ -1273,7 +1513,8 @@ static long paper_step(duffid_estimator *est)
     }
     for (e = 0; e < est->n_eq; e++) {
         equation_t *eq = &est->eq[e];
-        const int n = eq->n_unk, m = 3 * n_ch;
+        const duffid_block *b = &est->model.blocks[e];
+        const int n = b->n_unknowns, m = 3 * n_ch;
         const double *y = integrators_push(&eq->reg, est->u_in, dt, adams);
         double delta, deltas[MAX_UNK], in[MAX_UNK + 1];
         const double *z;
@@ -1287,11 +1528,12 @@ static long paper_step(duffid_estimator *est)
                 Ep[c] = y[(p + 2) * m + 2 * n_ch + c];
             }
         }
+        assemble(b, est->E, n, est->B); /* one part: the paper method refuses joint blocks */
         for (p = 0; p < n; p++) {
             for (u = 0; u < n; u++) {
-                est->Ap[p * n + u] = eq->sign[u] * est->E[(p * N_ORD + eq->order[u]) * MAX_CH + eq->ch[u]];
+                est->Ap[p * n + u] = est->B[p * (n + 1) + u];
             }
-            est->Dp[p] = eq->rhs_sign * est->E[(p * N_ORD + eq->rhs_order) * MAX_CH + eq->rhs_ch];
+            est->Dp[p] = est->B[p * (n + 1) + n];
         }
         memcpy(est->tmp, est->Ap, (size_t)(n * n) * sizeof(double));
         delta = duffid_la_det(n, est->tmp);
@@ -1324,26 +1566,19 @@ static long paper_step(duffid_estimator *est)
 }
 
 /* ------------------------------------------------------------------ combination */
-static int find_unknown(const equation_t *eq, int param)
-{
-    int u;
-    for (u = 0; u < eq->n_unk; u++) {
-        if (eq->param[u] == param) {
-            return u;
-        }
-    }
-    return -1;
-}
-
-/* identification.combine_equations into est->canon / est->canon_rse (canonical order) */
+/* Chain/EquationModel.combine_solutions into est->canon / est->canon_rse (canonical order):
+ * a forced block's unknowns are absolute values; an unforced block's are ratios to its
+ * scale, found by its rules from a block already on a known scale (passes until none
+ * progresses). Relative errors of products add in quadrature. */
 static void combine(duffid_estimator *est)
 {
-    const int n = est->n_dof;
+    const duffid_model *m = &est->model;
+    const int n = est->n_eq;
     int known[MAX_EQ];
     double s_val[MAX_EQ], s_err[MAX_EQ];
     int i, progress = 1, n_canon = est->n_params;
     for (i = 0; i < n; i++) {
-        known[i] = est->eq[i].forced;
+        known[i] = m->blocks[i].forced;
         s_val[i] = 1.0;
         s_err[i] = 0.0;
     }
@@ -1357,61 +1592,42 @@ static void combine(duffid_estimator *est)
         }
         progress = 0;
         for (i = 0; i < n; i++) {
-            int e;
+            int r;
             if (known[i]) {
                 continue;
             }
-            for (e = i + 1; e <= i + 2 && !known[i]; e++) { /* 1-based elements of mass i */
-                int u, j;
-                double ratio;
-                if (e > n) {
+            for (r = 0; r < m->blocks[i].n_rules; r++) {
+                const duffid_rule *rule = &m->blocks[i].rules[r];
+                const double ratio = est->eq[i].theta[rule->unknown];
+                const int j = rule->other;
+                if (ratio == 0.0 || !known[j]) {
                     continue;
                 }
-                u = find_unknown(&est->eq[i], 4 * (e - 1) + P_K1);
-                if (u < 0 || est->eq[i].theta[u] == 0.0) {
-                    continue;
-                }
-                ratio = est->eq[i].theta[u];
-                for (j = e - 2; j <= e - 1; j++) { /* the equations that contain element e */
-                    int v;
-                    if (j == i || j < 0 || j >= n || !known[j]) {
-                        continue;
-                    }
-                    v = find_unknown(&est->eq[j], 4 * (e - 1) + P_K1);
-                    if (v < 0) {
-                        continue;
-                    }
-                    {
-                        double abs_val = s_val[j] * est->eq[j].theta[v];
-                        double abs_err = hypot(s_err[j], est->eq[j].rse[v]);
-                        s_val[i] = abs_val / ratio;
-                        s_err[i] = hypot(abs_err, est->eq[i].rse[u]);
-                        known[i] = 1;
-                        progress = 1;
-                        break;
-                    }
+                {
+                    double abs_val = s_val[j] * est->eq[j].theta[rule->other_unknown];
+                    double abs_err = hypot(s_err[j], est->eq[j].rse[rule->other_unknown]);
+                    s_val[i] = abs_val / ratio;
+                    s_err[i] = hypot(abs_err, est->eq[i].rse[rule->unknown]);
+                    known[i] = 1;
+                    progress = 1;
+                    break;
                 }
             }
         }
     }
     for (i = 0; i < n_canon; i++) {
-        int is_mass = i < 4 * n && i % 4 == P_M;
+        const duffid_parameter *q = &m->params[i];
         double val = DNAN, err = DINF;
-        if (is_mass) {
-            int dof = i / 4;
-            if (est->eq[dof].forced) {
-                int u = find_unknown(&est->eq[dof], i);
-                val = est->eq[dof].theta[u];
-                err = est->eq[dof].rse[u];
-            } else if (known[dof]) {
-                val = s_val[dof];
-                err = s_err[dof];
+        int k;
+        if (q->scale_of >= 0) {
+            if (known[q->scale_of]) {
+                val = s_val[q->scale_of];
+                err = s_err[q->scale_of];
             }
         } else {
-            int j;
-            for (j = 0; j < n; j++) {
-                int u = find_unknown(&est->eq[j], i);
-                if (u >= 0 && known[j]) {
+            for (k = 0; k < q->n_sources; k++) {
+                const int j = q->sources[k].block, u = q->sources[k].unknown;
+                if (known[j]) {
                     val = s_val[j] * est->eq[j].theta[u];
                     err = hypot(s_err[j], est->eq[j].rse[u]);
                     break;
@@ -1421,18 +1637,14 @@ static void combine(duffid_estimator *est)
         est->canon[i] = val;
         est->canon_rse[i] = err;
     }
-    /* OnlineIdentifier._shares: the largest share over the equations with the term */
+    /* OnlineIdentifier._shares: the largest share over the blocks with the term */
     for (i = 0; i < n_canon; i++) {
+        const duffid_parameter *q = &m->params[i];
         double share = DNAN;
-        int j;
-        for (j = 0; j < n; j++) {
-            int u = find_unknown(&est->eq[j], i);
-            double v = DNAN;
-            if (u >= 0) {
-                v = est->eq[j].share[u];
-            } else if (i < 4 * n && i == 4 * j + P_M && !est->eq[j].forced) {
-                v = est->eq[j].rhs_share;
-            }
+        int k;
+        for (k = 0; k < q->n_shares; k++) {
+            const int j = q->shares[k].block, u = q->shares[k].unknown;
+            double v = u >= 0 ? est->eq[j].share[u] : est->eq[j].rhs_share;
             if (is_finite(v) && !(v <= share)) {
                 share = v;
             }
@@ -1451,44 +1663,42 @@ static double combined_condition(const duffid_estimator *est)
     return cond;
 }
 
-/* identification.auto_window with Chain.linear_natural_frequencies of the estimate */
-static long auto_window(const duffid_estimator *est, long current)
+/* identification.auto_window with the model's linear_natural_frequencies of the estimate:
+ * the eigenvalues of M^-1 K (np.linalg.solve, then eigvals) */
+static long auto_window(duffid_estimator *est, long current)
 {
-    double omega[MAX_EQ], best = DINF, samples;
-    int n_omega = 0, i;
-    const double *p = est->canon;
-    if (est->n_dof == 1) {
-        double m = p[P_M], k = p[P_K1];
-        if (!is_finite(m) || !is_finite(k) || m == 0.0) {
-            return est->capacity;
-        }
-        omega[n_omega++] = sqrt(fabs(k / m));
-    } else {
-        double m1 = p[P_M], k1 = p[P_K1], m2 = p[4 + P_M], k2 = p[4 + P_K1];
-        double a, b, c, d, half_tr, det, disc;
-        if (!is_finite(m1) || !is_finite(k1) || !is_finite(m2) || !is_finite(k2) || m1 == 0.0 || m2 == 0.0) {
-            return est->capacity;
-        }
-        /* eigenvalues of M^-1 K, K = [[k1 + k2, -k2], [-k2, k2]] */
-        a = (k1 + k2) / m1;
-        b = -k2 / m1;
-        c = -k2 / m2;
-        d = k2 / m2;
-        half_tr = 0.5 * (a + d);
-        det = a * d - b * c;
-        disc = half_tr * half_tr - det;
-        if (disc >= 0.0) {
-            double root = sqrt(disc);
-            omega[n_omega++] = sqrt(fabs(half_tr - root));
-            omega[n_omega++] = sqrt(fabs(half_tr + root));
-        } else {
-            omega[n_omega++] = sqrt(fabs(half_tr));
-            omega[n_omega++] = sqrt(fabs(half_tr));
+    const duffid_model *m = &est->model;
+    const int n = est->n_dof;
+    double *M = est->lin, *K = est->lin + n * n;
+    double wr[DUFFID_MAX_DOF], wi[DUFFID_MAX_DOF], best = DINF, samples;
+    int i;
+    if (!m->linear) {
+        return est->capacity;
+    }
+    memset(est->lin, 0, sizeof est->lin);
+    for (i = 0; i < m->n_mass; i++) {
+        const duffid_linear *l = &m->mass[i];
+        M[l->row * n + l->col] += l->param >= 0 ? l->coef * est->canon[l->param] : l->coef;
+    }
+    for (i = 0; i < m->n_stiffness; i++) {
+        const duffid_linear *l = &m->stiffness[i];
+        K[l->row * n + l->col] += l->param >= 0 ? l->coef * est->canon[l->param] : l->coef;
+    }
+    for (i = 0; i < 2 * n * n; i++) {
+        if (!is_finite(est->lin[i])) {
+            return est->capacity; /* LinAlgError / singular inertia in Python */
         }
     }
-    for (i = 0; i < n_omega; i++) {
-        if (is_finite(omega[i]) && omega[i] > 0.0 && omega[i] < best) {
-            best = omega[i];
+    if (duffid_la_solve(n, M, K, n) != 0) {
+        return est->capacity;
+    }
+    if (duffid_la_eigenvalues(n, K, wr, wi) != 0) {
+        return est->capacity;
+    }
+    for (i = 0; i < n; i++) {
+        double omega = sqrt(fabs(wr[i]));
+        if (is_finite(omega) && omega > 0.0 && omega < best) {
+            best = omega;
         }
     }
     if (!is_finite(best)) {
@@ -1532,8 +1742,7 @@ static int window_known(const duffid_estimator *est)
 {
     int i;
     for (i = 0; i < est->n_params; i++) {
-        int kind = i < 4 * est->n_dof ? i % 4 : -1;
-        int needed = kind == P_M || kind == P_K1;
+        int needed = est->model.params[i].period;
         if (!(est->steady[i] >= est->settle_count || (est->status[i] == DUFFID_STATUS_NOT_EXCITED && !needed))) {
             return 0;
         }
@@ -1548,11 +1757,29 @@ static void count_up(int64_t *counter, int64_t limit)
     }
 }
 
-/* Chain.is_physical: a mass positive, a damping not negative (canonical index i) */
+/* the model's is_physical: the sign its term needs (canonical index i) */
 static int is_physical(const duffid_estimator *est, int i, double v)
 {
-    const int kind = i < 4 * est->n_dof ? i % 4 : -1;
-    return kind == P_M ? v > 0.0 : (kind == P_B ? v >= 0.0 : 1);
+    const int allowed = est->model.params[i].physical;
+    if (v > 0.0) {
+        return (allowed & DUFFID_ALLOW_POSITIVE) != 0;
+    }
+    if (v < 0.0) {
+        return (allowed & DUFFID_ALLOW_NEGATIVE) != 0;
+    }
+    if (v == 0.0) {
+        return (allowed & DUFFID_ALLOW_ZERO) != 0;
+    }
+    return allowed == ANY_SIGN; /* NaN: only a parameter without a rule is "physical" */
+}
+
+/* the public value of canonical value v (models' from_canonical) */
+static double public_value(const duffid_estimator *est, int i, double v)
+{
+    if (!est->model.publics[i].reciprocal) {
+        return v;
+    }
+    return v != 0.0 ? 1.0 / v : DINF;
 }
 
 static void publish(duffid_estimator *est, long window, duffid_output *out)
@@ -1565,9 +1792,9 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
     good = window_ok(est, cond, window);
     if (est->cfg.method == DUFFID_PAPER) {
         for (i = 0; i < np; i++) {
-            double v = est->canon[est->canon_of_public[i]];
-            est->held[i] = v;
-            ok &= is_finite(v) && is_physical(est, est->canon_of_public[i], v);
+            double v = est->canon[i];
+            est->held[i] = public_value(est, i, est->canon[est->model.publics[i].canonical]);
+            ok &= is_finite(v) && is_physical(est, i, v);
         }
         ok = ok && good;
         worst = DNAN;
@@ -1616,8 +1843,8 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
             trusted[i] = est->settled[i] >= est->settle_count ? v : DNAN;
         }
         for (i = 0; i < np; i++) {
-            int c = est->canon_of_public[i];
-            double v = trusted[c];
+            int c = est->model.publics[i].canonical;
+            double v = public_value(est, i, trusted[c]);
             if (est->status[c] != DUFFID_STATUS_PUBLISHED) {
                 est->held[i] = DNAN;
             } else if (is_finite(v)) {
@@ -1630,7 +1857,7 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
         out->t = (double)est->n * est->cfg.dt;
         for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
             out->parameters[i] = i < np ? est->held[i] : DNAN;
-            out->status[i] = i < np ? est->status[est->cfg.method == DUFFID_PAPER ? i : est->canon_of_public[i]]
+            out->status[i] = i < np ? est->status[est->cfg.method == DUFFID_PAPER ? i : est->model.publics[i].canonical]
                                     : DUFFID_STATUS_UNCERTAIN;
         }
         out->n_parameters = np;
@@ -1641,7 +1868,7 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
         for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
             double v = DNAN;
             if (i < np) {
-                v = est->cfg.method == DUFFID_PAPER ? est->held[i] : (good ? est->canon[est->canon_of_public[i]] : DNAN);
+                v = est->cfg.method == DUFFID_PAPER ? est->held[i] : (good ? public_value(est, i, est->canon[est->model.publics[i].canonical]) : DNAN);
             }
             out->current[i] = v;
         }
@@ -1855,7 +2082,7 @@ const char *duffid_parameter_name(const duffid_estimator *est, int i)
     if (est == NULL || i < 0 || i >= est->n_params) {
         return NULL;
     }
-    return est->cfg.model == DUFFID_DUFFING1 ? NAMES1[i] : NAMES2[i];
+    return est->model.publics[i].name;
 }
 
 long duffid_capacity(const duffid_estimator *est)

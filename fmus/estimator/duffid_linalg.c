@@ -231,3 +231,257 @@ double duffid_la_det(int n, double *a)
     }
     return sign * exp(logdet);
 }
+
+int duffid_la_solve(int n, double *a, double *b, int nrhs)
+{
+    int i, j, k;
+    for (k = 0; k < n; k++) { /* LU with partial pivoting (the first largest |a_ik|, as dgetrf) */
+        int piv = k;
+        double big = fabs(a[k * n + k]);
+        for (i = k + 1; i < n; i++) {
+            if (fabs(a[i * n + k]) > big) {
+                big = fabs(a[i * n + k]);
+                piv = i;
+            }
+        }
+        if (a[piv * n + k] == 0.0) {
+            return k + 1; /* exactly singular */
+        }
+        if (piv != k) {
+            for (j = 0; j < n; j++) {
+                double t = a[k * n + j];
+                a[k * n + j] = a[piv * n + j];
+                a[piv * n + j] = t;
+            }
+            for (j = 0; j < nrhs; j++) {
+                double t = b[k * nrhs + j];
+                b[k * nrhs + j] = b[piv * nrhs + j];
+                b[piv * nrhs + j] = t;
+            }
+        }
+        for (i = k + 1; i < n; i++) {
+            double l = a[i * n + k] / a[k * n + k];
+            a[i * n + k] = l;
+            for (j = k + 1; j < n; j++) {
+                a[i * n + j] -= l * a[k * n + j];
+            }
+            for (j = 0; j < nrhs; j++) {
+                b[i * nrhs + j] -= l * b[k * nrhs + j];
+            }
+        }
+    }
+    for (j = 0; j < nrhs; j++) { /* back substitution */
+        for (i = n - 1; i >= 0; i--) {
+            double s = b[i * nrhs + j];
+            for (k = i + 1; k < n; k++) {
+                s -= a[i * n + k] * b[k * nrhs + j];
+            }
+            b[i * nrhs + j] = s / a[i * n + i];
+        }
+    }
+    return 0;
+}
+
+/* 1-based element (i, j) of the n x n row-major matrix a */
+#define H(i, j) a[((i) - 1) * n + ((j) - 1)]
+
+/* Reduction to upper Hessenberg form by stabilised elementary similarity transformations
+ * (the eigenvalues are those of a); the part below the subdiagonal is zeroed. */
+static void hessenberg(int n, double *a)
+{
+    int m, i, j;
+    for (m = 2; m < n; m++) {
+        double x = 0.0, y;
+        i = m;
+        for (j = m; j <= n; j++) {
+            if (fabs(H(j, m - 1)) > fabs(x)) {
+                x = H(j, m - 1);
+                i = j;
+            }
+        }
+        if (i != m) {
+            for (j = m - 1; j <= n; j++) {
+                y = H(i, j);
+                H(i, j) = H(m, j);
+                H(m, j) = y;
+            }
+            for (j = 1; j <= n; j++) {
+                y = H(j, i);
+                H(j, i) = H(j, m);
+                H(j, m) = y;
+            }
+        }
+        if (x != 0.0) {
+            for (i = m + 1; i <= n; i++) {
+                y = H(i, m - 1);
+                if (y != 0.0) {
+                    y /= x;
+                    H(i, m - 1) = y;
+                    for (j = m; j <= n; j++) {
+                        H(i, j) -= y * H(m, j);
+                    }
+                    for (j = 1; j <= n; j++) {
+                        H(j, m) += y * H(j, i);
+                    }
+                }
+            }
+        }
+    }
+    for (i = 3; i <= n; i++) {
+        for (j = 1; j < i - 1; j++) {
+            H(i, j) = 0.0;
+        }
+    }
+}
+
+int duffid_la_eigenvalues(int n, double *a, double *wr, double *wi)
+{
+    int nn, m, l, k, j, its, i, mmin;
+    double z = 0.0, y, x, w, v, u, t, s, r = 0.0, q = 0.0, p = 0.0, anorm = 0.0;
+    hessenberg(n, a);
+    for (i = 1; i <= n; i++) {
+        for (j = (i - 1 > 1 ? i - 1 : 1); j <= n; j++) {
+            anorm += fabs(H(i, j));
+        }
+    }
+    if (!(anorm <= DBL_MAX)) {
+        return -1;
+    }
+    nn = n;
+    t = 0.0;
+    while (nn >= 1) { /* shifted QR iterations on the Hessenberg matrix (Francis double shift) */
+        its = 0;
+        do {
+            for (l = nn; l >= 2; l--) {
+                s = fabs(H(l - 1, l - 1)) + fabs(H(l, l));
+                if (s == 0.0) {
+                    s = anorm;
+                }
+                if (fabs(H(l, l - 1)) + s == s) {
+                    H(l, l - 1) = 0.0;
+                    break;
+                }
+            }
+            x = H(nn, nn);
+            if (l == nn) { /* one root found */
+                wr[nn - 1] = x + t;
+                wi[nn - 1] = 0.0;
+                nn--;
+            } else {
+                y = H(nn - 1, nn - 1);
+                w = H(nn, nn - 1) * H(nn - 1, nn);
+                if (l == nn - 1) { /* two roots found */
+                    p = 0.5 * (y - x);
+                    q = p * p + w;
+                    z = sqrt(fabs(q));
+                    x += t;
+                    if (q >= 0.0) {
+                        z = p + copysign(z, p);
+                        wr[nn - 2] = wr[nn - 1] = x + z;
+                        if (z != 0.0) {
+                            wr[nn - 1] = x - w / z;
+                        }
+                        wi[nn - 2] = wi[nn - 1] = 0.0;
+                    } else {
+                        wr[nn - 2] = wr[nn - 1] = x + p;
+                        wi[nn - 2] = -z;
+                        wi[nn - 1] = z;
+                    }
+                    nn -= 2;
+                } else {
+                    if (its == 60) {
+                        return -1;
+                    }
+                    if (its == 10 || its == 20) { /* exceptional shift */
+                        t += x;
+                        for (i = 1; i <= nn; i++) {
+                            H(i, i) -= x;
+                        }
+                        s = fabs(H(nn, nn - 1)) + fabs(H(nn - 1, nn - 2));
+                        y = x = 0.75 * s;
+                        w = -0.4375 * s * s;
+                    }
+                    ++its;
+                    for (m = nn - 2; m >= l; m--) {
+                        z = H(m, m);
+                        r = x - z;
+                        s = y - z;
+                        p = (r * s - w) / H(m + 1, m) + H(m, m + 1);
+                        q = H(m + 1, m + 1) - z - r - s;
+                        r = H(m + 2, m + 1);
+                        s = fabs(p) + fabs(q) + fabs(r);
+                        p /= s;
+                        q /= s;
+                        r /= s;
+                        if (m == l) {
+                            break;
+                        }
+                        u = fabs(H(m, m - 1)) * (fabs(q) + fabs(r));
+                        v = fabs(p) * (fabs(H(m - 1, m - 1)) + fabs(z) + fabs(H(m + 1, m + 1)));
+                        if (u + v == v) {
+                            break;
+                        }
+                    }
+                    for (i = m + 2; i <= nn; i++) {
+                        H(i, i - 2) = 0.0;
+                        if (i != m + 2) {
+                            H(i, i - 3) = 0.0;
+                        }
+                    }
+                    for (k = m; k <= nn - 1; k++) {
+                        if (k != m) {
+                            p = H(k, k - 1);
+                            q = H(k + 1, k - 1);
+                            r = 0.0;
+                            if (k != nn - 1) {
+                                r = H(k + 2, k - 1);
+                            }
+                            if ((x = fabs(p) + fabs(q) + fabs(r)) != 0.0) {
+                                p /= x;
+                                q /= x;
+                                r /= x;
+                            }
+                        }
+                        s = copysign(sqrt(p * p + q * q + r * r), p);
+                        if (s != 0.0) {
+                            if (k == m) {
+                                if (l != m) {
+                                    H(k, k - 1) = -H(k, k - 1);
+                                }
+                            } else {
+                                H(k, k - 1) = -s * x;
+                            }
+                            p += s;
+                            x = p / s;
+                            y = q / s;
+                            z = r / s;
+                            q /= p;
+                            r /= p;
+                            for (j = k; j <= nn; j++) {
+                                p = H(k, j) + q * H(k + 1, j);
+                                if (k != nn - 1) {
+                                    p += r * H(k + 2, j);
+                                    H(k + 2, j) -= p * z;
+                                }
+                                H(k + 1, j) -= p * y;
+                                H(k, j) -= p * x;
+                            }
+                            mmin = nn < k + 3 ? nn : k + 3;
+                            for (i = l; i <= mmin; i++) {
+                                p = x * H(i, k) + y * H(i, k + 1);
+                                if (k != nn - 1) {
+                                    p += z * H(i, k + 2);
+                                    H(i, k + 2) -= p * r;
+                                }
+                                H(i, k + 1) -= p * q;
+                                H(i, k) -= p;
+                            }
+                        }
+                    }
+                }
+            }
+        } while (l < nn - 1);
+    }
+    return 0;
+}
+#undef H

@@ -7,7 +7,7 @@
 #ifndef DUFFID_LINALG_H
 #define DUFFID_LINALG_H
 
-#define DUFFID_LA_MAX 9
+#define DUFFID_LA_MAX 17
 
 /* Sum of n values a[0], a[stride], ... in numpy's pairwise order (np.add.reduce over a
  * contiguous axis), so that reductions round like the Python reference. */
@@ -27,5 +27,14 @@ int duffid_la_jacobi_svd(int n, double *a, double *sv, double *v);
 /* Determinant by LU with partial pivoting, returned as numpy's det does:
  * sign * exp(sum log |u_ii|) (0 for an exactly singular matrix). a is destroyed. */
 double duffid_la_det(int n, double *a);
+
+/* Solve a X = b for the n x nrhs matrix b (overwritten by X) by LU with partial pivoting
+ * (np.linalg.solve); a is destroyed. Returns 0, or k > 0 when the k-th pivot is exactly 0. */
+int duffid_la_solve(int n, double *a, double *b, int nrhs);
+
+/* Eigenvalues wr + i wi of the general n x n matrix a (np.linalg.eigvals to rounding):
+ * reduction to Hessenberg form, then shifted QR iterations. a is destroyed. Returns 0, or
+ * -1 if a holds a non-finite value or the iteration did not converge. */
+int duffid_la_eigenvalues(int n, double *a, double *wr, double *wi);
 
 #endif /* DUFFID_LINALG_H */

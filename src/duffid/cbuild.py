@@ -257,10 +257,13 @@ def default_build_dir(source_dir: str | os.PathLike[str], component: str) -> Pat
 def cached_library(stem: str, source_dir: str | os.PathLike[str], sources: Sequence[str],
                    headers: Sequence[str] = (), *, flags: Sequence[str] = LIBRARY_FLAGS,
                    build_dir: str | os.PathLike[str] | None = None, compiler: str | None = None,
-                   force: bool = False) -> Path:
+                   force: bool = False, extra_sources: Sequence[str | os.PathLike[str]] = ()) -> Path:
     """A shared library for this machine compiled from ``sources`` (and ``headers``) of
     ``source_dir``, cached as ``<build_dir>/<stem>-<hash><suffix>`` by the hash of the files
     and the flags; stale builds of the same stem are removed.
+
+    ``extra_sources`` are C files from elsewhere (e.g. generated code), hashed by name and
+    content and compiled with ``source_dir`` on the include path.
 
     The library is written to a temporary file and renamed: concurrent builders never see a
     partial file. ``build_dir`` defaults to :func:`default_build_dir` of the source folder.
@@ -276,9 +279,15 @@ def cached_library(stem: str, source_dir: str | os.PathLike[str], sources: Seque
     missing = [name for name in (*sources, *headers) if not (src / name).is_file()]
     if missing:
         raise AssetError(f"C sources of {stem} not found in {src}: {missing}")
+    extra = [Path(p) for p in extra_sources]
+    missing = [str(p) for p in extra if not p.is_file()]
+    if missing:
+        raise AssetError(f"C sources of {stem} not found: {missing}")
     digest = hashlib.sha256()
     for name in (*sources, *headers):
         digest.update(name.encode() + b"\0" + (src / name).read_bytes())
+    for path in extra:
+        digest.update(path.name.encode() + b"\0" + path.read_bytes())
     digest.update(" ".join((*CFLAGS, *flags)).encode())
     out_dir = Path(build_dir) if build_dir is not None else default_build_dir(src, src.name)
     target = out_dir / f"{stem}-{digest.hexdigest()[:16]}{SHARED_LIBRARY_SUFFIX}"
@@ -288,7 +297,8 @@ def cached_library(stem: str, source_dir: str | os.PathLike[str], sources: Seque
     fd, tmp = tempfile.mkstemp(prefix=target.stem + ".", suffix=target.suffix, dir=out_dir)
     os.close(fd)
     try:
-        compile_shared_library([src / name for name in sources], tmp, flags=flags, compiler=compiler)
+        compile_shared_library([*(src / name for name in sources), *extra], tmp, flags=flags, compiler=compiler,
+                               include_dirs=[src] if extra else ())
         os.replace(tmp, target)
     finally:
         if os.path.exists(tmp):

@@ -334,7 +334,7 @@ static void selftest_config(void)
     check(duffid_create(&est, &cfg, msg, sizeof msg) == DUFFID_ERR_CONFIG && strstr(msg, "max_uncertainty") != NULL,
           "NaN max_uncertainty");
     duffid_default_config(&cfg, DUFFID_DUFFING1, DUFFID_ROBUST, 1e-3);
-    cfg.n_rows = 13;
+    cfg.n_rows = DUFFID_MAX_ROWS + 1;
     check(duffid_create(&est, &cfg, msg, sizeof msg) == DUFFID_ERR_CONFIG && strstr(msg, "n_rows") != NULL,
           "too many rows");
     duffid_default_config(&cfg, DUFFID_DUFFING1, DUFFID_ROBUST, 1e-3);

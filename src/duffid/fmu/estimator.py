@@ -59,7 +59,8 @@ from .python_estimator import FMU_NAMES, build_python_fmu
 
 __all__ = ["build_estimator_fmus", "build_estimator_fmu"]
 
-_CORE_FILES = ("duffid_estimator.c", "duffid_estimator.h", "duffid_options.h", "duffid_linalg.c", "duffid_linalg.h",
+_CORE_FILES = ("duffid_estimator.c", "duffid_estimator.h", "duffid_model.h", "duffid_options.h", "duffid_linalg.c",
+               "duffid_linalg.h",
                "fmu_model_estimator.c")
 
 
