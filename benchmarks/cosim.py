@@ -7,8 +7,10 @@ FMUs, 1 ms communication step, reference r = 5 mm held) is run by
 
   a. the orchestrator, Jacobi and Gauss-Seidel (every output recorded), with its compiled
      inner loop (C, the default) and with its Python loop (loop="python");
-  b. the same graph exported as one container FMU (duffid.cosim.container), run by the
-     orchestrator as a one-component system and by a bare fmpy FMU2Slave loop;
+  b. the same graph exported as one container FMU (duffid.cosim.container: duffid's own
+     runtime, whose doStep runs the Jacobi steps in C over the components' function
+     pointers), run by the orchestrator as a one-component system and by a bare fmpy
+     FMU2Slave loop;
   c. a plain hand-written fmpy loop: FMU2Slave getReal/getBoolean/setReal/setBoolean/
      doStep through fmpy's normal methods (Jacobi, the same values recorded);
 

@@ -44,8 +44,10 @@ __all__ = [
     "HostError",
     "binary_sizes",
     "build_case_fmus",
+    "build_container_fmu",
     "compare",
     "compile_host",
+    "container_case",
     "extract",
     "host_arguments",
     "hosts",
@@ -391,6 +393,25 @@ def build_case_fmus(out_dir: Path, platforms: Sequence[Platform]) -> dict[tuple[
         fmus["estimator", version] = build_estimator_fmu("duffing1", out_dir, version, platforms=platforms)
         fmus["controller", version] = build_controller_fmu(1, out_dir, version, platforms=platforms)
     return fmus
+
+
+def build_container_fmu(fmus: Mapping[tuple[str, int], Path], out_dir: Path) -> Path:
+    """The FMI 2 plant and the FMI 3 estimator of :func:`build_case_fmus` in one container FMU
+    (duffid's runtime, with binaries for every platform they have): input ``f`` drives both,
+    the plant's x is connected to the estimator; outputs x, k_hat and identified."""
+    from duffid.cosim.system import System
+
+    system = (System().add("plant", fmus["plant", 2]).add("estimator", fmus["estimator", 3], {"sample_period": 1e-3})
+              .connect("plant.x", "estimator.x"))
+    return system.export_container(Path(out_dir) / "PlantEstimator.fmu", inputs={"f": ["plant.f", "estimator.f"]},
+                                   outputs={"x": "plant.x", "k_hat": "estimator.k_hat",
+                                            "identified": "estimator.identified"}, step=1e-3)
+
+
+def container_case(fmu: Path) -> Case:
+    """The container of :func:`build_container_fmu` under a 10 N step for 0.5 s at 1 ms (the
+    estimator publishes its first estimate within it)."""
+    return Case("container FMI 2", fmu, 1e-3, {"f": np.full(500, 10.0)}, {}, ["x", "k_hat", "identified"])
 
 
 def standard_cases(fmus: Mapping[tuple[str, int], Path]) -> list[Case]:

@@ -41,7 +41,9 @@ from c_hosts import (
     Case,
     HostError,
     build_case_fmus,
+    build_container_fmu,
     compile_host,
+    container_case,
     host_arguments,
     hosts,
     imported_dlls,
@@ -146,6 +148,32 @@ def test_linux64_host_equals_fmpy(cases, linux_results, kind, version):
         np.testing.assert_array_equal(got[var], values, err_msg=f"{name}: {var}")
 
 
+def _mismatches(c_hosts, case: Case, work, reference, got) -> dict[str, str]:
+    """The outputs of ``got`` that differ from the linux64 ``reference`` beyond the conditioning
+    of each output (discrete ones and NaN patterns: at all), with where."""
+    tolerance = rounding_tolerance(c_hosts[HOST_PLATFORM.name], case, work, reference)
+    bad = {}
+    for var in case.outputs:
+        want, have = reference[var], got[var]
+        assert have.shape == want.shape, f"{case.name}: {var} has {have.shape} rows, linux64 {want.shape}"
+        if is_discrete(case, var):
+            if not np.array_equal(have, want):
+                bad[var] = f"differs at rows {np.flatnonzero(have != want)[:5]}"
+            continue
+        if not np.array_equal(np.isnan(have), np.isnan(want)):
+            bad[var] = f"NaN at other rows: {np.flatnonzero(np.isnan(have) != np.isnan(want))[:5]}"
+            continue
+        assert np.isfinite(tolerance[var]).all(), f"{case.name}: the one-ulp spread of {var} is not finite"
+        with np.errstate(all="ignore"):
+            relative = np.where((have == want) | np.isnan(want), 0.0, np.abs(have - want) / np.abs(want))
+        ratio = relative / tolerance[var]
+        if not ratio.max() <= 1.0:
+            row = int(np.argmax(ratio))
+            bad[var] = (f"row {row}: {have[row]!r} vs {want[row]!r}, relative {relative[row]:.3g} "
+                        f"> tolerance {tolerance[var][row]:.3g}")
+    return bad
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("version", (2, 3))
 @pytest.mark.parametrize("kind", KINDS)
@@ -159,27 +187,39 @@ def test_every_platform_matches_linux64(c_hosts, cases, linux_results, work, pla
     reference = linux_results[name]
     got = run_host(host, case, work)
     np.testing.assert_array_equal(got["time"], reference["time"])
-    tolerance = rounding_tolerance(c_hosts[HOST_PLATFORM.name], case, work, reference)
-    bad = {}
-    for var in case.outputs:
-        want, have = reference[var], got[var]
-        assert have.shape == want.shape, f"{name} on {platform}: {var} has {have.shape} rows, linux64 {want.shape}"
-        if is_discrete(case, var):
-            if not np.array_equal(have, want):
-                bad[var] = f"differs at rows {np.flatnonzero(have != want)[:5]}"
-            continue
-        if not np.array_equal(np.isnan(have), np.isnan(want)):
-            bad[var] = f"NaN at other rows: {np.flatnonzero(np.isnan(have) != np.isnan(want))[:5]}"
-            continue
-        assert np.isfinite(tolerance[var]).all(), f"{name}: the one-ulp spread of {var} is not finite"
-        with np.errstate(all="ignore"):
-            relative = np.where((have == want) | np.isnan(want), 0.0, np.abs(have - want) / np.abs(want))
-        ratio = relative / tolerance[var]
-        if not ratio.max() <= 1.0:
-            row = int(np.argmax(ratio))
-            bad[var] = (f"row {row}: {have[row]!r} vs {want[row]!r}, relative {relative[row]:.3g} "
-                        f"> tolerance {tolerance[var][row]:.3g}")
+    bad = _mismatches(c_hosts, case, work, reference, got)
     assert not bad, f"{name} on {platform}: {bad}"
+
+
+@pytest.fixture(scope="session")
+def container(case_fmus, tmp_path_factory):
+    """The case of duffid's container FMU (c_hosts.build_container_fmu)."""
+    return container_case(build_container_fmu(case_fmus, tmp_path_factory.mktemp("container")))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("platform", list(PLATFORMS))
+def test_container_in_every_host(c_hosts, case_fmus, container, work, platform):
+    """duffid's container FMU (an FMI 2 plant and an FMI 3 estimator loaded by its runtime from
+    its resources) has a binary for every platform its components have; in the C host it equals
+    fmpy bit for bit on linux64, and linux64 within the conditioning of each output elsewhere."""
+    with zipfile.ZipFile(container.fmu) as z:
+        folders = {n.split("/")[1] for n in z.namelist() if n.startswith("binaries/") and n.count("/") == 2}
+    with zipfile.ZipFile(case_fmus["plant", 2]) as z:
+        assert folders == {n.split("/")[1] for n in z.namelist() if n.startswith("binaries/") and n.count("/") == 2}
+    host = _host(c_hosts, platform)
+    reference = run_host(c_hosts[HOST_PLATFORM.name], container, work)
+    assert reference["identified"][-1] == 1.0 and np.isnan(reference["k_hat"][0])
+    if host.platform.is_host:
+        expected = run_fmpy(container)
+        assert set(expected) == set(reference)
+        for var, values in expected.items():
+            np.testing.assert_array_equal(reference[var], values, err_msg=var)
+        return
+    got = run_host(host, container, work)
+    np.testing.assert_array_equal(got["time"], reference["time"])
+    bad = _mismatches(c_hosts, container, work, reference, got)
+    assert not bad, f"container on {platform}: {bad}"
 
 
 @pytest.mark.slow

@@ -79,7 +79,6 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                               fmi2Boolean visible, fmi2Boolean loggingOn)
 {
     Instance *inst;
-    (void)fmuResourceLocation;
     (void)visible;
     if (functions == NULL || functions->logger == NULL) return NULL;
     if (fmuType != fmi2ModelExchange && fmuType != fmi2CoSimulation) {
@@ -87,7 +86,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                           "logStatusError", "fmi2Instantiate: unknown fmuType");
         return NULL;
     }
-    inst = instance_new(&fmu_model_info, instanceName, fmuGUID,
+    inst = instance_new(&fmu_model_info, instanceName, fmuGUID, fmuResourceLocation, 2,
                         fmuType == fmi2CoSimulation ? KIND_CO_SIMULATION : KIND_MODEL_EXCHANGE,
                         loggingOn ? 1 : 0, log_fmi2, functions->componentEnvironment,
                         (void (*)(void))functions->logger);
@@ -110,8 +109,7 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
 fmi2Status fmi2EnterInitializationMode(fmi2Component c)
 {
     if (check(c, "fmi2EnterInitializationMode", MODE_INSTANTIATED) != fmi2OK) return fmi2Error;
-    as_instance(c)->mode = MODE_INITIALIZATION;
-    return fmi2OK;
+    return (fmi2Status)fmu_enter_initialization(as_instance(c));
 }
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c)
@@ -124,15 +122,13 @@ fmi2Status fmi2Terminate(fmi2Component c)
 {
     if (check(c, "fmi2Terminate", MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_STEP_FAILED) != fmi2OK)
         return fmi2Error;
-    as_instance(c)->mode = MODE_TERMINATED;
-    return fmi2OK;
+    return (fmi2Status)fmu_terminate(as_instance(c));
 }
 
 fmi2Status fmi2Reset(fmi2Component c)
 {
     if (check(c, "fmi2Reset", MODE_ANY) != fmi2OK) return fmi2Error;
-    instance_reset(as_instance(c));
-    return fmi2OK;
+    return (fmi2Status)instance_reset(as_instance(c));
 }
 
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])

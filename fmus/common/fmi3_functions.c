@@ -86,9 +86,8 @@ fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String in
                                           fmi3Boolean loggingOn, fmi3InstanceEnvironment instanceEnvironment,
                                           fmi3LogMessageCallback logMessage)
 {
-    (void)resourcePath;
     (void)visible;
-    return (fmi3Instance)instance_new(&fmu_model_info, instanceName, instantiationToken,
+    return (fmi3Instance)instance_new(&fmu_model_info, instanceName, instantiationToken, resourcePath, 3,
                                       KIND_MODEL_EXCHANGE, loggingOn ? 1 : 0, log_fmi3, instanceEnvironment,
                                       (void (*)(void))logMessage);
 }
@@ -104,12 +103,11 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
                                          fmi3IntermediateUpdateCallback intermediateUpdate)
 {
     Instance *inst;
-    (void)resourcePath;
     (void)visible;
     (void)earlyReturnAllowed;
     (void)requiredIntermediateVariables;
     (void)intermediateUpdate;
-    inst = instance_new(&fmu_model_info, instanceName, instantiationToken, KIND_CO_SIMULATION,
+    inst = instance_new(&fmu_model_info, instanceName, instantiationToken, resourcePath, 3, KIND_CO_SIMULATION,
                         loggingOn ? 1 : 0, log_fmi3, instanceEnvironment, (void (*)(void))logMessage);
     if (inst == NULL) return NULL;
     if (eventModeUsed || nRequiredIntermediateVariables > 0) {
@@ -152,8 +150,8 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
     if (check(instance, "fmi3EnterInitializationMode", MODE_INSTANTIATED) != fmi3OK) return fmi3Error;
     status = (fmi3Status)fmu_setup(as_instance(instance), toleranceDefined, tolerance, startTime,
                                    stopTimeDefined, stopTime);
-    if (status == fmi3OK) as_instance(instance)->mode = MODE_INITIALIZATION;
-    return status;
+    if (status != fmi3OK) return status;
+    return (fmi3Status)fmu_enter_initialization(as_instance(instance));
 }
 
 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance)
@@ -174,15 +172,13 @@ fmi3Status fmi3Terminate(fmi3Instance instance)
 {
     if (check(instance, "fmi3Terminate", MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_STEP_FAILED) != fmi3OK)
         return fmi3Error;
-    as_instance(instance)->mode = MODE_TERMINATED;
-    return fmi3OK;
+    return (fmi3Status)fmu_terminate(as_instance(instance));
 }
 
 fmi3Status fmi3Reset(fmi3Instance instance)
 {
     if (check(instance, "fmi3Reset", MODE_ANY) != fmi3OK) return fmi3Error;
-    instance_reset(as_instance(instance));
-    return fmi3OK;
+    return (fmi3Status)instance_reset(as_instance(instance));
 }
 
 /* ------------------------------------------------------------------ variables */

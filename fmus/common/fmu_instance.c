@@ -97,8 +97,8 @@ static void set_start_values(Instance *inst)
 }
 
 Instance *instance_new(const ModelInfo *model, const char *name, const char *token,
-                       InterfaceKind kind, int logging_on, LogFunction log, void *log_env,
-                       void (*log_callback)(void))
+                       const char *resource_location, int fmi_version, InterfaceKind kind, int logging_on,
+                       LogFunction log, void *log_env, void (*log_callback)(void))
 {
     Instance tmp, *inst;
     size_t n, i;
@@ -109,6 +109,7 @@ Instance *instance_new(const ModelInfo *model, const char *name, const char *tok
     tmp.log_env = log_env;
     tmp.log_callback = log_callback;
     tmp.logging_on = 1;
+    tmp.fmi_version = fmi_version;
     if (name == NULL || name[0] == '\0') {
         log_error(&tmp, "instanceName must be a non-empty string");
         return NULL;
@@ -127,6 +128,10 @@ Instance *instance_new(const ModelInfo *model, const char *name, const char *tok
     if (inst == NULL) return NULL;
     *inst = tmp;
     inst->name = (char *)malloc(strlen(name) + 1);
+    if (resource_location != NULL) {
+        inst->resource_location = (char *)malloc(strlen(resource_location) + 1);
+        if (inst->resource_location != NULL) strcpy(inst->resource_location, resource_location);
+    }
     n = model->n_states;
     inst->vars = (double *)calloc(model->n_vars ? model->n_vars : 1, sizeof(double));
     inst->work = (double *)calloc(model->n_work ? model->n_work : 1, sizeof(double));
@@ -134,7 +139,7 @@ Instance *instance_new(const ModelInfo *model, const char *name, const char *tok
     inst->y = (double *)calloc(13 * (n ? n : 1), sizeof(double));
     inst->saved = (double *)calloc(model->n_vars ? model->n_vars : 1, sizeof(double));
     if (inst->name == NULL || inst->vars == NULL || inst->work == NULL || inst->iwork == NULL ||
-        inst->y == NULL || inst->saved == NULL) {
+        inst->y == NULL || inst->saved == NULL || (resource_location != NULL && inst->resource_location == NULL)) {
         log_error(inst, "out of memory");
         instance_free(inst);
         return NULL;
@@ -149,6 +154,10 @@ Instance *instance_new(const ModelInfo *model, const char *name, const char *tok
     inst->kind = kind;
     inst->logging_on = logging_on;
     set_start_values(inst);
+    if (model->instantiate != NULL && model->instantiate(inst) != 0) {
+        instance_free(inst);
+        return NULL;
+    }
     return inst;
 }
 
@@ -163,6 +172,7 @@ void instance_free(Instance *inst)
     if (inst == NULL) return;
     free_model_data(inst);
     free(inst->name);
+    free(inst->resource_location);
     free(inst->vars);
     free(inst->work);
     free(inst->iwork);
@@ -171,10 +181,15 @@ void instance_free(Instance *inst)
     free(inst);
 }
 
-void instance_reset(Instance *inst)
+FmuStatus instance_reset(Instance *inst)
 {
     free_model_data(inst);
     set_start_values(inst);
+    if (inst->model->instantiate != NULL && inst->model->instantiate(inst) != 0) {
+        inst->mode = MODE_ERROR;
+        return FMU_ERROR;
+    }
+    return FMU_OK;
 }
 
 /* ------------------------------------------------------------------ evaluation */
@@ -253,9 +268,35 @@ FmuStatus fmu_setup(Instance *inst, int tolerance_defined, double tolerance, dou
     return FMU_OK;
 }
 
+FmuStatus fmu_enter_initialization(Instance *inst)
+{
+    if (inst->model->enter_initialization != NULL && inst->model->enter_initialization(inst) != 0) {
+        inst->mode = MODE_ERROR;
+        return FMU_ERROR;
+    }
+    inst->mode = MODE_INITIALIZATION;
+    inst->dirty = 1;
+    return FMU_OK;
+}
+
+FmuStatus fmu_terminate(Instance *inst)
+{
+    if (inst->model->terminate != NULL && inst->model->terminate(inst) != 0) {
+        inst->mode = MODE_ERROR;
+        return FMU_ERROR;
+    }
+    inst->mode = MODE_TERMINATED;
+    return FMU_OK;
+}
+
 FmuStatus fmu_exit_initialization(Instance *inst)
 {
     size_t i;
+    if (inst->model->exit_initialization != NULL && inst->model->exit_initialization(inst) != 0) {
+        inst->mode = MODE_ERROR;
+        return FMU_ERROR;
+    }
+    inst->dirty = 1;
     if (evaluate(inst, "exit initialization mode") != 0) {
         inst->mode = MODE_ERROR;
         return FMU_ERROR;
@@ -434,7 +475,7 @@ FmuStatus fmu_no_variables(Instance *inst, const char *function, const unsigned 
 {
     if (fmu_null_arg(inst, function, "valueReferences", vr, nvr)) return FMU_ERROR;
     if (nvr > 0) {
-        log_error(inst, "%s: unknown value reference %u (this FMU has Float64 variables only)",
+        log_error(inst, "%s: unknown value reference %u (this FMU has no variable of this type)",
                   function, vr[0]);
         return FMU_ERROR;
     }
@@ -834,11 +875,21 @@ static int snapshot_usable(Instance *inst, const char *function, const Snapshot 
     return 1;
 }
 
+/* Nonzero (logged) when the model cannot save its state (ModelInfo.no_fmu_state). */
+static int state_refused(Instance *inst, const char *function)
+{
+    if (!inst->model->no_fmu_state) return 0;
+    log_error(inst, "%s: this FMU cannot save or restore its state (canGetAndSetFMUstate=false)", function);
+    return 1;
+}
+
 FmuStatus fmu_get_state(Instance *inst, const char *function, void **state)
 {
     const ModelInfo *m = inst->model;
     Snapshot *s;
-    size_t model_bytes = model_state_size(inst);
+    size_t model_bytes;
+    if (state_refused(inst, function)) return FMU_ERROR;
+    model_bytes = model_state_size(inst);
     if (fmu_null_arg(inst, function, "FMUState", state, 1)) return FMU_ERROR;
     if (*state != NULL) {
         s = (Snapshot *)*state;
@@ -881,6 +932,7 @@ FmuStatus fmu_set_state(Instance *inst, const char *function, const void *state)
 {
     const ModelInfo *m = inst->model;
     const Snapshot *s = (const Snapshot *)state;
+    if (state_refused(inst, function)) return FMU_ERROR;
     if (fmu_null_arg(inst, function, "FMUState", state, 1)) return FMU_ERROR;
     if (!snapshot_usable(inst, function, s, (size_t)s->size)) return FMU_ERROR;
     if (m->load_state != NULL &&
@@ -913,6 +965,7 @@ FmuStatus fmu_free_state(Instance *inst, const char *function, void **state)
 
 FmuStatus fmu_serialized_size(Instance *inst, const char *function, const void *state, size_t *size)
 {
+    if (state_refused(inst, function)) return FMU_ERROR;
     if (fmu_null_arg(inst, function, "FMUState", state, 1) ||
         fmu_null_arg(inst, function, "size", size, 1))
         return FMU_ERROR;
@@ -926,6 +979,7 @@ FmuStatus fmu_serialize(Instance *inst, const char *function, const void *state,
                         size_t size)
 {
     const Snapshot *s = (const Snapshot *)state;
+    if (state_refused(inst, function)) return FMU_ERROR;
     if (fmu_null_arg(inst, function, "FMUState", state, 1) ||
         fmu_null_arg(inst, function, "serializedState", bytes, 1))
         return FMU_ERROR;
@@ -944,6 +998,7 @@ FmuStatus fmu_deserialize(Instance *inst, const char *function, const char *byte
 {
     Snapshot header;
     void *copy;
+    if (state_refused(inst, function)) return FMU_ERROR;
     if (fmu_null_arg(inst, function, "serializedState", bytes, 1) ||
         fmu_null_arg(inst, function, "FMUState", state, 1))
         return FMU_ERROR;

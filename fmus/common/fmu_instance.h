@@ -47,6 +47,9 @@ typedef struct Instance {
     LogFunction log;
     void *log_env;                 /* importer's environment pointer */
     void (*log_callback)(void);    /* importer's logger function (cast to its FMI type) */
+    char *resource_location;       /* copy of fmuResourceLocation (FMI 2, a URI) or resourcePath
+                                    * (FMI 3, a path); NULL when the importer gave none */
+    int fmi_version;               /* 2 or 3: the API that made the instance */
     double time;
     double start_time;
     double stop_time;
@@ -64,11 +67,14 @@ typedef struct Instance {
     unsigned long n_steps, n_rejected, n_evaluations;
 } Instance;
 
+/* A new instance (NULL on failure, logged): resource_location (may be NULL) is copied. */
 Instance *instance_new(const ModelInfo *model, const char *name, const char *token,
-                       InterfaceKind kind, int logging_on, LogFunction log, void *log_env,
-                       void (*log_callback)(void));
+                       const char *resource_location, int fmi_version, InterfaceKind kind, int logging_on,
+                       LogFunction log, void *log_env, void (*log_callback)(void));
 void instance_free(Instance *inst);
-void instance_reset(Instance *inst);
+/* Back to the state after instantiation (the model's instantiate hook runs again; on its
+ * failure the instance is in Error mode). */
+FmuStatus instance_reset(Instance *inst);
 
 /* Logging: errors and discards are always forwarded, other messages only when logging_on. */
 void fmu_log(Instance *inst, FmuStatus status, const char *category, const char *fmt, ...)
@@ -85,7 +91,11 @@ const char *mode_name(Mode mode);
 
 FmuStatus fmu_setup(Instance *inst, int tolerance_defined, double tolerance, double start_time,
                     int stop_time_defined, double stop_time);
+/* fmiEnterInitializationMode (after fmu_setup), fmiExitInitializationMode and fmiTerminate,
+ * with the model's hooks; a failing hook leaves the instance in Error mode. */
+FmuStatus fmu_enter_initialization(Instance *inst);
 FmuStatus fmu_exit_initialization(Instance *inst);
+FmuStatus fmu_terminate(Instance *inst);
 FmuStatus fmu_evaluate(Instance *inst, const char *function);
 
 FmuStatus fmu_get_float64(Instance *inst, const char *function, const unsigned vr[], size_t nvr,

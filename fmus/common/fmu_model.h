@@ -11,6 +11,10 @@
  *
  * A discrete-time model (an estimator, say) sets do_step instead of relying on the ODE
  * integrator; it may have no continuous states.
+ *
+ * A model that holds other FMUs (the container, fmus/container) also sets the lifecycle
+ * hooks (instantiate, enter/exit initialisation, terminate): it reads its resources folder
+ * (Instance.resource_location) and forwards the FMI state machine to its components.
  */
 #ifndef DUFFID_FMU_MODEL_H
 #define DUFFID_FMU_MODEL_H
@@ -73,6 +77,9 @@ typedef int (*ModelLoadState)(struct Instance *inst, const void *bytes, size_t s
  * succeed but for lack of memory, leaving the instance unchanged then). */
 typedef int (*ModelCheckState)(const struct Instance *inst, const void *bytes, size_t size, char *msg,
                                size_t msg_size);
+/* A lifecycle hook (ModelInfo.instantiate, enter_initialization, exit_initialization, terminate):
+ * 0 on success, else nonzero after logging the reason through fmu_log. */
+typedef int (*ModelHook)(struct Instance *inst);
 
 typedef struct ModelInfo {
     const char *model_identifier;
@@ -103,6 +110,13 @@ typedef struct ModelInfo {
                                         * such as an estimate "not yet known"); NULL: none. Every
                                         * other input or parameter is rejected when not finite. */
     ModelCheckState check_state;       /* required when state_size is set */
+    /* lifecycle hooks (NULL: none): */
+    ModelHook instantiate;             /* at instantiation and reset, after the start values are set
+                                        * (failure: no instance / reset fails); may set model_data */
+    ModelHook enter_initialization;    /* at fmiEnterInitializationMode, the experiment set up */
+    ModelHook exit_initialization;     /* at fmiExitInitializationMode, before the evaluation */
+    ModelHook terminate;               /* at fmiTerminate */
+    int no_fmu_state;                  /* 1: canGetAndSetFMUstate=false: get/set/serialize refused */
 } ModelInfo;
 
 /* Interfaces of ModelInfo.interfaces. */

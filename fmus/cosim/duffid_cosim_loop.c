@@ -13,76 +13,12 @@
  * the simulation after this macro step (the step is completed and recorded, then the loop
  * returns DUFFID_LOOP_ENDED), anything else = abort now (DUFFID_LOOP_ABORTED).
  *
- * C99, no allocation, no global or static mutable state.
+ * C99, no allocation, no global or static mutable state. The structures and return codes are
+ * in duffid_cosim_loop.h (shared with the container FMU runtime, fmus/container).
  */
-#include <stddef.h>
-#include <stdint.h>
 #include <string.h>
 
-#define DUFFID_LOOP_DONE 0
-#define DUFFID_LOOP_SET_FAILED 1
-#define DUFFID_LOOP_GET_FAILED 2
-#define DUFFID_LOOP_ABORTED 3
-#define DUFFID_LOOP_ENDED 4
-
-/* Value conversions of a gather or a move. */
-#define DUFFID_COPY 0          /* same type: bytes */
-#define DUFFID_INT32_TO_BOOL 1 /* a 4-byte integer buffer to 1-byte fmi3Boolean */
-#define DUFFID_BOOL_TO_INT32 2 /* 1-byte fmi3Boolean to a 4-byte integer buffer */
-
-#define FMI_WARNING 1
-
-/* Any function pointer (the FMI functions are cast to their own types before the call). */
-typedef void (*duffid_function)(void);
-
-/* An FMI get or set call: function(instance, vr, n, value[, n]) (FMI 3 repeats n as nValues).
- * With gather_index != NULL the values are first gathered into value from
- * gather_source[gather_index[i]] (the Python loop's np.take). */
-typedef struct {
-    duffid_function function;
-    void *instance;
-    const unsigned int *vr;
-    size_t n;
-    void *value;
-    int fmi3;
-    int convert;
-    const char *gather_source;
-    const intptr_t *gather_index;
-    size_t itemsize; /* bytes per value of gather_source */
-} duffid_io_op;
-
-/* A doStep call; FMI 3 writes its three flags and the last successful time. */
-typedef struct {
-    duffid_function function;
-    void *instance;
-    int fmi3;
-    _Bool *event_handling_needed;
-    _Bool *terminate;
-    _Bool *early_return;
-    double *last_successful_time;
-} duffid_step_op;
-
-/* A copy of n values for row r (= k + 1 after macro step k): from source + r * source_stride
- * (at index[i] when index != NULL) to destination + r * destination_stride. Tables are moves
- * with destination_stride 0, recorded rows moves with source_stride 0, FMI 3 Boolean outputs
- * moves with both 0. */
-typedef struct {
-    char *destination;
-    const char *source;
-    const intptr_t *index;
-    size_t n;
-    size_t itemsize; /* bytes per value of source */
-    ptrdiff_t destination_stride, source_stride;
-    int convert;
-} duffid_move;
-
-/* One stage of a macro step: sets, doSteps, gets and conversions [lo, hi) (Jacobi: one stage
- * of everything; Gauss-Seidel: one stage per component in the stepping order). */
-typedef struct {
-    int set_lo, set_hi, step_lo, step_hi, get_lo, get_hi, post_lo, post_hi;
-} duffid_stage;
-
-typedef int (*duffid_step_callback)(int step_op, int status, long step);
+#include "duffid_cosim_loop.h"
 
 typedef int (*call4_t)(void *, const unsigned int *, size_t, void *);
 typedef int (*call5_t)(void *, const unsigned int *, size_t, void *, size_t);
@@ -135,12 +71,7 @@ static void move(const duffid_move *m, long row)
         convert_values(dst, src, m->n, m->itemsize, m->convert);
 }
 
-/*
- * Macro steps k = start .. stop-1 on grid (t_k = grid[k], step h): per stage its sets, doSteps,
- * gets and conversions, then the moves (input table rows, recorded rows) for row k + 1.
- * Returns DUFFID_LOOP_*; *failed_step = the macro step being executed, *failed_op = the op
- * index within its kind, *failed_status = the FMI status (failures only).
- */
+/* See duffid_cosim_loop.h. */
 int duffid_cosim_run(const double *grid, long start, long stop, double h, const duffid_stage *stages,
                      int n_stages, const duffid_io_op *sets, const duffid_step_op *steps, const duffid_io_op *gets,
                      const duffid_move *posts, const duffid_move *moves, int n_moves,

@@ -74,7 +74,8 @@ def load() -> ctypes.CDLL | None:
     """
     if not _LIBRARY:
         try:
-            path = cached_library("libduffid_cosim_loop", fmu_sources("cosim"), ("duffid_cosim_loop.c",))
+            path = cached_library("libduffid_cosim_loop", fmu_sources("cosim"), ("duffid_cosim_loop.c",),
+                                  ("duffid_cosim_loop.h",))
         except CompilerNotFoundError:
             _LIBRARY.append(None)
         else:

@@ -1,11 +1,21 @@
-"""Export a :class:`duffid.cosim.system.System` as one container FMU (fmpy's ``container_fmu``).
+"""Export a :class:`duffid.cosim.system.System` as one container FMU on duffid's own runtime.
 
-The container is an FMI 2.0 Co-Simulation FMU whose binary (shipped with fmpy) runs the
-components it holds in ``resources/``: a Jacobi master at a fixed internal step, the
-same algorithm as :meth:`duffid.cosim.system.System.run` with ``ordering="jacobi"``. Its
-``doStep`` accepts a whole multiple of that step only (so
+The container is an FMI 2.0 Co-Simulation FMU whose binary is duffid's container runtime
+(``fmus/container``) on the shared FMI glue (``fmus/common``), compiled for this container:
+its description (variables, components, connections, the container variables' mapping,
+the internal step) is a generated C header, so nothing is parsed when it runs. The
+components' FMUs (FMI 2 or FMI 3 co-simulation) are unpacked in ``resources/<component>/``;
+at instantiation the runtime loads each binary, resolves its FMI functions and makes one
+instance (every failure logged through the container's logger, naming the component and
+its FMU: a binary that does not load, an instantiation that fails, a call that returns an
+error).
+
+Its ``doStep`` runs the Jacobi master of :meth:`duffid.cosim.system.System.run` with
+``ordering="jacobi"`` at a fixed internal step, with the orchestrator's own compiled loop
+(``fmus/cosim/duffid_cosim_loop.c``); it accepts a whole multiple of that step only (so
 ``canHandleVariableCommunicationStepSize`` is false). Container variables carry the units
-of the component variables they map to (one unit per container variable, else an error).
+and the descriptions of the component variables they map to (one unit per container
+variable, else an error), with the components' unit definitions.
 
 What is exported:
 
@@ -15,15 +25,18 @@ What is exported:
 * container outputs: each maps to one component output (``outputs={"x": "plant.x"}``);
 * parameters: every parameter value given to :meth:`~duffid.cosim.system.System.add` becomes a
   container parameter named ``"component.parameter"`` whose start value is that value
-  (the container sets start values into its components before initialisation, so the
-  values take effect, and an importer may change them); ``parameters={"mass":
+  (the container sets its parameters into its components before their initialisation, so
+  the values take effect, and an importer may change them); ``parameters={"mass":
   ["plant.m"]}`` exposes further component parameters (start: the add() value or the
   component's own start) under names of your choice.
 
 The states evolve exactly as under ``System.run(ordering="jacobi")`` (the tests check
-equality to 1e-12). One difference in what is *read*: after each internal step the
-container passes the new outputs to the connected inputs before its own outputs are
-read, so an output with direct feedthrough from a connected input (e.g. a gain
+equality to 1e-12): the components are set up, given their parameters and initialised as
+the orchestrator does (connected inputs start from zero during initialisation), then every
+internal step calls every doStep with the inputs held, reads every connected output and
+sets every connected input. One difference in what is *read*: the container's outputs are
+read from its components after its step, when the connected inputs already hold the new
+values, so an output with direct feedthrough from a connected input (e.g. a gain
 ``y = k u``) shows ``k u(t_{k+1})``, where :meth:`~duffid.cosim.system.System.run` records the
 value returned right after ``doStep`` (``k u(t_k)``). Outputs without direct
 feedthrough (states, the estimator's and controller's sampled outputs) are identical.
@@ -33,39 +46,69 @@ the container: every input they drive must be mapped to a container input (else
 :class:`~duffid.errors.WiringError`). Inputs that are neither connected nor driven keep
 their start values.
 
-The container carries fmpy's container binaries only for the platforms on which every
-component has a binary (fmpy ships linux64, win64 and darwin64 ones); none in common is an
-error.
-
-Two defects of fmpy 0.3.32 are worked around: connections of FMI 2 components are
-written with their FMI 2 type names, which the container binary rejects, so the
-connection variables are passed as copies typed ``Float64``/``Int32`` (Boolean needs
-no change); and the generated modelDescription has no ModelStructure, so outputs and
-initial unknowns are filled in (``fmpy validate`` then reports no problems).
-
-FMI 3.0 components are accepted by the container format; the container itself is
-always FMI 2.0.
+The container has binaries for the platforms (:data:`duffid.cbuild.PLATFORMS`) on which
+every component has a binary and a compiler is installed; none is an error. It cannot save
+its state (``canGetAndSetFMUstate`` false: the state functions are refused with a logged
+error). A component that fails during a step discards the container's step: its time and
+variables stay those of the step's start, and only terminate, reset or free may follow
+(the components cannot be rolled back). An FMU component asking to end the simulation is
+reported the same way. The container ignores a tolerance given to it (its components use
+their own, as under the orchestrator).
 """
 from __future__ import annotations
 
+import math
 import os
-import shutil
+import re
 import tempfile
-import uuid
+import xml.etree.ElementTree as ET
 import zipfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
+from ..assets import fmu_sources
+from ..cbuild import (
+    FMU_FLAGS,
+    Platform,
+    compile_shared_library,
+    fmu_binary_path,
+    resolve_platforms,
+)
 from ..errors import WiringError
+from ..fmu.c_model import TYPE_CODES, config_header, retype
+from ..fmu.fmi_xml import FmuInfo, model_description_fmi2
+from ..fmu.package import COMMON_FILES, fmi_include_dir, token_from, write_zip
+from ..fmu.variables import FmuVariable
 from .elements import VARIABLE_KINDS, with_article
 
 if TYPE_CHECKING:
     from .system import System
 
-__all__ = ["export_container"]
+__all__ = ["CONTAINER_GENERATION_TOOL", "RUNTIME_FILES", "export_container"]
 
-_FMI2_TYPE = {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean"}
-_CONTAINER_TYPE = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
+#: generationTool of container FMUs.
+CONTAINER_GENERATION_TOOL = "duffid.cosim.container (duffid's container runtime, fmus/container)"
+#: The runtime's sources, by folder of ``fmus/`` (the glue's FMI 2 files are added).
+RUNTIME_FILES = {"container": ("duffid_container.c", "duffid_container.h"),
+                 "cosim": ("duffid_cosim_loop.c", "duffid_cosim_loop.h")}
+_CONFIG = "container_fmu_config.h"
+#: The container's type of each component variable kind (fmus/common VARTYPE_* names).
+_GLUE_TYPE = {"Real": "Float64", "Integer": "Integer", "Boolean": "Boolean"}
+
+
+@dataclass
+class _Variable:
+    """One container variable and the component variables it maps to."""
+
+    name: str
+    kind: str                      # Real, Integer, Boolean
+    causality: str                 # input, output, parameter
+    start: str | None
+    description: str
+    unit: str | None
+    links: list[tuple[int, int, str]] = field(default_factory=list)  # (component index, vr, "comp.var")
 
 
 def _literal(value: Any) -> str:
@@ -74,6 +117,15 @@ def _literal(value: Any) -> str:
     if isinstance(value, float):
         return repr(value)
     return str(value)
+
+
+def _number(start: str | None, kind: str) -> float | None:
+    """A start attribute as the double the glue stores (Booleans 0/1)."""
+    if start is None:
+        return None
+    if kind == "Boolean":
+        return 1.0 if str(start).strip().lower() in ("true", "1") else 0.0
+    return float(start)
 
 
 def _as_list(value: str | Sequence[str], what: str) -> list[str]:
@@ -91,16 +143,240 @@ def _one_unit(variables: Sequence[Any], what: str) -> str | None:
     return units.pop() if units else None
 
 
-def _unit_definitions(names: set[str], descriptions: Sequence[Any]) -> list[Any]:
-    """The components' definitions of the units ``names`` (a unit no component defines is
-    declared by its name alone)."""
-    from fmpy.model_description import Unit
+def _describe(what: str, variables: Sequence[Any], targets: Sequence[str]) -> str:
+    """``what`` (e.g. "drives plant.f") and the component variables' own descriptions."""
+    own = list(dict.fromkeys(v.description for v in variables if v.description))
+    return f"{what} {', '.join(targets)}" + (f": {'; '.join(own)}" if own else "")
 
-    defined: dict[str, Any] = {}
-    for md in descriptions:
-        for unit in md.unitDefinitions:
-            defined.setdefault(unit.name, unit)
-    return [defined.get(name) or Unit(name=name) for name in sorted(names)]
+
+def _c_string(text: str) -> str:
+    """``text`` as a C string literal (UTF-8; quotes, backslashes and non-printables escaped)."""
+    out = []
+    for byte in text.encode("utf-8"):
+        ch = chr(byte)
+        if ch in '"\\?':
+            out.append("\\" + ch)
+        elif 32 <= byte < 127:
+            out.append(ch)
+        else:
+            out.append(f"\\{byte:03o}")
+    return '"' + "".join(out) + '"'
+
+
+def _identifier(stem: str) -> str:
+    """The container's modelIdentifier (its binary's name) from the file's stem."""
+    ident = re.sub(r"\W", "_", stem, flags=re.ASCII) or "container"
+    return ident if not ident[0].isdigit() else "_" + ident
+
+
+def _plan(system: System, inputs: Mapping[str, str | Sequence[str]] | None, outputs: Mapping[str, str] | None,
+          parameters: Mapping[str, str | Sequence[str]] | None) -> list[_Variable]:
+    """The container variables, checked (WiringError for anything the container cannot carry)."""
+    order = {name: i for i, name in enumerate(system._components)}
+    variables: list[_Variable] = []
+    used: set[str] = {"time"}
+
+    def add(var: _Variable) -> _Variable:
+        if not var.name or var.name in used:
+            raise WiringError(f"container variable name {var.name!r} is empty or used twice")
+        used.add(var.name)
+        variables.append(var)
+        return var
+
+    def resolve(full: str, role: str) -> tuple[Any, Any, str]:
+        comp, var = system._lookup(full, role)
+        return comp, var, comp.kind(var, "exported")
+
+    connected = {c.target for c in system._connections}
+    for name, targets in (inputs or {}).items():
+        entries = []
+        for full in _as_list(targets, f"container input {name!r}"):
+            comp, var = system._lookup(full, "container input target")
+            if var.causality != "input":
+                raise WiringError(f"container input {name!r}: {full} is {with_article(var.causality)}, not an input")
+            if full in connected:
+                raise WiringError(f"container input {name!r}: {full} is already connected inside the system")
+            entries.append(resolve(full, "container input target"))
+        kinds = {e[2] for e in entries}
+        if len(kinds) != 1:
+            raise WiringError(f"container input {name!r} maps to variables of different types")
+        kind = kinds.pop()
+        start = entries[0][1].start
+        full_names = _as_list(targets, name)
+        var = add(_Variable(name, kind, "input", start if start is not None else ("false" if kind == "Boolean" else "0"),
+                            _describe("drives", [e[1] for e in entries], full_names),
+                            _one_unit([e[1] for e in entries], f"container input {name!r}") if kind == "Real" else None))
+        var.links = [(order[c.name], v.valueReference, full) for (c, v, _), full in zip(entries, full_names)]
+    exported = {full for targets in (inputs or {}).values() for full in _as_list(targets, "container input")}
+    lost = sorted(set(system._externals) - exported)
+    if lost:
+        raise WiringError(f"{', '.join(lost)} {'is' if len(lost) == 1 else 'are'} driven by the system's external "
+                          "inputs (set_input, inputs_from_csv), which a container cannot hold: map "
+                          f"{'it' if len(lost) == 1 else 'them'} to container inputs")
+    if outputs is None:
+        outputs = {f"{c.name}.{v.name}": f"{c.name}.{v.name}" for c in system._components.values()
+                   for v in c.outputs()}
+    for name, source in outputs.items():
+        if not isinstance(source, str):
+            raise WiringError(f"container output {name!r} must map to one 'component.output'")
+        comp, var = system._lookup(source, "container output source")
+        if var.causality != "output":
+            raise WiringError(f"container output {name!r}: {source} is {with_article(var.causality)}, not an output")
+        comp, var, kind = resolve(source, "container output source")
+        out = add(_Variable(name, kind, "output", None, _describe("output", [var], [source]),
+                            var.unit if kind == "Real" else None))
+        out.links = [(order[comp.name], var.valueReference, source)]
+    exposed: dict[str, list[str]] = {name: _as_list(t, f"container parameter {name!r}")
+                                    for name, t in (parameters or {}).items()}
+    covered = {full for targets in exposed.values() for full in targets}
+    for comp in system._components.values():
+        for pname in comp.parameters:
+            full = f"{comp.name}.{pname}"
+            if full not in covered:
+                exposed[full] = [full]
+    for name, targets in exposed.items():
+        entries, starts = [], []
+        for full in targets:
+            comp, var = system._lookup(full, "container parameter target")
+            if var.causality != "parameter" or var.variability not in ("fixed", "tunable"):
+                raise WiringError(f"container parameter {name!r}: {full} is {with_article(var.causality)} "
+                                  f"({var.variability}), not a settable parameter")
+            if var.type not in VARIABLE_KINDS:
+                raise WiringError(f"container parameter {name!r}: {full} has type {var.type}; the container "
+                                  "carries Real, Integer and Boolean parameters only")
+            entries.append(resolve(full, "container parameter target"))
+            given = comp.parameters.get(var.name)
+            starts.append(_literal(given) if given is not None else var.start)
+        kinds = {e[2] for e in entries}
+        if len(kinds) != 1:
+            raise WiringError(f"container parameter {name!r} maps to variables of different types")
+        kind = kinds.pop()
+        if len(set(starts)) != 1:
+            raise WiringError(f"container parameter {name!r}: its targets have different values {starts}")
+        if starts[0] is None:
+            raise WiringError(f"container parameter {name!r}: {targets[0]} has no start value")
+        par = add(_Variable(name, kind, "parameter", starts[0], _describe("sets", [e[1] for e in entries], targets),
+                            _one_unit([e[1] for e in entries], f"container parameter {name!r}")
+                            if kind == "Real" else None))
+        par.links = [(order[c.name], v.valueReference, full) for (c, v, _), full in zip(entries, targets)]
+    return variables
+
+
+def _table(variables: list[_Variable]) -> list[FmuVariable]:
+    """The glue's variable table: the time at value reference 0, then the container variables."""
+    table = [FmuVariable("time", 0, "independent", "continuous", None, None, math.nan,
+                         description="simulation time")]
+    for i, var in enumerate(variables, start=1):
+        variability = {"parameter": "fixed"}.get(var.causality, "continuous" if var.kind == "Real" else "discrete")
+        initial = {"output": "calculated", "parameter": "exact"}.get(var.causality)
+        start = _number(var.start, var.kind)
+        table.append(FmuVariable(var.name, i, var.causality, variability, initial, start,
+                                 math.nan if start is None else start, unit=var.unit, description=var.description))
+    return table
+
+
+def _header(system: System, variables: list[_Variable], table: list[FmuVariable], identifier: str, token: str,
+            step: float) -> str:
+    """The generated container_fmu_config.h: the glue's tables and the container's description."""
+    comps = list(system._components.values())
+    order = {c.name: i for i, c in enumerate(comps)}
+    types = {v.name: _GLUE_TYPE[v.kind] for v in variables}
+    text = config_header("container", table, types, {"IDENTIFIER": identifier, "TOKEN": token})
+    text = text.rsplit("#endif", 1)[0]
+
+    def array(ctype: str, name: str, rows: list[str], count: str) -> str:
+        body = ",\n    ".join(rows) if rows else "{0}"  # C has no empty arrays (count says 0)
+        return f"#define {count} {len(rows)}\nstatic const {ctype} container_{name}[] = {{\n    {body}\n}};\n"
+
+    component_rows = [f"{{{_c_string(c.name)}, {_c_string(c.path.name)}, "
+                      f"{_c_string(c.md.coSimulation.modelIdentifier)}, {c.version}, "
+                      f"{_c_string(c.md.guid if c.version == 2 else c.md.instantiationToken)}}}" for c in comps]
+    # connection sources: unique, sorted by (component, type); slots per buffer (Float64 / int32)
+    kinds = {}
+    for conn in system._connections:
+        for full in (conn.source, conn.target):
+            comp, var = system._lookup(full, "connection")
+            kinds[full] = (order[comp.name], var.valueReference, TYPE_CODES[_GLUE_TYPE[comp.kind(var, "connected")]])
+    sources = sorted({kinds[c.source] for c in system._connections}, key=lambda s: (s[0], s[2], s[1]))
+    slots, counts = {}, {0: 0, 1: 0}
+    for s in sources:
+        buffer = 0 if s[2] == TYPE_CODES["Float64"] else 1
+        slots[s] = counts[buffer]
+        counts[buffer] += 1
+    targets = sorted(((kinds[c.target], slots[kinds[c.source]]) for c in system._connections),
+                     key=lambda t: (t[0][0], t[0][2], t[0][1]))
+    links = [(vr, comp, cvr, full) for vr, var in enumerate(variables, start=1) for comp, cvr, full in var.links]
+    text += (f"\n/* The container's description (duffid_container.h). */\n#define CONTAINER_STEP {float(step)!r}\n"
+             + array("ContainerComponent", "components", component_rows, "CONTAINER_N_COMPONENTS")
+             + array("ContainerSource", "sources", [f"{{{c}, {vr}u, {t}, {slots[(c, vr, t)]}}}" for c, vr, t in sources],
+                     "CONTAINER_N_SOURCES")
+             + array("ContainerTarget", "targets", [f"{{{c}, {vr}u, {t}, {slot}}}" for (c, vr, t), slot in targets],
+                     "CONTAINER_N_TARGETS")
+             + array("ContainerLink", "links", [f"{{{vr}u, {c}, {cvr}u}}" for vr, c, cvr, _ in links],
+                     "CONTAINER_N_LINKS")
+             + "static const char *const container_link_names[] = {\n    "
+             + (",\n    ".join(_c_string(full) for *_, full in links) or '""') + "\n};\n")
+    return text + "\n#endif\n"
+
+
+def _unit_elements(system: System) -> dict[str, ET.Element]:
+    """The components' own unit definitions, by unit name (the first component's wins)."""
+    units: dict[str, ET.Element] = {}
+    for comp in system._components.values():
+        with zipfile.ZipFile(comp.path) as z:
+            root = ET.fromstring(z.read("modelDescription.xml"))
+        for unit in root.iter("Unit"):
+            for display in unit.iter("DisplayUnit"):
+                display.attrib.pop("inverse", None)  # FMI 3 only
+            units.setdefault(unit.get("name", ""), unit)
+    return units
+
+
+def _model_description(system: System, identifier: str, token: str, table: list[FmuVariable], step: float,
+                       sources: tuple[str, ...], types: Mapping[str, str]) -> bytes:
+    info = FmuInfo(model_name=identifier, model_identifier=identifier, token=token,
+                   description=f"duffid co-simulation container: {', '.join(system._components)} "
+                               f"(Jacobi, fixed step {step!r} s)",
+                   sources=sources, model_exchange=False, co_simulation=True,
+                   experiment={"StartTime": 0.0, "Interval": float(step)}, variable_step=False,
+                   generation_tool=CONTAINER_GENERATION_TOOL)
+    root = ET.fromstring(retype(model_description_fmi2(info, table), 2, types))
+    cs = root.find("CoSimulation")
+    cs.set("canGetAndSetFMUstate", "false")
+    cs.set("canSerializeFMUstate", "false")
+    definitions = root.find("UnitDefinitions")
+    if definitions is not None:
+        own = _unit_elements(system)
+        for i, unit in enumerate(list(definitions)):
+            if unit.get("name") in own:
+                definitions.remove(unit)
+                definitions.insert(i, own[unit.get("name")])
+    ET.indent(root, space="  ")
+    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
+
+
+def _platforms(system: System) -> list[Platform]:
+    """The platforms with a compiler on which every component has a binary.
+
+    Raises
+    ------
+    WiringError
+        If there is none.
+    """
+    available, _ = resolve_platforms()
+    present: dict[str, set[str]] = {}
+    for comp in system._components.values():
+        with zipfile.ZipFile(comp.path) as z:
+            present[comp.name] = set(z.namelist())
+    chosen = [p for p in available if all(fmu_binary_path(c.md.coSimulation.modelIdentifier, c.version, p)
+                                          in present[c.name] for c in system._components.values())]
+    if not chosen:
+        folders = {name: sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") == 2})
+                   for name, names in present.items()}
+        raise WiringError("no platform has binaries of every component (and a compiler here): "
+                          + "; ".join(f"{c}: {', '.join(f) or 'none'}" for c, f in folders.items())
+                          + f"; compilers for {', '.join(p.name for p in available)}")
+    return chosen
 
 
 def export_container(system: System, path: str | os.PathLike[str],
@@ -137,199 +413,48 @@ def export_container(system: System, path: str | os.PathLike[str],
     ------
     WiringError
         Unknown or ill-typed variables, bad names, an input both connected and exported,
-        mixed types in one mapping, types the container cannot carry.
+        mixed types in one mapping, types the container cannot carry, no platform with
+        binaries of every component.
+    CompilerNotFoundError, BuildError
+        Without a C compiler, or if the runtime does not compile (see :mod:`duffid.cbuild`).
     """
-    from fmpy import read_model_description
-    from fmpy.container_fmu.cli import create_container_fmu
-    from fmpy.container_fmu.config import Component, Configuration, Connection
-    from fmpy.model_description import CoSimulation, DefaultExperiment, ModelDescription, ModelVariable, Unknown
-
     if not system._components:
         raise WiringError("the system has no components")
-    if not (isinstance(step, (int, float)) and step > 0):
+    if not (isinstance(step, (int, float)) and not isinstance(step, bool) and math.isfinite(step) and step > 0):
         raise WiringError(f"step must be a positive number, got {step!r}")
     path = Path(path)
-    work = Path(tempfile.mkdtemp(prefix="duffid-container-"))
-    try:
-        # component FMUs copied under their component names: resources/<name>/ is unique
-        components: dict[str, Any] = {}
-        for name, comp in system._components.items():
-            copy = work / "fmus" / f"{name}.fmu"
-            copy.parent.mkdir(exist_ok=True)
-            shutil.copyfile(comp.path, copy)
-            components[name] = Component(name=name, filename=copy, modelDescription=read_model_description(str(copy)))
-
-        def resolve(full: str, role: str) -> tuple[Any, Any, str]:
-            comp, var = system._lookup(full, role)
-            kind = comp.kind(var, "exported")
-            md_var = next(v for v in components[comp.name].modelDescription.modelVariables if v.name == var.name)
-            return components[comp.name], md_var, kind
-
-        def container_copy(var: Any, kind: str) -> Any:
-            # workaround 1: the binary expects FMI 3 type names (Float64, Int32)
-            from attrs import evolve
-
-            return evolve(var, type=_CONTAINER_TYPE[kind])
-
-        # the binary numbers its variables from value reference 1: 0 is the time
-        variables: list[Any] = [ModelVariable(name="time", valueReference=0, type="Real", causality="independent",
-                                              variability="continuous", description="simulation time")]
-        mappings: dict[Any, list[tuple[Any, Any]]] = {}
-        used: set[str] = {"time"}
-
-        def new_variable(name: str, kind: str, causality: str, variability: str, initial: str | None,
-                         start: str | None, description: str, unit: str | None = None) -> Any:
-            if not name or name in used:
-                raise WiringError(f"container variable name {name!r} is empty or used twice")
-            used.add(name)
-            v = ModelVariable(name=name, valueReference=len(variables), type=_FMI2_TYPE[kind], causality=causality,
-                              variability=variability, initial=initial, description=description)
-            v.start = start
-            v.unit = unit if kind == "Real" else None
-            variables.append(v)
-            return v
-
-        connected = {c.target for c in system._connections}
-        for name, targets in (inputs or {}).items():
-            entries = []
-            for full in _as_list(targets, f"container input {name!r}"):
-                comp, var = system._lookup(full, "container input target")
-                if var.causality != "input":
-                    raise WiringError(f"container input {name!r}: {full} is {with_article(var.causality)}, not an input")
-                if full in connected:
-                    raise WiringError(f"container input {name!r}: {full} is already connected inside the system")
-                entries.append(resolve(full, "container input target"))
-            kinds = {e[2] for e in entries}
-            if len(kinds) != 1:
-                raise WiringError(f"container input {name!r} maps to variables of different types")
-            kind = kinds.pop()
-            start = entries[0][1].start
-            v = new_variable(name, kind, "input", "discrete" if kind != "Real" else "continuous", None,
-                             start if start is not None else ("false" if kind == "Boolean" else "0"),
-                             f"drives {', '.join(_as_list(targets, name))}",
-                             _one_unit([m for _, m, _ in entries], f"container input {name!r}"))
-            mappings[v] = [(c, m) for c, m, _ in entries]
-        exported = {full for targets in (inputs or {}).values() for full in _as_list(targets, "container input")}
-        lost = sorted(set(system._externals) - exported)
-        if lost:
-            raise WiringError(f"{', '.join(lost)} {'is' if len(lost) == 1 else 'are'} driven by the system's external "
-                              "inputs (set_input, inputs_from_csv), which a container cannot hold: map "
-                              f"{'it' if len(lost) == 1 else 'them'} to container inputs")
-        if outputs is None:
-            outputs = {f"{c.name}.{v.name}": f"{c.name}.{v.name}" for c in system._components.values()
-                       for v in c.outputs()}
-        out_vars = []
-        for name, source in outputs.items():
-            if not isinstance(source, str):
-                raise WiringError(f"container output {name!r} must map to one 'component.output'")
-            comp, var = system._lookup(source, "container output source")
-            if var.causality != "output":
-                raise WiringError(f"container output {name!r}: {source} is {with_article(var.causality)}, not an output")
-            c, m, kind = resolve(source, "container output source")
-            v = new_variable(name, kind, "output", "continuous" if kind == "Real" else "discrete", "calculated",
-                             None, f"output {source}", m.unit)
-            mappings[v] = [(c, m)]
-            out_vars.append(v)
-        exposed: dict[str, list[str]] = {name: _as_list(t, f"container parameter {name!r}")
-                                        for name, t in (parameters or {}).items()}
-        covered = {full for targets in exposed.values() for full in targets}
-        for comp in system._components.values():
-            for pname in comp.parameters:
-                full = f"{comp.name}.{pname}"
-                if full not in covered:
-                    exposed[full] = [full]
-        for name, targets in exposed.items():
-            entries, starts = [], []
-            for full in targets:
-                comp, var = system._lookup(full, "container parameter target")
-                if var.causality != "parameter" or var.variability not in ("fixed", "tunable"):
-                    raise WiringError(f"container parameter {name!r}: {full} is {with_article(var.causality)} "
-                                      f"({var.variability}), not a settable parameter")
-                if var.type not in VARIABLE_KINDS:
-                    raise WiringError(f"container parameter {name!r}: {full} has type {var.type}; the container "
-                                      "carries Real, Integer and Boolean parameters only")
-                entries.append(resolve(full, "container parameter target"))
-                given = comp.parameters.get(var.name)
-                starts.append(_literal(given) if given is not None else var.start)
-            kinds = {e[2] for e in entries}
-            if len(kinds) != 1:
-                raise WiringError(f"container parameter {name!r} maps to variables of different types")
-            kind = kinds.pop()
-            if len(set(starts)) != 1:
-                raise WiringError(f"container parameter {name!r}: its targets have different values {starts}")
-            v = new_variable(name, kind, "parameter", "fixed", "exact", starts[0],
-                             f"sets {', '.join(targets)}",
-                             _one_unit([m for _, m, _ in entries], f"container parameter {name!r}"))
-            mappings[v] = [(c, m) for c, m, _ in entries]
-
-        connections = []
-        for conn in system._connections:
-            sc, sv, kind = resolve(conn.source, "source")
-            tc, tv, _ = resolve(conn.target, "target")
-            connections.append(Connection(startElement=sc, startConnectors=[container_copy(sv, kind)],
-                                          endElement=tc, endConnectors=[tv]))
-
-        md = ModelDescription(fmiVersion="2.0", modelName=path.stem, instantiationToken="{" + str(uuid.uuid4()) + "}",
-                              description=f"duffid co-simulation container: {', '.join(system._components)} "
-                                          f"(Jacobi, fixed step {step!r} s)",
-                              generationTool="duffid.cosim.system + fmpy.container_fmu",
-                              coSimulation=CoSimulation(modelIdentifier="container_fmu",
-                                                        canHandleVariableCommunicationStepSize=False,
-                                                        fixedInternalStepSize=float(step)),
-                              defaultExperiment=DefaultExperiment(startTime="0", stepSize=repr(float(step))))
-        md.modelVariables = variables
-        md.unitDefinitions = _unit_definitions({v.unit for v in variables if v.unit},
-                                               [c.modelDescription for c in components.values()])
-        # workaround 2: ModelStructure (outputs are initial unknowns too)
-        md.outputs = [Unknown(variable=v) for v in out_vars]
-        md.initialUnknowns = [Unknown(variable=v) for v in out_vars]
-        config = Configuration(parallelDoStep=False, modelDescription=md, components=list(components.values()),
-                               connections=connections, variableMappings=mappings)
-        unzipdir = work / "container"
-        unzipdir.mkdir()
-        built = work / "Container.fmu"
-        create_container_fmu(config, unzipdir, built)
-        _finish_archive(built, list(components))
-        path.parent.mkdir(parents=True, exist_ok=True)
-        shutil.move(str(built), str(path))
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
+    variables = _plan(system, inputs, outputs, parameters)
+    platforms = _platforms(system)
+    identifier = _identifier(path.stem)
+    table = _table(variables)
+    types = {v.name: _GLUE_TYPE[v.kind] for v in variables if v.kind != "Real"}
+    runtime = {name: (fmu_sources(folder) / name).read_bytes() for folder, names in RUNTIME_FILES.items()
+               for name in names}
+    runtime.update({name: (fmu_sources("common") / name).read_bytes() for name in COMMON_FILES[2]})
+    components = {name: comp.path.read_bytes() for name, comp in system._components.items()}
+    token = token_from("duffid-container", identifier, repr(float(step)), *runtime.values(), *components.values(),
+                       *[f"{v.name}|{v.kind}|{v.causality}|{v.start}|{v.unit}|{v.links}" for v in variables],
+                       *[f"{c.source}>{c.target}" for c in system._connections])
+    sources = dict(runtime)
+    sources[_CONFIG] = _header(system, variables, table, identifier, token, step).encode()
+    c_files = tuple(sorted(n for n in sources if n.endswith(".c")))
+    files = {"modelDescription.xml": _model_description(system, identifier, token, table, step, c_files, types)}
+    files.update({f"sources/{name}": data for name, data in sources.items()})
+    for name, comp in system._components.items():
+        with zipfile.ZipFile(comp.path) as z:
+            for info in z.infolist():
+                if not info.is_dir():
+                    files[f"resources/{name}/{info.filename}"] = z.read(info)
+    with tempfile.TemporaryDirectory(prefix="duffid-container-") as tmp:
+        src = Path(tmp) / "sources"
+        src.mkdir()
+        for name, data in sources.items():
+            (src / name).write_bytes(data)
+        for platform in platforms:
+            inside = fmu_binary_path(identifier, 2, platform)
+            binary = Path(tmp) / inside
+            compile_shared_library([src / n for n in c_files], binary, include_dirs=[src, fmi_include_dir()],
+                                   flags=FMU_FLAGS, platform=platform)
+            files[inside] = binary.read_bytes()
+    write_zip(files, path)
     return path
-
-
-#: The container binary's platform folder -> the component folders (FMI 2, FMI 3) it can load.
-_CONTAINER_PLATFORMS = {"linux64": {"linux64", "x86_64-linux"}, "win64": {"win64", "x86_64-windows"},
-                        "darwin64": {"darwin64", "x86_64-darwin", "aarch64-darwin"}}
-
-
-def _finish_archive(fmu: Path, components: Sequence[str]) -> None:
-    """Drop a half-written copy of the archive that ``shutil.make_archive`` may have put
-    inside itself (fmpy writes the zip into the directory it archives), and the container
-    binaries of platforms for which a component has no binary (the container would load
-    there and then fail to load that component).
-
-    Raises
-    ------
-    WiringError
-        If no platform has binaries of every component.
-    """
-    with zipfile.ZipFile(fmu) as z:
-        names = z.namelist()
-        folders = {name: {n.split("/")[3] for n in names if n.startswith(f"resources/{name}/binaries/")
-                          and n.count("/") >= 4} for name in components}
-        keep = {p for p, accepted in _CONTAINER_PLATFORMS.items() if all(folders[c] & accepted for c in components)}
-        if not keep:
-            raise WiringError("no platform has binaries of every component: "
-                              + "; ".join(f"{c}: {', '.join(sorted(f)) or 'none'}" for c, f in folders.items()))
-
-        def wanted(name: str) -> bool:
-            parts = name.split("/")
-            return not name.endswith("Container.zip") and not (
-                parts[0] == "binaries" and len(parts) > 1 and parts[1] and parts[1] not in keep)
-
-        if all(wanted(n) for n in names):
-            return
-        entries = [(info, z.read(info)) for info in z.infolist() if wanted(info.filename)]
-    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as z:
-        for info, data in entries:
-            z.writestr(info, data)

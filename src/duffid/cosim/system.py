@@ -652,7 +652,7 @@ class System:
     def export_container(self, path: str | os.PathLike[str], inputs: Mapping[str, str | Sequence[str]] | None = None,
                          outputs: Mapping[str, str] | None = None, step: float = 1e-3,
                          parameters: Mapping[str, str | Sequence[str]] | None = None) -> Path:
-        """Write the system as one FMI 2.0 co-simulation container FMU (fmpy's container).
+        """Write the system as one FMI 2.0 co-simulation container FMU (duffid's container runtime).
 
         See :func:`duffid.cosim.container.export_container` for the parameters and
         limits.
