@@ -111,6 +111,48 @@ def test_identify_equation_json(capsys, case_a_csv):
     assert code == 2 and "der(x)" in err
 
 
+
+def test_a_model_name_is_a_shortcut_for_its_equations(capsys, tmp_path):
+    """--equation duffing1 is the model's equation text: the same estimator on one mass (equal
+    values); --model prints the equation it stands for; with two masses the equation route
+    solves one joint block, a different estimator of the same parameters (both published
+    values agree within their stated uncertainties); the circuit has no linear equation in C."""
+    csv = tmp_path / "d1.csv"
+    assert main(["simulate", "--param", "m=0.4", "--param", "b=1.5", "--param", "k=900", "--param", "kp=2e7",
+                 "--excitation", "chirp:3,1,30,4", "--t-end", "4", "--snr-db", "50", "--seed", "1", "-o", str(csv)]) == 0
+    capsys.readouterr()
+    code, out, _ = _run(capsys, "identify", str(csv), "--model", "duffing1", "--json")
+    named = json.loads(out)
+    code, out, _ = _run(capsys, "identify", str(csv), "--equation", "duffing1", "--json")
+    shortcut = json.loads(out)
+    assert code == 0 and shortcut["options"]["equation"] == "m*der(x,2) + b*der(x) + k*x + kp*x^3 = f"
+    assert shortcut["status"] == named["status"]
+    for name, value in named["parameters"].items():
+        assert value is not None and shortcut["parameters"][name] == pytest.approx(value, rel=1e-9)
+    code, out, _ = _run(capsys, "identify", str(csv), "--model", "duffing1")
+    assert code == 0 and "  equation: m*der(x,2) + b*der(x) + k*x + kp*x^3 = f" in out
+    code, _, err = _run(capsys, "identify", str(csv), "--equation", "circuit")
+    assert code == 2 and "--equation: circuit: its parameter C enters the equation as 1/C" in err
+
+    two = tmp_path / "two.csv"
+    assert main(["simulate", "--model", "duffing2", "--excitation", "chirp:8,1,20,4", "--t-end", "4",
+                 "--snr-db", "50", "--seed", "2", "-o", str(two)]) == 0
+    capsys.readouterr()
+    results = []
+    for argv in (["--model", "duffing2"], ["--equation", "duffing2"]):
+        code, out, _ = _run(capsys, "identify", str(two), *argv, "--json")
+        assert code == 0
+        results.append(json.loads(out))
+    assert results[1]["options"]["equation"].count(";") == 1
+    compared = 0
+    for name, value in results[0]["parameters"].items():
+        other = results[1]["parameters"][name]
+        if value is not None and other is not None:
+            spread = np.hypot(results[0]["uncertainty"][name], results[1]["uncertainty"][name]) * abs(value)
+            assert abs(value - other) <= 4 * spread, (name, value, other)
+            compared += 1
+    assert compared >= 6
+
 # ---------------------------------------------------------------------- duffid nonlinearity (issue 18)
 @pytest.fixture(scope="module")
 def nonlinearity_files(tmp_path_factory):

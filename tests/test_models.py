@@ -76,3 +76,32 @@ def test_model_validation_errors():
 def test_linear_natural_frequency():
     m = Duffing1()
     assert m.linear_natural_frequencies()[0] == pytest.approx(np.sqrt(1272.1 / 2.53))
+
+
+# ---------------------------------------------------------------------- the models as equations
+def test_each_chain_states_its_equations_in_the_equation_syntax():
+    from duffid.models.equation_model import EquationModel
+
+    assert Duffing1().equation_text() == "m*der(x,2) + b*der(x) + k*x + kp*x^3 = f"
+    assert Duffing1(offset=True).equation_text() == "m*der(x,2) + b*der(x) + k*x + kp*x^3 + c1 = f"
+    assert Duffing2().equation_text() == (
+        "m1*der(x1,2) + b1*der(x1) + k1*x1 + kp1*x1^3 - b2*(der(x2) - der(x1)) - k2*(x2 - x1) - kp2*(x2 - x1)^3 = f1; "
+        "m2*der(x2,2) + b2*(der(x2) - der(x1)) + k2*(x2 - x1) + kp2*(x2 - x1)^3 = 0")
+    with pytest.raises(Exception, match="enters the equation as 1/C"):
+        DuffingCircuit().equation_text()
+    # the text is the same model: same accelerations and natural frequencies, for chains with
+    # quadratic stiffness, Coulomb friction and three masses too
+    chain = Chain(masses=(2.0, 1.0, 0.5), damping=(3.0, 1.0, 0.5),
+                  stiffness=({1: 4000.0, 2: 1e4, 3: 1e6}, {1: 2000.0, 3: -5e5}, {1: 800.0}),
+                  coulomb=(0.5, 0.2, 0.1))
+    for plant in (Duffing1(m=0.4, b=1.5, k=900.0, kp=2e7), Duffing2(), chain):
+        columns = (["t", "f", "x"] if plant.n_dof == 1 else
+                   ["t", *(f"f{k + 1}" for k in range(plant.n_forces)), *(f"x{i + 1}" for i in range(plant.n_dof))])
+        model = EquationModel(plant.equation_text(), columns, values=plant.parameters)
+        assert set(model.parameters) == set(plant.parameters)
+        np.testing.assert_allclose(model.linear_natural_frequencies(), plant.linear_natural_frequencies(), rtol=1e-12)
+        rng = np.random.default_rng(1)
+        for _ in range(3):
+            x, v = rng.normal(0, 0.01, plant.n_dof), rng.normal(0, 0.3, plant.n_dof)
+            f = rng.normal(0, 5.0, plant.n_forces)
+            np.testing.assert_allclose(model.acceleration(x, v, f), plant.acceleration(x, v, f), rtol=1e-12, atol=1e-12)

@@ -12,7 +12,9 @@ from ..errors import InputError
 from ..identification.engine import METHODS
 from ..identification.options import ONLINE_METHODS, add_arguments, options_from_arguments
 from ..identification.trust import OFFSETS, identify
+from ..models.chain import model_from_name
 from .common import (
+    MODELS,
     add_file_arguments,
     add_model_arguments,
     model_from_arguments,
@@ -21,7 +23,7 @@ from .common import (
     window_value,
 )
 
-__all__ = ["add_parser", "run", "result_text", "bare_offset"]
+__all__ = ["add_parser", "run", "equation_text", "result_text", "bare_offset"]
 
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
@@ -33,7 +35,9 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                    help="robust (default), paper, or a buffered basis (the same for --equation)")
     p.add_argument("--equation", default=None, metavar="TEXT",
                    help='model equation, e.g. "m*der(x,2) + b*der(x) + k*x + kp*x^3 = f": names that are '
-                        "columns of the file are signals, all other names unknown parameters")
+                        "columns of the file are signals, all other names unknown parameters; a model name ("
+                        + ", ".join(m for m in MODELS if m != "circuit") + ") stands for that model's "
+                        "equations (--n-dof, --orders, --coulomb as for --model), printed with the results")
     g = p.add_argument_group("robust method options")
     g.add_argument("--window", type=window_value, default=None,
                    help="window length in s (robust: or auto, the default; buffered: default 0.25)")
@@ -93,8 +97,8 @@ def run(args: argparse.Namespace) -> int:
                              "offset into the equation (e.g. '... + c = f'), or --offset force to add a constant "
                              "to each equation")
         from ..identification.equation import identify_equation
-        result = identify_equation(record, args.equation, method, offsets=args.offset, refine=not args.no_refine,
-                                   **options)
+        result = identify_equation(record, equation_text(args, record.n_dof), method, offsets=args.offset,
+                                   refine=not args.no_refine, **options)
     else:
         result = identify(record, model_from_arguments(args, record.n_dof), method, offsets=args.offset,
                           refine=not args.no_refine, **options)
@@ -105,8 +109,25 @@ def run(args: argparse.Namespace) -> int:
         print(result.to_json())
         return 0
     print(f"{record.source}: {record.n_samples} samples, dt {record.dt:g} s, model {result.model}, method {method}")
+    if args.equation is not None:
+        print(f"  equation: {result.options['equation']}")
+    elif args.model != "circuit":
+        print(f"  equation: {model_from_arguments(args, record.n_dof).equation_text()}")
     print(result_text(result))
     return 0
+
+
+def equation_text(args: argparse.Namespace, n_dof: int) -> str:
+    """The text of ``--equation``: as given, or the equations of the model it names
+    (:meth:`duffid.models.chain.Chain.equation_text`, sized by --n-dof or the record)."""
+    name = args.equation.strip()
+    if name not in MODELS:
+        return args.equation
+    orders = [int(o) for o in args.orders.split(",") if o.strip()]
+    try:
+        return model_from_name(name, args.n_dof or n_dof, orders=orders, coulomb=args.coulomb).equation_text()
+    except InputError as exc:
+        raise InputError(f"--equation: {exc}") from None
 
 
 def result_text(result: Any) -> str:

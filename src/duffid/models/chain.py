@@ -329,6 +329,63 @@ class Chain:
         return tuple(eqs)
 
 
+    def equation_text(self) -> str:
+        """The model's equations in the syntax of :mod:`duffid.models.equation`.
+
+        One equation per mass in its physical form (force-free masses ``= 0``), with the
+        model's public parameter names and the record's column names (``x``, ``f`` for one
+        mass and one force, else ``x1 ..``, ``f1 ..``), e.g. for :class:`Duffing1`
+        ``m*der(x,2) + b*der(x) + k*x + kp*x^3 = f``. This is what ``--equation NAME``
+        stands for. The text states the same model; with one mass it is also the same
+        estimator (the same unknowns and rows). With several masses the equation route
+        solves the equations that share a coupling as one block, while the named model
+        solves each force-free equation for ratios (``b2/m2``, ...) and scales them by a
+        coupling found in the forced one: the two are different estimators of the same
+        parameters.
+
+        Raises
+        ------
+        InputError
+            For a model whose parameter enters as a reciprocal (the circuit's ``C``, as
+            ``q/C``), which an equation linear in its parameters cannot state.
+        """
+        public = {}
+        for name in self.parameters:
+            if self._is_reciprocal(name):
+                raise InputError(f"{self.name}: its parameter {name} enters the equation as 1/{name}, which an "
+                                 f"equation linear in its parameters cannot state (write it with k = 1/{name})")
+            public[self.canonical_name(name)] = name
+        n = self.n_dof
+        x = ["x"] if n == 1 and self.n_forces == 1 else [f"x{i + 1}" for i in range(n)]
+        f = ["f"] if n == 1 and self.n_forces == 1 else [f"f{k + 1}" for k in range(self.n_forces)]
+
+        def deflection(i: int, power: int) -> str:
+            y = x[i] if i == 0 else f"({x[i]} - {x[i - 1]})"
+            return y if power == 1 else f"{y}^{power}"
+
+        def velocity(i: int) -> str:
+            return f"der({x[i]})" if i == 0 else f"(der({x[i]}) - der({x[i - 1]}))"
+
+        texts = []
+        for i in range(n):
+            terms = [f"{public[f'm{i + 1}']}*der({x[i]},2)", f"{public[f'b{i + 1}']}*{velocity(i)}"]
+            terms += [f"{public[f'k{i + 1}_{j}']}*{deflection(i, j)}" for j in self.orders]
+            if self.coulomb is not None:
+                terms.append(f"{public[f'fc{i + 1}']}*sign(der({x[i]}))")
+            if i + 1 < n:
+                terms.append(f"- {public[f'b{i + 2}']}*{velocity(i + 1)}")
+                terms += [f"- {public[f'k{i + 2}_{j}']}*{deflection(i + 1, j)}" for j in self.orders]
+            if self.offset:
+                terms.append(f"c{i + 1}")
+            rhs = f[self.forced.index(i)] if i in self.forced else "0"
+            texts.append(" ".join(t if t.startswith("- ") else f"+ {t}" for t in terms)[2:] + f" = {rhs}")
+        return "; ".join(texts)
+
+    def _is_reciprocal(self, public: str) -> bool:
+        """Whether public parameter ``public`` is the reciprocal of its canonical one."""
+        return False
+
+
     # ------------------------------------------------------------------ identification
     # What the identifiers and the checks of duffid.identification need to know about a
     # model's structure; an equation model (duffid.models.equation_model) answers the same.
@@ -674,6 +731,9 @@ class DuffingCircuit(_Named):
                  *, offset: bool = False) -> None:
         super().__init__(masses=(L,), damping=(R,), stiffness=({1: 1.0 / _positive("C", C), 3: a},),
                          offset=offset, orders=(1, 3))
+
+    def _is_reciprocal(self, public: str) -> bool:
+        return public == "C"
 
     def _to_public(self, public: str, canonical: Mapping[str, float]) -> float:
         value = canonical[self._names[public]]
