@@ -120,6 +120,9 @@ def test_cli_exports_the_container(loop_fmus, folder, capsys):
     path = _write(folder, _config(loop_fmus))
     fmu = folder / "loop.fmu"
     assert main(["cosim", str(path), "--export-container", str(fmu)]) == 0
+    said = capsys.readouterr().out
+    assert said.startswith(f"wrote {fmu}: container FMU (FMI 2.0 co-simulation, step 0.001 s) of controller, "
+                           "estimator, plant; 1 input(s)") and "binaries for " in said and "linux64" in said
     assert fmpy.validation.validate_fmu(str(fmu)) == []
     md = fmpy.read_model_description(str(fmu))
     names = {v.name: v.causality for v in md.modelVariables}

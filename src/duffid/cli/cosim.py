@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -32,12 +33,28 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     return p
 
 
+def _exported(path: Path) -> str:
+    """What ``--export-container`` wrote, in one line: the file, its interface and its platforms."""
+    from fmpy import read_model_description
+
+    md = read_model_description(str(path))
+    with zipfile.ZipFile(path) as archive:
+        names = archive.namelist()
+    platforms = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") == 2})
+    components = sorted({n.split("/")[1] for n in names if n.startswith("resources/") and n.count("/") >= 2})
+    count = {c: sum(v.causality == c for v in md.modelVariables) for c in ("input", "output", "parameter")}
+    step = md.defaultExperiment.stepSize if md.defaultExperiment is not None else None
+    return (f"wrote {path}: container FMU (FMI {md.fmiVersion} co-simulation" + (f", step {step} s" if step else "") + ") "
+            f"of {', '.join(components)}; {count['input']} input(s), {count['output']} output(s), "
+            f"{count['parameter']} parameter(s); binaries for {', '.join(platforms)}")
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``duffid cosim``; returns the exit status (1: the run failed; bad files raise)."""
     try:
         config = load_config(args.config)
         if args.export_container is not None:
-            print(config.export_container(args.export_container))
+            print(_exported(config.export_container(args.export_container)))
             return 0
         result = config.run(progress=args.progress, ordering=args.ordering, loop=args.loop)
     except CosimError as exc:
