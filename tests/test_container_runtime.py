@@ -370,6 +370,72 @@ def test_container_needs_binaries_of_every_component(fmus, tmp_path):
     assert not (tmp_path / "x.fmu").exists()
 
 
+# ------------------------------------------------------------------------------ a component asks to end
+@pytest.fixture(scope="module")
+def stoppers(tmp_path_factory) -> dict[int, Path]:
+    """The C test FMU that asks to end the simulation at t_end (tests/stopper_fmu.py), FMI 2 and 3."""
+    from stopper_fmu import build_stopper_fmu
+
+    out = tmp_path_factory.mktemp("stoppers")
+    return {version: build_stopper_fmu(out, version) for version in (2, 3)}
+
+
+def _stopping(fmus, stoppers, version: int, t_end: float) -> System:
+    """ramp (a = 2) -> stop.u (the stopper integrates it) and ramp -> i1."""
+    return (System().add("ramp", fmus["Ramp"], {"a": 2.0}).add("stop", stoppers[version], {"t_end": t_end})
+            .add("i1", fmus["Integrator"]).connect("ramp.y", "stop.u").connect("ramp.y", "i1.u"))
+
+
+@pytest.mark.parametrize("version", [2, 3])
+@pytest.mark.parametrize("reached, last_step, last_row", [(0.35, 6, 0.35), (0.32, 6, 0.30), (0.355, 7, 0.35)])
+def test_a_component_asking_to_end_ends_the_container_there(fmus, stoppers, tmp_path, raw, capfd, version, reached,
+                                                            last_step, last_row):
+    """At the end of the container's step (0.35), of an internal step inside it (0.32) and inside
+    an internal step (0.355): the container's doStep says Discard, fmi2Terminated is true,
+    fmi2LastSuccessfulTime is the time reached and the outputs are those of that time (equal to
+    the orchestrator's Jacobi run where it records that time); nothing is logged as an error."""
+    system = _stopping(fmus, stoppers, version, reached)
+    path = system.export_container(tmp_path / "stops.fmu", outputs={"y": "stop.y", "s": "stop.s", "z": "i1.y"},
+                                   step=H)
+    r = raw(path)
+    r.start()
+    steps = 0
+    while (status := r.step(steps * 5 * H, 5 * H)) == OK:
+        steps += 1
+    assert status == DISCARD and steps == last_step  # the container's step across the time reached
+    flag, last = ctypes.c_int(), ctypes.c_double()
+    assert r("fmi2GetBooleanStatus", 3, ctypes.byref(flag)) == OK and flag.value == 1  # 3: fmi2Terminated
+    assert r("fmi2GetRealStatus", 2, ctypes.byref(last)) == OK  # 2: fmi2LastSuccessfulTime
+    assert last.value == pytest.approx(reached, abs=1e-12)
+    t, y, s_ = r.get("time", "y", "s")
+    assert t == last.value and y == pytest.approx(reached, abs=1e-12)
+    # s integrates the ramp's values 2 t_k, held over each internal step, up to the time reached
+    grid = np.arange(0.0, reached - 1e-12, H)
+    assert s_ == pytest.approx(float(np.sum(2.0 * grid * np.diff(np.append(grid, reached)))), rel=1e-12)
+    errors = [m for status_, _, m in r.messages if status_ >= ERROR]
+    assert errors == []
+    assert any(f"component 'stop' (CStopper{'' if version == 2 else '_fmi3'}.fmu, FMI {version}) asked to end the "
+               "simulation" in m for m in r.errors())
+    assert r.step(last.value, H) == ERROR and "asked to end the simulation" in r.errors()[-1]
+    status_ = ctypes.c_int()
+    assert r("fmi2GetStatus", 0, ctypes.byref(status_)) == OK and status_.value == DISCARD
+    assert r("fmi2Terminate") == OK and len([m for st, _, m in r.messages if st >= ERROR]) == 1  # the doStep
+    # through the orchestrator: a clean end, the last row that of the last completed step
+    inner = System().add("c", path).run(1.0, 5 * H)
+    assert inner.failure is None and "component 'c'" in inner.ended and f"t = {last.value!r}" in inner.ended
+    direct = system.run(1.0, H, ordering="jacobi")
+    assert direct.failure is None and direct.ended is not None
+    np.testing.assert_allclose(inner.time[-1], last_row, rtol=0, atol=1e-12)  # a partial step is not recorded
+    row = int(np.argmin(np.abs(direct.time - inner.time[-1])))
+    assert direct.time[row] == pytest.approx(inner.time[-1], abs=1e-12)
+    np.testing.assert_allclose(inner["c.s"][-1], direct["stop.s"][row], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(inner["c.z"][-1], direct["i1.y"][row], rtol=1e-12, atol=1e-15)
+    # and fmpy records the time reached (its own logger prints the container's Discard messages)
+    by_fmpy = fmpy.simulate_fmu(str(path), stop_time=1.0, step_size=5 * H, output_interval=5 * H)
+    assert by_fmpy["time"][-1] == pytest.approx(reached, abs=1e-12) and by_fmpy["y"][-1] == pytest.approx(reached)
+    assert "asked to end the simulation" in capfd.readouterr().out
+
+
 def test_export_is_reproducible(fmus, tmp_path):
     """Same system, same bytes (the token is derived from the content)."""
     a = _chain(fmus, (2, 3, 2)).export_container(tmp_path / "a.fmu", outputs={"y": "i1.y"}, step=H)

@@ -56,6 +56,35 @@ def test_an_fmu_asking_to_end_the_run_ends_it_cleanly(pyfmus, no_new_cosim_folde
     assert complete.ended is None and len(complete) == 21
 
 
+@pytest.fixture(scope="module")
+def c_stoppers(tmp_path_factory):
+    """The C FMU that asks to end the simulation (tests/stopper_fmu.py), FMI 2 and 3."""
+    from stopper_fmu import build_stopper_fmu
+
+    out = tmp_path_factory.mktemp("c_stoppers")
+    return {version: build_stopper_fmu(out, version) for version in (2, 3)}
+
+
+@pytest.mark.parametrize("loop", ["compiled", "python"])
+@pytest.mark.parametrize("version", [2, 3])
+def test_a_c_fmu_asking_to_end_the_run_ends_it_cleanly(c_stoppers, version, loop, no_new_cosim_folders):
+    """The glue's request to end (FMI 2 Discard + fmi2Terminated, FMI 3 terminateSimulation) in
+    both loops: a completed step keeps its row, the note names the component and the time."""
+    result = System().add("s", c_stoppers[version], {"t_end": 0.3}).set_input("s.u", 2.0).run(1.0, 0.05, loop=loop)
+    assert result.failure is None and result.loop == loop
+    assert "component 's'" in result.ended and "asked to end the simulation at t = 0.3" in result.ended
+    np.testing.assert_allclose(result.time[-1], 0.3, rtol=0, atol=1e-12)
+    np.testing.assert_allclose([result["s.y"][-1], result["s.s"][-1]], [0.3, 0.6], rtol=1e-12)
+    complete = System().add("s", c_stoppers[version], {"t_end": 2.0}).run(1.0, 0.05, loop=loop)
+    assert complete.ended is None and len(complete) == 21
+    # inside a step (FMI 3 without an early return: lastSuccessfulTime says where it stopped)
+    inside = System().add("s", c_stoppers[version], {"t_end": 0.32}).set_input("s.u", 2.0).run(1.0, 0.05, loop=loop)
+    assert inside.failure is None and "asked to end the simulation at t = 0.32" in inside.ended
+    assert "during the step from t = 0.3" in inside.ended
+    np.testing.assert_allclose(inside.time[-1], 0.3, rtol=0, atol=1e-12)     # the completed steps only
+    np.testing.assert_allclose([inside["s.y"][-1], inside["s.s"][-1]], [0.3, 0.6], rtol=1e-12)
+
+
 def test_the_cli_reports_the_end_and_exits_0(pyfmus, tmp_path, capsys):
     config = tmp_path / "stop.toml"
     config.write_text(f'[components.s]\nfmu = "{pyfmus["Stopper"]}"\nparameters = {{t_end = 0.3}}\n'

@@ -351,10 +351,18 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReferenc
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
+    fmi2Status status;
     (void)noSetFMUStatePriorToCurrentPoint;
     if (check_kind(c, "fmi2DoStep", MODE_STEP, KIND_CO_SIMULATION) != fmi2OK) return fmi2Error;
-    return (fmi2Status)fmu_do_step(as_instance(c), "fmi2DoStep", currentCommunicationPoint,
-                                   communicationStepSize);
+    status = (fmi2Status)fmu_do_step(as_instance(c), "fmi2DoStep", currentCommunicationPoint,
+                                     communicationStepSize);
+    if (status == fmi2OK && as_instance(c)->terminate_requested) {
+        /* FMI 2 says "stop" with Discard: fmi2Terminated and fmi2LastSuccessfulTime tell the rest */
+        fmu_log(as_instance(c), FMU_DISCARD, "logStatusDiscard", "fmi2DoStep: the FMU asks to end the simulation "
+                "at t = %.17g (fmi2GetBooleanStatus(fmi2Terminated) is true)", as_instance(c)->time);
+        return fmi2Discard;
+    }
+    return status;
 }
 
 fmi2Status fmi2CancelStep(fmi2Component c)
@@ -410,7 +418,7 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
         fmu_log(inst, FMU_ERROR, "logStatusError", "fmi2GetBooleanStatus: only fmi2Terminated is supported");
         return fmi2Error;
     }
-    *value = fmi2False;
+    *value = inst->mode == MODE_STEP_FAILED && inst->terminate_requested ? fmi2True : fmi2False;
     return fmi2OK;
 }
 

@@ -104,7 +104,6 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
 {
     Instance *inst;
     (void)visible;
-    (void)earlyReturnAllowed;
     (void)requiredIntermediateVariables;
     (void)intermediateUpdate;
     inst = instance_new(&fmu_model_info, instanceName, instantiationToken, resourcePath, 3, KIND_CO_SIMULATION,
@@ -116,6 +115,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
         instance_free(inst);
         return NULL;
     }
+    inst->early_return_allowed = earlyReturnAllowed ? 1 : 0;
     return (fmi3Instance)inst;
 }
 
@@ -632,8 +632,13 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
         return fmi3Error;
     status = (fmi3Status)fmu_do_step(inst, "fmi3DoStep", currentCommunicationPoint, communicationStepSize);
     *eventHandlingNeeded = fmi3False;
-    *terminateSimulation = fmi3False;
-    *earlyReturn = fmi3False;
+    /* a request to end the simulation (the instance then accepts terminate, reset, free and gets):
+     * terminateSimulation, lastSuccessfulTime the time reached, and earlyReturn when the step ended
+     * before its end and the importer allows early returns */
+    *terminateSimulation = status == fmi3OK && inst->terminate_requested ? fmi3True : fmi3False;
+    *earlyReturn = *terminateSimulation && inst->early_return_allowed &&
+                           inst->time < currentCommunicationPoint + communicationStepSize
+                       ? fmi3True : fmi3False;
     *lastSuccessfulTime = inst->time;
     return status;
 }

@@ -63,7 +63,11 @@ FmuStatus fmu_check(Instance *inst, const char *function, int allowed_modes)
 {
     if (inst == NULL) return FMU_ERROR; /* nothing to log to */
     if (!(inst->mode & allowed_modes)) {
-        log_error(inst, "%s must not be called in state %s", function, mode_name(inst->mode));
+        if (inst->mode == MODE_STEP_FAILED && inst->terminate_requested)
+            log_error(inst, "%s must not be called after the FMU asked to end the simulation (at t = %.17g): "
+                      "terminate, reset or free it", function, inst->time);
+        else
+            log_error(inst, "%s must not be called in state %s", function, mode_name(inst->mode));
         return FMU_ERROR;
     }
     return FMU_OK;
@@ -92,6 +96,8 @@ static void set_start_values(Instance *inst)
     inst->stop_time_defined = 0;
     inst->tolerance = m->default_tolerance > 0 ? m->default_tolerance : 1e-8;
     inst->h_next = 0.0;
+    inst->terminate_requested = 0;
+    inst->terminate_time = 0.0;
     inst->dirty = 1;
     inst->mode = MODE_INSTANTIATED;
 }
@@ -706,10 +712,23 @@ FmuStatus fmu_do_step(Instance *inst, const char *function, double current_time,
     }
     memcpy(inst->saved, inst->vars, m->n_vars * sizeof(double));
     inst->time = current_time;
+    inst->terminate_requested = 0;
     if (m->do_step != NULL) {
         rc = m->do_step(inst, current_time, h);
+        if (rc == 0 && inst->terminate_requested) {
+            /* the time reached, within the step; within rounding of its end: the end */
+            double reached = inst->terminate_time, tol = 1e-9 * h;
+            if (!(reached >= current_time - tol && reached <= current_time + h + tol)) {
+                log_error(inst, "%s: the model asked to end the simulation at t = %.17g, outside the step from "
+                          "%.17g to %.17g", function, reached, current_time, current_time + h);
+                rc = 1;
+            } else {
+                inst->terminate_time = reached >= current_time + h - tol ? current_time + h
+                                                                           : fmax(reached, current_time);
+            }
+        }
         if (rc == 0) {
-            inst->time = current_time + h;
+            inst->time = inst->terminate_requested ? inst->terminate_time : current_time + h;
             inst->dirty = 1;
             rc = evaluate(inst, function);
         }
@@ -721,13 +740,27 @@ FmuStatus fmu_do_step(Instance *inst, const char *function, double current_time,
         inst->time = current_time;
         inst->dirty = 1;
         inst->h_next = 0.0;
+        inst->terminate_requested = 0;
         inst->mode = MODE_STEP_FAILED;
         fmu_log(inst, FMU_DISCARD, "logStatusDiscard", "%s: step from t = %.17g discarded", function,
                 current_time);
         return FMU_DISCARD;
     }
+    if (inst->terminate_requested) { /* the variables are those of the time reached */
+        inst->h_next = 0.0;
+        inst->mode = MODE_STEP_FAILED;
+        fmu_log(inst, FMU_OK, "logAll", "%s: the model asks to end the simulation at t = %.17g", function,
+                inst->time);
+        return FMU_OK;
+    }
     inst->time = current_time + h;
     return FMU_OK;
+}
+
+void fmu_request_termination(Instance *inst, double reached)
+{
+    inst->terminate_requested = 1;
+    inst->terminate_time = reached;
 }
 
 /* ------------------------------------------------------------------ FMU state */
@@ -947,6 +980,7 @@ FmuStatus fmu_set_state(Instance *inst, const char *function, const void *state)
     inst->stop_time = s->stop_time;
     inst->tolerance = s->tolerance;
     inst->h_next = s->h_next;
+    inst->terminate_requested = 0; /* not part of the state: a restored state asks nothing */
     memcpy(inst->vars, s->data, m->n_vars * sizeof(double));
     memcpy(inst->yscale, s->data + m->n_vars, m->n_states * sizeof(double));
     inst->dirty = 1;

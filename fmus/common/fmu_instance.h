@@ -65,6 +65,10 @@ typedef struct Instance {
     double *saved;                 /* variables at the start of a step (restored on failure) */
     double h_next;                 /* step size proposed for the next step (0: none) */
     unsigned long n_steps, n_rejected, n_evaluations;
+    /* the model asked to end the simulation (fmu_request_termination) in the last doStep */
+    int terminate_requested;
+    double terminate_time;         /* the time it reached then */
+    int early_return_allowed;      /* FMI 3: the importer's earlyReturnAllowed */
 } Instance;
 
 /* A new instance (NULL on failure, logged): resource_location (may be NULL) is copied. */
@@ -122,8 +126,17 @@ FmuStatus fmu_get_states(Instance *inst, const char *function, double x[], size_
 FmuStatus fmu_get_derivatives(Instance *inst, const char *function, double dx[], size_t nx);
 FmuStatus fmu_get_nominals(Instance *inst, const char *function, double nominals[], size_t nx);
 
-/* Co-simulation step from current_time to current_time + h with inputs held. */
+/* Co-simulation step from current_time to current_time + h with inputs held. A model that asks
+ * to end the simulation during the step (fmu_request_termination) makes it return FMU_OK with
+ * inst->terminate_requested set, inst->time the time reached and the variables those of that
+ * time; the instance is then in Step Failed, where only gets, the status functions, terminate,
+ * reset and free are allowed (the FMI 2 adapter returns Discard with fmi2Terminated true, the
+ * FMI 3 adapter sets terminateSimulation and lastSuccessfulTime, and earlyReturn when the step
+ * was not completed and the importer allowed early returns). */
 FmuStatus fmu_do_step(Instance *inst, const char *function, double current_time, double h);
+/* For a model's do_step(inst, t, h): ask to end the simulation at time `reached` (t <= reached
+ * <= t + h; the model's variables must then be those of that time), then return 0. */
+void fmu_request_termination(Instance *inst, double reached);
 
 /* FMU state snapshots. */
 FmuStatus fmu_get_state(Instance *inst, const char *function, void **state);

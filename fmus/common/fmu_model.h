@@ -57,7 +57,9 @@ struct Instance;
 /* Compute all dependent variables of inst->vars at inst->time; 0 on success. */
 typedef int (*ModelEvaluate)(struct Instance *inst);
 
-/* Advance a discrete-time model from inst->time to t + h (inputs held); 0 on success. */
+/* Advance a discrete-time model from inst->time to t + h (inputs held); 0 on success. A model
+ * that asks to end the simulation calls fmu_request_termination(inst, reached) (fmu_instance.h)
+ * with the time it reached and returns 0. */
 typedef int (*ModelDoStep)(struct Instance *inst, double t, double h);
 
 /* Optional model data beyond the Float64 variables (Instance.model_data, owned by the

@@ -21,11 +21,19 @@
  * feedthrough shows its connected input's newest value).
  *
  * Every failure of a component (a binary that does not load, a missing function, an
- * instantiation that fails, an FMI call returning Error or Discard, an FMI 3 request to end
+ * instantiation that fails, an FMI call returning Error, or Discard without a request to end
  * the simulation) is logged through the container's logger naming the component and its FMU;
  * a failed internal step discards the container's step (its time and variables stay those of
  * the step's start; the components cannot be rolled back, so only terminate, reset or free
  * may follow). The container refuses FMU state calls (canGetAndSetFMUstate=false).
+ *
+ * A component asking to end the simulation (FMI 2: Discard with fmi2Terminated true; FMI 3:
+ * terminateSimulation, with earlyReturn when it stopped inside its step) ends the container's
+ * step in that internal step: the other components complete it, the connected outputs are read
+ * (the connected inputs are not set), and the container asks to end the simulation at the
+ * earliest time reached by a component that asked (fmu_request_termination: its FMI 2 doStep
+ * returns Discard, fmi2GetBooleanStatus(fmi2Terminated) is true, fmi2LastSuccessfulTime is
+ * that time, its outputs are read from the components then).
  */
 #include <math.h>
 #include <stdarg.h>
@@ -76,14 +84,15 @@
 
 /* The FMI functions a component must provide, by FMI version. */
 enum { F_INSTANTIATE, F_FREE, F_SETUP, F_ENTER, F_EXIT, F_TERMINATE, F_DO_STEP, F_GET_REAL, F_GET_INT,
-       F_GET_BOOL, F_SET_REAL, F_SET_INT, F_SET_BOOL, N_FUNCTIONS };
+       F_GET_BOOL, F_SET_REAL, F_SET_INT, F_SET_BOOL, F_BOOLEAN_STATUS, F_REAL_STATUS, N_FUNCTIONS };
 static const char *const FUNCTION_NAMES[2][N_FUNCTIONS] = {
     {"fmi2Instantiate", "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
      "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2DoStep", "fmi2GetReal", "fmi2GetInteger",
-     "fmi2GetBoolean", "fmi2SetReal", "fmi2SetInteger", "fmi2SetBoolean"},
+     "fmi2GetBoolean", "fmi2SetReal", "fmi2SetInteger", "fmi2SetBoolean", "fmi2GetBooleanStatus",
+     "fmi2GetRealStatus"},
     {"fmi3InstantiateCoSimulation", "fmi3FreeInstance", NULL, "fmi3EnterInitializationMode",
      "fmi3ExitInitializationMode", "fmi3Terminate", "fmi3DoStep", "fmi3GetFloat64", "fmi3GetInt32",
-     "fmi3GetBoolean", "fmi3SetFloat64", "fmi3SetInt32", "fmi3SetBoolean"}};
+     "fmi3GetBoolean", "fmi3SetFloat64", "fmi3SetInt32", "fmi3SetBoolean", NULL, NULL}};
 
 /* Where a component is in its lifecycle. */
 enum { STAGE_NONE, STAGE_LOADED, STAGE_INSTANTIATED, STAGE_INITIALIZING, STAGE_STEPPING, STAGE_TERMINATED };
@@ -646,7 +655,8 @@ static int build_ops(Container *c)
     return 0;
 }
 
-/* The loop's doStep callback: any doStep that does not simply succeed ends the container's step. */
+/* The loop's doStep callback: any doStep that does not simply succeed stops the loop at once;
+ * run_loop then tells a request to end the simulation from a failure. */
 static int stop_on_step(int step_op, int status, long step)
 {
     (void)step_op;
@@ -655,43 +665,97 @@ static int stop_on_step(int step_op, int status, long step)
     return 1;
 }
 
-/* Runs internal steps 0 .. n-1 on c->grid (n = 0: the connections only, no doStep); nonzero (logged)
- * on failure. */
-static int run_loop(Instance *inst, long n)
+/* Nonzero when component k's doStep from t (returning `status`) asked to end the simulation:
+ * FMI 2 Discard with fmi2Terminated true, FMI 3 terminateSimulation; *reached = the time it
+ * reached (fmi2LastSuccessfulTime, FMI 3 lastSuccessfulTime: the container does not allow early
+ * returns, but an FMU that stops inside its step says where in lastSuccessfulTime, and one that
+ * completed it gives t + h), within [t, t + h]. */
+static int asked_to_end(Component *k, int status, double t, double *reached)
+{
+    const double h = CONTAINER_STEP;
+    double r = t + h;
+    if (k->info->fmi_version == 2) {
+        fmi2Boolean terminated = fmi2False;
+        fmi2Real last = t;
+        if (status != fmi2Discard ||
+            ((fmi2GetBooleanStatusTYPE *)k->f[F_BOOLEAN_STATUS])(k->instance, fmi2Terminated, &terminated) > 1 ||
+            !terminated)
+            return 0;
+        if (((fmi2GetRealStatusTYPE *)k->f[F_REAL_STATUS])(k->instance, fmi2LastSuccessfulTime, &last) > 1) last = t;
+        r = last;
+    } else {
+        if (status > 1 || !k->terminate) return 0;
+        r = k->last_successful_time;
+    }
+    *reached = isfinite(r) ? fmin(fmax(r, t), t + h) : t;
+    return 1;
+}
+
+/* Logs the failure of the loop's operation `op` (DUFFID_LOOP_* code rc) at internal step k_failed. */
+static void loop_failed(Container *c, int rc, int op, int status, long k_failed, long n)
+{
+    double t = c->grid[k_failed];
+    if (rc == DUFFID_LOOP_SET_FAILED) {
+        Component *k = &c->comps[c->set_component[op]];
+        fail(k, "%s of its connected inputs returned %s at t = %.17g", FUNCTION_NAMES[k->info->fmi_version - 2]
+             [c->sets[op].function == k->f[F_SET_REAL] ? F_SET_REAL : c->sets[op].function == k->f[F_SET_BOOL]
+              ? F_SET_BOOL : F_SET_INT], status_name(status), t);
+    } else if (rc == DUFFID_LOOP_GET_FAILED) {
+        Component *k = &c->comps[c->get_component[op]];
+        fail(k, "%s of its connected outputs returned %s at t = %.17g", FUNCTION_NAMES[k->info->fmi_version - 2]
+             [c->gets[op].function == k->f[F_GET_REAL] ? F_GET_REAL : c->gets[op].function == k->f[F_GET_BOOL]
+              ? F_GET_BOOL : F_GET_INT], status_name(status), n == 0 ? t : c->grid[k_failed + 1]);
+    } else {
+        Component *k = &c->comps[op];
+        if (status >= FMU_ERROR) k->stage = STAGE_TERMINATED; /* after Error: free or reset only */
+        fail(k, "%s returned %s in the step from t = %.17g (internal step %.17g s)",
+             FUNCTION_NAMES[k->info->fmi_version - 2][F_DO_STEP], status_name(status), t, CONTAINER_STEP);
+    }
+}
+
+/* Runs internal steps 0 .. n-1 on c->grid (n = 0: the connections only, no doStep); 0 when they
+ * all ran, 1 (logged) on failure, -1 when a component asked to end the simulation in internal
+ * step j: the other components then complete step j (Jacobi), the connected outputs are read
+ * (the connected inputs are not set: a component that said Discard accepts no input), and
+ * *reached is the earliest time a component that asked reached (t_j + h when each completed
+ * its step). */
+static int run_loop(Instance *inst, long n, double *reached)
 {
     Container *c = (Container *)inst->model_data;
     long k_failed = 0;
-    int op = 0, status = 0, rc;
+    int op = 0, status = 0, rc, ended = 0;
     if (n == 0)
         rc = duffid_cosim_run(c->grid, 0, 1, 0.0, c->init_stages, 2, c->sets, c->steps, c->gets, c->posts, NULL, 0,
                               stop_on_step, &k_failed, &op, &status);
     else
         rc = duffid_cosim_run(c->grid, 0, n, CONTAINER_STEP, c->stages, 2, c->sets, c->steps, c->gets, c->posts,
                               NULL, 0, stop_on_step, &k_failed, &op, &status);
-    if (rc == DUFFID_LOOP_DONE) return 0;
-    {
-        double t = c->grid[k_failed];
-        if (rc == DUFFID_LOOP_SET_FAILED) {
-            Component *k = &c->comps[c->set_component[op]];
-            fail(k, "%s of its connected inputs returned %s at t = %.17g", FUNCTION_NAMES[k->info->fmi_version - 2]
-                 [c->sets[op].function == k->f[F_SET_REAL] ? F_SET_REAL : c->sets[op].function == k->f[F_SET_BOOL]
-                  ? F_SET_BOOL : F_SET_INT], status_name(status), t);
-        } else if (rc == DUFFID_LOOP_GET_FAILED) {
-            Component *k = &c->comps[c->get_component[op]];
-            fail(k, "%s of its connected outputs returned %s at t = %.17g", FUNCTION_NAMES[k->info->fmi_version - 2]
-                 [c->gets[op].function == k->f[F_GET_REAL] ? F_GET_REAL : c->gets[op].function == k->f[F_GET_BOOL]
-                  ? F_GET_BOOL : F_GET_INT], status_name(status), n == 0 ? t : c->grid[k_failed + 1]);
-        } else {
-            Component *k = &c->comps[op];
-            if (status >= FMU_ERROR) k->stage = STAGE_TERMINATED; /* after Error: free or reset only */
-            if (k->info->fmi_version == 3 && status <= 1 && k->terminate)
-                fail(k, "fmi3DoStep asked to end the simulation (terminateSimulation) in the step from t = %.17g; "
-                     "the container cannot end early: its step is discarded", t);
-            else
-                fail(k, "%s returned %s in the step from t = %.17g (internal step %.17g s)",
-                     FUNCTION_NAMES[k->info->fmi_version - 2][F_DO_STEP], status_name(status), t, CONTAINER_STEP);
+    while (rc == DUFFID_LOOP_ABORTED) {
+        const long j = k_failed;
+        const double t = c->grid[j];
+        Component *k = &c->comps[op];
+        double r;
+        duffid_stage rest;
+        if (!asked_to_end(k, status, t, &r)) {
+            loop_failed(c, rc, op, status, k_failed, n);
+            return 1;
         }
+        fmu_log(inst, FMU_DISCARD, "logStatusDiscard", "component '%s' (%s, %s) asked to end the simulation at "
+                "t = %.17g (in the internal step from t = %.17g): the container ends there", k->info->name,
+                k->info->fmu, component_kind(k), r, t);
+        *reached = ended ? fmin(*reached, r) : r;
+        ended = 1;
+        /* the rest of internal step j: the later components' doSteps, then every get */
+        memset(&rest, 0, sizeof rest);
+        rest.step_lo = op + 1;
+        rest.step_hi = N_COMPONENTS;
+        rest.get_hi = c->n_gets;
+        rest.post_hi = c->n_posts;
+        rc = duffid_cosim_run(c->grid, j, j + 1, CONTAINER_STEP, &rest, 1, c->sets, c->steps, c->gets, c->posts,
+                              NULL, 0, stop_on_step, &k_failed, &op, &status);
     }
+    if (rc == DUFFID_LOOP_DONE) return ended ? -1 : 0;
+    loop_failed(c, rc, op, status, k_failed, n);
     return 1;
 }
 
@@ -838,7 +902,7 @@ static int exit_initialization(Instance *inst)
         k->stage = STAGE_STEPPING;
     }
     c->grid[0] = inst->start_time;
-    return run_loop(inst, 0); /* the connections' first values */
+    return run_loop(inst, 0, NULL) != 0; /* the connections' first values (no doStep: nothing can end) */
 }
 
 static int terminate(Instance *inst)
@@ -874,8 +938,9 @@ static int evaluate(Instance *inst)
 static int do_step(Instance *inst, double t, double h)
 {
     Container *c = (Container *)inst->model_data;
-    double n_real = h / CONTAINER_STEP, k_real = (t - inst->start_time) / CONTAINER_STEP;
+    double n_real = h / CONTAINER_STEP, k_real = (t - inst->start_time) / CONTAINER_STEP, reached = t;
     long n, k0, j;
+    int rc;
     if (c == NULL) return 1;
     n = (long)floor(n_real + 0.5);
     k0 = (long)floor(k_real + 0.5);
@@ -900,7 +965,12 @@ static int do_step(Instance *inst, double t, double h)
     }
     for (j = 0; j <= n; j++) c->grid[j] = inst->start_time + (double)(k0 + j) * CONTAINER_STEP;
     if (pass_values(inst, CAUSALITY_INPUT, 0) != 0) return 1;
-    return run_loop(inst, n);
+    rc = run_loop(inst, n, &reached);
+    if (rc < 0) { /* a component asked to end the simulation: so does the container, at that time */
+        fmu_request_termination(inst, reached);
+        return 0;
+    }
+    return rc;
 }
 
 const ModelInfo fmu_model_info = {

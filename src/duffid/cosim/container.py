@@ -51,8 +51,13 @@ every component has a binary and a compiler is installed; none is an error. It c
 its state (``canGetAndSetFMUstate`` false: the state functions are refused with a logged
 error). A component that fails during a step discards the container's step: its time and
 variables stay those of the step's start, and only terminate, reset or free may follow
-(the components cannot be rolled back). An FMU component asking to end the simulation is
-reported the same way. The container ignores a tolerance given to it (its components use
+(the components cannot be rolled back). A component asking to end the simulation (FMI 2:
+``Discard`` with ``fmi2Terminated``; FMI 3: ``terminateSimulation``, with ``earlyReturn`` when it
+stopped inside its step) ends the container's step within that internal step: the other components
+complete it, the container's outputs are read then, and the container asks to end the simulation
+as an FMI 2 FMU does (``Discard``, ``fmi2GetBooleanStatus(fmi2Terminated)`` true,
+``fmi2LastSuccessfulTime`` the earliest time reached by a component that asked), which fmpy and
+:meth:`~duffid.cosim.system.System.run` take as the end of the run. The container ignores a tolerance given to it (its components use
 their own, as under the orchestrator).
 """
 from __future__ import annotations

@@ -599,7 +599,12 @@ class Runner:
         else:
             if status > 1:
                 raise _StepFailure(ci, function, status, t)
-            t_last = flags[3].value if flags[2].value else t + h  # earlyReturn: lastSuccessfulTime
+            # lastSuccessfulTime is the time reached when the FMU returned early or asks to end (it may
+            # stop inside the step without an early return, which this host does not allow); a value
+            # outside the step (an FMU that does not set it) is not believed
+            reached = flags[3].value
+            inside = t - 1e-9 * h <= reached <= t + h * (1 + 1e-9)
+            t_last = reached if (flags[2].value or flags[1].value) and inside else t + h
         full = abs(t_last - (t + h)) <= 1e-9 * h
         self.ending = _Terminated(ci, t_last, full)
         if not full:
