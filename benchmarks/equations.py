@@ -11,9 +11,12 @@ Tables:
      (a wrong value is one further than 4 of its stated standard errors). The Silverbox row is
      the real record (no truth): its values are compared with the built-in chain of the
      same structure (duffid.analysis.silverbox.silverbox_model) on the same record.
-  2. Cost of the engine on Duffing1: the equation model in the Python engine, the built-in
-     model in the Python engine and the hand-written C core (one batch call), samples/s,
-     medians of --repeats runs, ratios in one run.
+  2. Cost of the engine on Duffing1 (one record): the equation model in the Python engine,
+     the built-in model in the Python engine, the C core on its own Duffing1 description,
+     the generic C engine on Duffing1's generated description and on the equation model's
+     (CasADi-generated channels; what identify(engine="c") runs for an equation), one batch
+     call each: samples/s, medians of --repeats runs (C: at least 20), and the ratios to the
+     Python engine and to the core's own description, all measured in the same run.
 """
 from __future__ import annotations
 
@@ -29,8 +32,8 @@ from tqdm import tqdm
 from duffid import Chirp, Duffing1, Multisine, Record, identify, measure, simulate
 from duffid.analysis.silverbox import load_silverbox, silverbox_model, to_public
 from duffid.identification.batch import estimate
+from duffid.identification.c_core import CIdentifier
 from duffid.identification.equation import identify_equation
-from duffid.identification.trust import run_estimator
 from duffid.models.equation_model import EquationModel
 
 #: A published value further than this many stated standard errors from the truth has a
@@ -164,26 +167,36 @@ def accuracy(methods: list[str]) -> None:
 def cost(repeats: int) -> None:
     record = measure(simulate(Duffing1(), Chirp(10.0, 1.0, 12.0, 2.0), t_end=2.0, dt=1e-3), snr_db=40, seed=1)
     model = EquationModel("m*der(x,2) + b*der(x) + k*x + kp*x^3 = f", record.column_names)
+
+    def c_run(identified_model, generated: bool = False) -> Callable[[], object]:
+        def run() -> object:
+            with CIdentifier(identified_model, record.dt, generated=generated) as ident:
+                return ident.identify_record(record)
+        return run
+
     runs = {
-        "equation model, Python engine": lambda: estimate(record, model, "robust"),
-        "Duffing1, Python engine": lambda: estimate(record, Duffing1(), "robust"),
-        "Duffing1, hand-written C core": lambda: run_estimator(record, Duffing1(), "robust", engine="c"),
+        "equation model, Python engine": (lambda: estimate(record, model, "robust"), repeats),
+        "Duffing1, Python engine": (lambda: estimate(record, Duffing1(), "robust"), repeats),
+        "Duffing1, C core's own description": (c_run(Duffing1()), max(repeats, 20)),
+        "Duffing1, generic C (generated)": (c_run(Duffing1(), generated=True), max(repeats, 20)),
+        "equation model, generic C (generated)": (c_run(model), max(repeats, 20)),
     }
     times = {}
-    for label, run in runs.items():
-        run()  # warm-up (the C core's first call builds it)
+    for label, (run, count) in runs.items():
+        run()  # warm-up (the C engines' first call builds their library)
         samples = []
-        for _ in range(repeats):
+        for _ in range(count):
             start = time.perf_counter()
             run()
             samples.append(time.perf_counter() - start)
         times[label] = float(np.median(samples))
     base = times["equation model, Python engine"]
-    print(f"\n2. Cost of the robust estimator on Duffing1 ({record.n_samples} samples; median of {repeats})")
-    print(f"{'engine':<36}{'samples/s':>12}{'× equation model':>18}")
+    own = times["Duffing1, C core's own description"]
+    print(f"\n2. Cost of the robust estimator on Duffing1 ({record.n_samples} samples; median of {repeats} runs, "
+          f"C: of {max(repeats, 20)}; ratios from this run)")
+    print(f"{'engine':<40}{'samples/s':>12}{'× Python equation':>19}{'× C own Duffing1':>18}")
     for label, seconds in times.items():
-        print(f"{label:<36}{record.n_samples / seconds:>12,.0f}{base / seconds:>18.1f}")
-    print("a generic C engine for equation models is not built yet: equation models run in Python")
+        print(f"{label:<40}{record.n_samples / seconds:>12,.0f}{base / seconds:>19.1f}{own / seconds:>18.2f}")
 
 
 def main() -> None:

@@ -74,7 +74,14 @@ TARGETS = {
     "AdaptiveController1": FuzzTarget("AdaptiveController1", warmup=450),
     "AdaptiveController2": FuzzTarget("AdaptiveController2", warmup=450),
     "Oscillator1DOF": FuzzTarget("Oscillator1DOF", warmup=100),
+    "DuffingEstimator2Equation": FuzzTarget("DuffingEstimator2Equation", warmup=700),
 }
+#: Equation FMUs among the targets (duffid.fmu.estimator.build_equation_fmu, the generic core on
+#: the generated model): the Duffing2 chain typed as the user's own 2-DOF equations, inputs x1,
+#: x2 and f1 (fed the Duffing2 record as DuffingEstimator2).
+EQUATION_TARGETS = {"DuffingEstimator2Equation": (
+    "m1*der(x1,2) + b1*der(x1) + k1*x1 + kp1*x1^3 - k2*(x2-x1) - kp2*(x2-x1)^3 = f1; "
+    "m2*der(x2,2) + b2*der(x2) + k2*(x2-x1) + kp2*(x2-x1)^3 = 0", ("t", "f1", "x1", "x2"))}
 #: (FMU, mode, FMI version): every mode through the FMI 2 functions; the FMI 3 functions (the
 #: same glue underneath) with the resealed random corruptions.
 RUNS = [(name, mode, 2) for name in TARGETS for mode in ("random", "random-sealed", "sweep")] + \
@@ -184,10 +191,15 @@ def fuzz_build(tmp_path_factory, loop_fmus):
     exe = tmp / "fuzz_state"
     subprocess.run([cc, "-std=gnu99", "-Wall", "-Wextra", "-Werror", *SANITIZE, f"-I{include}",
                     f"-I{fmu_sources('common')}", str(HARNESS), "-o", str(exe), "-ldl", "-lm"], check=True)
+    from duffid.fmu.estimator import build_equation_fmu
+
+    fmus = {name: build_equation_fmu(text, tmp / "equations", name=name, columns=columns, backend="c")
+            for name, (text, columns) in EQUATION_TARGETS.items()}
+    fmus.update({name: loop_fmus[name] for name in TARGETS if name not in fmus})
     built = {}
     for name, target in TARGETS.items():
         folder = tmp / name
-        with zipfile.ZipFile(loop_fmus[name]) as archive:
+        with zipfile.ZipFile(fmus[name]) as archive:
             archive.extractall(folder)
         sources = folder / "sources"
         shutil.copy(fmu_sources("common") / "fmi3_functions.c", sources / "fmi3_functions.c")
@@ -196,7 +208,7 @@ def fuzz_build(tmp_path_factory, loop_fmus):
                         f"-I{sources}", f"-I{include}", *map(str, sorted(sources.glob("*.c"))), "-o", str(library),
                         "-lm"], check=True)
         spec = folder / "spec.txt"
-        _write_spec(spec, loop_fmus[name], target)
+        _write_spec(spec, fmus[name], target)
         built[name] = (library, spec)
     return exe, built
 

@@ -1,16 +1,19 @@
 /* duffid's online identifier as a discrete-time co-simulation model of the shared FMI
- * glue (fmus/common): DuffingEstimator1 (inputs x, f), DuffingEstimator2 (inputs x1,
- * x2, f1) and DuffingCircuitEstimator (inputs q, u: the Duffing1 core with L = m, R = b,
- * C = 1/k, a = kp), FMI 2.0 and 3.0.
+ * glue (fmus/common), FMI 2.0 and 3.0: DuffingEstimator1 (inputs x, f), DuffingEstimator2
+ * (inputs x1, x2, f1), DuffingCircuitEstimator (inputs q, u: the Duffing1 core with L = m,
+ * R = b, C = 1/k, a = kp) and the estimator of any chain or of the user's own equations
+ * (the model DUFFID_GENERATED: its description is the generated file compiled in with
+ * duffid_estimator_generated.c).
  *
  * The variable table (names, start values, causality, variability) comes from the
- * generated header estimator_fmu_config.h (duffid.fmu.estimator), which also selects the
- * model (ESTIMATOR_MODEL) and sets ESTIMATOR_IDENTIFIER and ESTIMATOR_TOKEN. Layout, by
- * value reference:
+ * generated header estimator_fmu_config.h (duffid.fmu.estimator, from the one table of
+ * duffid.fmu.estimator_table), which also selects the model (ESTIMATOR_MODEL), gives its
+ * sizes (ESTIMATOR_N_DOF displacements, ESTIMATOR_N_FORCES forces, ESTIMATOR_N_PARAMS
+ * parameters) and sets ESTIMATOR_IDENTIFIER and ESTIMATOR_TOKEN. Layout, by value reference:
  *
  *   0                        time
  *   1 .. n_dof               displacements (inputs)
- *   n_dof + 1                force (input)
+ *   then n_forces            forces (inputs; none for a force-free equation)
  *   then n_params            estimates (outputs, NaN unless published)
  *   then 4                   identified (Boolean), condition, uncertainty, window_length
  *   then n_params            <name>_status (Integer, DUFFID_STATUS_*)
@@ -40,13 +43,12 @@
 #include "fmu_model.h"
 #include "estimator_fmu_config.h"
 
-#if ESTIMATOR_MODEL == DUFFID_DUFFING1
-#define N_DOF 1
-#define N_PARAMS 4
-#else
-#define N_DOF 2
-#define N_PARAMS 8
-#endif
+#define N_DOF ESTIMATOR_N_DOF
+#define N_FORCES ESTIMATOR_N_FORCES
+#define N_PARAMS ESTIMATOR_N_PARAMS
+typedef char estimator_size_check[(N_DOF >= 1 && N_DOF <= DUFFID_MAX_DOF && N_FORCES >= 0 &&
+                                   N_FORCES <= DUFFID_MAX_FORCES && N_PARAMS >= 1 &&
+                                   N_PARAMS <= DUFFID_MAX_PARAMS) ? 1 : -1];
 
 /* Bit i set: public parameter i is the reciprocal of the core's (the circuit's C = 1/k); its
  * estimate is output as 1/value (0 -> +Inf, as duffid.models.chain.DuffingCircuit) and its
@@ -75,7 +77,7 @@ enum {
 
 #define VR_X 1
 #define VR_F (1 + N_DOF)
-#define VR_EST (VR_F + 1)
+#define VR_EST (VR_F + N_FORCES)
 #define VR_IDENTIFIED (VR_EST + N_PARAMS)
 #define VR_CONDITION (VR_IDENTIFIED + 1)
 #define VR_UNCERTAINTY (VR_IDENTIFIED + 2)
@@ -232,6 +234,13 @@ static int start_estimator(Instance *inst, EstData *d, double h)
         fmu_log(inst, FMU_ERROR, "logStatusError", "the estimator could not be built: %s", msg);
         return 1;
     }
+    if (duffid_n_dof(d->est) != N_DOF || duffid_n_forces(d->est) != N_FORCES ||
+        duffid_n_parameters(d->est) != N_PARAMS) { /* a model compiled in that is not the table's */
+        fmu_log(inst, FMU_ERROR, "logStatusError", "the estimator's model has %d displacements, %d forces and %d "
+                "parameters; this FMU's variables are for %d, %d and %d", duffid_n_dof(d->est),
+                duffid_n_forces(d->est), duffid_n_parameters(d->est), N_DOF, N_FORCES, N_PARAMS);
+        return 1;
+    }
     d->cfg = cfg;
     d->dt = h;
     d->started = 1;
@@ -242,7 +251,7 @@ static int start_estimator(Instance *inst, EstData *d, double h)
 static int do_step(Instance *inst, double t, double h)
 {
     EstData *d = data_of(inst);
-    double x[N_DOF], f[1], period = inst->vars[VR_SAMPLE_PERIOD];
+    double x[N_DOF], f[N_FORCES > 0 ? N_FORCES : 1] = {0.0}, period = inst->vars[VR_SAMPLE_PERIOD];
     duffid_output out;
     int i;
     if (d == NULL) {
@@ -270,7 +279,7 @@ static int do_step(Instance *inst, double t, double h)
     }
     if (!d->started && start_estimator(inst, d, period) != 0) return 1;
     for (i = 0; i < N_DOF; i++) x[i] = inst->vars[VR_X + i];
-    f[0] = inst->vars[VR_F];
+    for (i = 0; i < N_FORCES; i++) f[i] = inst->vars[VR_F + i];
     if (duffid_update(d->est, x, f, &out) != DUFFID_OK) {
         fmu_log(inst, FMU_ERROR, "logStatusError", "sample at t = %.17g is not finite; rejected", t);
         return 1;

@@ -1,8 +1,10 @@
-"""``duffid build-estimator``: the online identifier of the user's own equations as an FMU
-(pythonfmu, FMI 2.0 co-simulation; runs in a Python host with duffid installed)."""
+"""``duffid build-estimator``: the online identifier of the user's own equations (or of a chain)
+as a co-simulation FMU: C (FMI 2.0 or 3.0, binaries for the chosen platforms, runs in any
+host) or pythonfmu (FMI 2.0, a Python host with duffid installed) when there is no C compiler."""
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -26,14 +28,20 @@ def unit_assignments(text: str) -> dict[str, str]:
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
     """Add the ``build-estimator`` subcommand."""
-    p = sub.add_parser("build-estimator", help="build an estimator FMU for your own equation (pythonfmu, FMI 2.0)",
+    from ..cbuild import PLATFORMS
+    from ..fmu.estimator import BACKENDS
+
+    p = sub.add_parser("build-estimator", help="build an estimator FMU for your own equation (C, FMI 2.0 or 3.0)",
                        description="Write the online identifier of your equations (the robust method by default, "
-                                   "the same engine and options as `duffid identify --equation`) as an FMI 2.0 "
+                                   "the same engine and options as `duffid identify --equation`) as a "
                                    "co-simulation FMU: inputs are the equation's displacements and forces, "
                                    "outputs <param>_hat (NaN unless published), <param>_status, identified, "
                                    "condition, uncertainty, window_length and outliers; parameters are the "
                                    "estimator options, <param>_nominal and sample_period (each doStep consumes "
-                                   "one sample). The FMU runs in a Python host (fmpy, ...) with duffid installed.")
+                                   "one sample). With a C compiler (--backend auto, the default) the FMU is the "
+                                   "C estimator core with its sources, binaries for --platforms, FMI 2.0 or 3.0; "
+                                   "without one it is a pythonfmu FMU (FMI 2.0), which runs in a Python host "
+                                   "(fmpy, ...) with duffid installed.")
     what = p.add_mutually_exclusive_group(required=True)
     what.add_argument("--equation", metavar="TEXT",
                       help='e.g. "m*der(x,2) + b*der(x) + c*x^2*der(x) + k*x + kp*x^3 = f" (several: separated by ;)')
@@ -48,24 +56,50 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("--units", type=unit_assignments, default=None, metavar="LIST",
                    help="units of the signals (x=m,f=N): the parameters' units follow from the equation; "
                         "give a parameter's unit too where they do not (k=N.m for k*sin(x))")
-    p.add_argument("-o", "--output", type=Path, default=None, help="the FMU to write (default <name>.fmu)")
+    p.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2; 3 needs the C backend)")
+    p.add_argument("--backend", choices=BACKENDS, default="auto",
+                   help="c: the C estimator core; python: pythonfmu (FMI 2.0, a Python host); auto (default): "
+                        "C when a C compiler is found, else python (one line says why)")
+    p.add_argument("--platforms", default=None, metavar="LIST",
+                   help=f"C backend: comma-separated binary platforms, {', '.join(PLATFORMS)} or all (those whose "
+                        "compiler is installed); default: this machine")
+    p.add_argument("-o", "--output", type=Path, default=None,
+                   help="a folder for the FMU, or the FMU file (its stem must be the name, with _fmi3 for FMI 3); "
+                        "default: <name>.fmu / <name>_fmi3.fmu here")
     return p
+
+
+def _target(output: Path | None, name: str, fmi: int) -> Path:
+    """The folder of the FMU from -o (a folder, or the FMU file whose stem must match)."""
+    stem = name if fmi == 2 else f"{name}_fmi3"
+    if output is None:
+        return Path(".")
+    if output.suffix != ".fmu":
+        if output.exists() and not output.is_dir():
+            raise InputError(f"-o {output}: not a folder, and an FMU file must end in .fmu")
+        return output
+    if output.stem != stem:
+        raise InputError(f"-o {output}: an FMU's file stem is its model name (FMI 3: <name>_fmi3); use "
+                         f"--name {output.stem.removesuffix('_fmi3')} or -o {output.with_name(stem + '.fmu')}")
+    return output.parent
 
 
 def run(args: argparse.Namespace) -> int:
     """Build the FMU; print its path and its variables' units."""
-    from ..fmu.python_estimator import build_chain_fmu, build_equation_fmu
+    from ..cbuild import resolve_platforms
+    from ..fmu.estimator import build_chain_fmu, build_equation_fmu
 
     columns = [c.strip() for c in args.columns.split(",") if c.strip()]
     name = args.name or ("EquationEstimator" if args.equation is not None else f"ChainEstimator{args.chain}")
-    output = args.output or Path(f"{name}.fmu")
-    if output.suffix != ".fmu":
-        raise InputError(f"-o {output}: the file must end in .fmu")
-    if output.stem != name:
-        raise InputError(f"-o {output}: an FMU's file stem is its model name; use --name {output.stem} "
-                         f"or -o {name}.fmu")
+    folder = _target(args.output, name, args.fmi)
+    platforms = None
+    if args.platforms is not None:
+        platforms, skipped = resolve_platforms(n.strip() for n in args.platforms.split(",") if n.strip())
+        for line in skipped:
+            print(f"duffid build-estimator: {line}", file=sys.stderr)
     import fmpy
 
+    common = {"name": name, "fmi_version": args.fmi, "backend": args.backend, "platforms": platforms}
     if args.chain is not None:
         if args.units:
             raise InputError("--units applies to --equation; a chain is in m, N and s")
@@ -73,9 +107,9 @@ def run(args: argparse.Namespace) -> int:
             orders = [int(o) for o in args.orders.split(",") if o.strip()]
         except ValueError:
             raise InputError(f"--orders must be integers separated by commas, got {args.orders!r}") from None
-        path = build_chain_fmu(args.chain, output.parent, orders=orders, coulomb=args.coulomb, name=name)
+        path = build_chain_fmu(args.chain, folder, orders=orders, coulomb=args.coulomb, **common)
     else:
-        path = build_equation_fmu(args.equation, output.parent, name=name, columns=columns, units=args.units)
+        path = build_equation_fmu(args.equation, folder, columns=columns, units=args.units, **common)
     print(path)
     md = fmpy.read_model_description(str(path))
     for v in md.modelVariables:

@@ -96,13 +96,16 @@ def retype(description: bytes, fmi_version: int, types: Mapping[str, str]) -> by
 def build_c_model_fmu(out_dir: str | Path, identifier: str, fmi_version: int, table: list[FmuVariable], *,
                       prefix: str, model_dir: Path, model_files: tuple[str, ...], description: str,
                       types: Mapping[str, str], defines: Mapping[str, int | str],
+                      generated_files: Mapping[str, str] | None = None,
                       sample_period: float, non_finite: Collection[str] = (), compiler: str | None = None,
                       platforms: Sequence[Platform] | None = None) -> Path:
     """Build ``<identifier>.fmu`` (FMI 2) or ``<identifier>_fmi3.fmu`` (FMI 3) in ``out_dir``.
 
     ``model_files`` (in ``model_dir``) are the model's sources, packed with the glue and
     the generated ``<prefix>_fmu_config.h`` (which also defines ``<PREFIX>_IDENTIFIER``
-    and ``<PREFIX>_TOKEN``); the token is derived from the sources and the table, so
+    and ``<PREFIX>_TOKEN``); ``generated_files`` (name -> C text) are further sources made
+    for this FMU, replacing a model file of the same name (every ``.c`` file is compiled).
+    The token is derived from the sources and the table, so
     the same inputs give the same archive, byte for byte. The model is discrete-time:
     every communication step must equal its parameter ``sample_period``, whose start value
     ``sample_period`` is the default experiment's step size (and
@@ -113,6 +116,7 @@ def build_c_model_fmu(out_dir: str | Path, identifier: str, fmi_version: int, ta
         raise InputError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
     out = Path(out_dir) / (f"{identifier}.fmu" if fmi_version == 2 else f"{identifier}_fmi3.fmu")
     core = {name: (model_dir / name).read_bytes() for name in model_files}
+    core.update({name: text.encode() for name, text in (generated_files or {}).items()})
     token = token_from(f"fmi{fmi_version}", prefix, identifier, *core.values(),
                        *[f"{v.name}|{v.causality}|{v.start}|{v.unit}" for v in table])
     header = config_header(prefix, table, types, {**defines, "IDENTIFIER": identifier, "TOKEN": token},

@@ -14,6 +14,15 @@ model ``fmus/estimator/fmu_model_estimator.c`` and the glue of ``fmus/common`` i
   ``q`` [C], ``u`` [V]; outputs ``L_hat`` [H], ``R_hat`` [Ohm], ``C_hat`` [F], ``a_hat``
   [V/C3] (the Duffing1 core; C is output as the reciprocal of its stiffness);
 
+- the estimator of any chain (:func:`build_chain_fmu`) or of the user's own equations
+  (:func:`build_equation_fmu`): inputs the equations' displacements and forces, outputs
+  ``<param>_hat`` with the units that follow from the signals' units
+  (:func:`duffid.fmu.estimator_table.equation_interface`); the core runs the model's generated
+  description (:func:`duffid.identification.c_core.model_source`, shipped in ``sources/`` as
+  ``estimator_model.c`` with a ``duffid_build.h`` that selects it, so ``fmpy compile``
+  rebuilds the FMU). ``backend="auto"`` builds the pythonfmu FMU of
+  :mod:`duffid.fmu.python_estimator` instead when there is no C compiler;
+
 each also with the outputs ``identified`` (0/1), ``condition``, ``uncertainty``,
 ``window_length`` [s] and ``<name>_status`` per parameter (Integer: the index of its status
 in :data:`duffid.identification.engine.STATUSES`: 0 uncertain, 1 published, 2 not excited,
@@ -40,38 +49,47 @@ communication step ``dt``. The variable table is :mod:`duffid.fmu.estimator_tabl
 """
 from __future__ import annotations
 
+import sys
 from pathlib import Path
-from typing import Sequence
+from typing import Mapping, Sequence
 
 from ..assets import fmu_sources
-from ..cbuild import Platform
+from ..cbuild import Platform, find_compiler
+from ..errors import CompilerNotFoundError, InputError
 from .c_model import build_c_model_fmu
 from .estimator_table import (
     C_FMU_NAMES,
     DEFAULT_SAMPLE_PERIOD,
-    MODEL_CODES,
-    MODELS,
-    RECIPROCAL,
+    EstimatorInterface,
+    builtin_interface,
+    chain_interface,
+    equation_interface,
     estimator_variables,
     variable_types,
 )
 from .python_estimator import FMU_NAMES, build_python_fmu
 
-__all__ = ["build_estimator_fmus", "build_estimator_fmu"]
+__all__ = ["build_estimator_fmus", "build_estimator_fmu", "build_equation_fmu", "build_chain_fmu", "BACKENDS",
+           "GENERATED_MODEL_FILE"]
 
-_CORE_FILES = ("duffid_estimator.c", "duffid_estimator.h", "duffid_model.h", "duffid_options.h", "duffid_linalg.c",
-               "duffid_linalg.h",
-               "fmu_model_estimator.c")
+_CORE_FILES = ("duffid_estimator.c", "duffid_estimator.h", "duffid_model.h", "duffid_build.h", "duffid_options.h",
+               "duffid_linalg.c", "duffid_linalg.h", "fmu_model_estimator.c")
+#: File of an FMU's ``sources/`` that holds the generated model (chains, equations).
+GENERATED_MODEL_FILE = "estimator_model.c"
+#: Backends of :func:`build_equation_fmu` and :func:`build_chain_fmu`.
+BACKENDS = ("auto", "c", "python")
 
 
-def build_estimator_fmu(model_name: str, out_dir: str | Path, fmi_version: int = 2,
+def build_estimator_fmu(model: str | EstimatorInterface, out_dir: str | Path, fmi_version: int = 2,
                         compiler: str | None = None, platforms: Sequence[Platform] | None = None) -> Path:
     """Build one C estimator FMU.
 
     Parameters
     ----------
-    model_name : str
-        ``"duffing1"``, ``"duffing2"`` or ``"circuit"``.
+    model : str or EstimatorInterface
+        ``"duffing1"``, ``"duffing2"`` or ``"circuit"``, or the interface of a chain or of
+        equations (:func:`~duffid.fmu.estimator_table.chain_interface`,
+        :func:`~duffid.fmu.estimator_table.equation_interface`).
     out_dir : str or Path
         Output folder; the file is ``<identifier>.fmu`` (FMI 2) or ``<identifier>_fmi3.fmu``.
     fmi_version : int
@@ -85,17 +103,126 @@ def build_estimator_fmu(model_name: str, out_dir: str | Path, fmi_version: int =
     -------
     Path
         The FMU written.
+
+    Raises
+    ------
+    InputError
+        A model beyond the limits of the C core (the message names the limit).
+    CompilerNotFoundError, BuildError
+        No C compiler, or compilation failed.
     """
-    table = estimator_variables(model_name)
-    names = list(MODELS[model_name]().parameters)
-    mask = sum(1 << names.index(p) for p in RECIPROCAL.get(model_name, ()))
-    model = type(MODELS[model_name]()).__name__
-    return build_c_model_fmu(out_dir, C_FMU_NAMES[model_name], fmi_version, table, prefix="estimator",
-                             model_dir=fmu_sources("estimator"), model_files=_CORE_FILES,
-                             description=f"duffid online algebraic identification of {model} (C estimator core)",
-                             types=variable_types(model_name),
-                             defines={"MODEL": MODEL_CODES[model_name], "RECIPROCAL_MASK": mask},
+    interface = model if isinstance(model, EstimatorInterface) else builtin_interface(model)
+    names = list(interface.parameters)
+    mask = sum(1 << names.index(p) for p in interface.reciprocal)
+    generated: dict[str, str] = {}
+    if interface.kind != "builtin":
+        from ..identification.c_core import BUILD_HEADER, GENERATED_BUILD_HEADER, model_source
+
+        generated = {GENERATED_MODEL_FILE: model_source(interface.model()), BUILD_HEADER: GENERATED_BUILD_HEADER}
+    table = estimator_variables(interface)
+    return build_c_model_fmu(out_dir, interface.identifier, fmi_version, table, prefix="estimator",
+                             model_dir=fmu_sources("estimator"), model_files=_CORE_FILES, generated_files=generated,
+                             description=f"{interface.description} (C estimator core)",
+                             types=variable_types(interface),
+                             defines={"MODEL": interface.model_code, "N_DOF": len(interface.x),
+                                      "N_FORCES": len(interface.f), "N_PARAMS": len(names),
+                                      "RECIPROCAL_MASK": mask},
                              sample_period=DEFAULT_SAMPLE_PERIOD, compiler=compiler, platforms=platforms)
+
+
+def _use_c(backend: str, fmi_version: int, what: str) -> bool:
+    """Whether to build the C FMU: ``backend`` "c", or "auto" with a C compiler (else one line
+    on stderr says why the pythonfmu FMU is built)."""
+    if backend not in BACKENDS:
+        raise InputError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
+    if fmi_version not in (2, 3):
+        raise InputError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
+    if backend == "python":
+        if fmi_version != 2:
+            raise InputError("the pythonfmu estimator FMU is FMI 2.0 only; use the C backend for FMI 3.0")
+        return False
+    if backend == "c":
+        return True
+    try:
+        find_compiler()
+    except CompilerNotFoundError as exc:
+        if fmi_version != 2:
+            raise CompilerNotFoundError(f"{what}: an FMI 3.0 estimator FMU needs the C backend: {exc}") from exc
+        print(f"duffid: building {what} as a pythonfmu FMU (runs in a Python host only): {exc}", file=sys.stderr)
+        return False
+    return True
+
+
+def build_equation_fmu(equation: str | Sequence[str], out_dir: str | Path, *, name: str = "EquationEstimator",
+                       columns: Sequence[str] = ("t", "f", "x"), units: Mapping[str, str] | None = None,
+                       fmi_version: int = 2, backend: str = "auto", platforms: Sequence[Platform] | None = None,
+                       compiler: str | None = None) -> Path:
+    """Build the estimator FMU of the user's own equations: ``<name>.fmu`` (FMI 2) or
+    ``<name>_fmi3.fmu`` (FMI 3).
+
+    Parameters
+    ----------
+    equation : str or sequence of str
+        The equations, as for :func:`duffid.identification.equation.identify_equation`.
+    out_dir : path
+        Folder for the FMU (created if needed).
+    name : str
+        Model identifier and file stem (a Python identifier).
+    columns : sequence of str
+        The signals' names as record columns (``t, f, x`` or ``t, f1.., x1..``).
+    units : mapping, optional
+        Units of the signals (and of parameters the equations do not determine); see
+        :func:`~duffid.fmu.estimator_table.equation_interface`.
+    fmi_version : {2, 3}
+        FMI version (the pythonfmu backend: 2 only).
+    backend : {"auto", "c", "python"}
+        "c": the C estimator core on the shared FMI glue (runs in any host, binaries for
+        ``platforms``); "python": pythonfmu (:func:`duffid.fmu.python_estimator.build_equation_fmu`,
+        a Python host with duffid installed); "auto": C when a C compiler is found, else
+        pythonfmu with one line on stderr saying why.
+    platforms : sequence of Platform, optional
+        Targets of the C FMU's binaries (default: this machine).
+    compiler : str, optional
+        C compiler for this machine.
+
+    Raises
+    ------
+    EquationError, InputError
+        An equation that cannot be identified (naming the term), a bad name or unit, or a
+        model beyond the limits of the C core.
+    CompilerNotFoundError, BuildError
+        Backend "c" without a compiler, or compilation failed.
+    """
+    interface = equation_interface(equation, columns, units=units, name=name)
+    if _use_c(backend, fmi_version, name):
+        return build_estimator_fmu(interface, out_dir, fmi_version, compiler=compiler, platforms=platforms)
+    from .python_estimator import build_equation_fmu as build_python_equation_fmu
+
+    return build_python_equation_fmu(equation, out_dir, name=name, columns=columns, units=units)
+
+
+def build_chain_fmu(n_dof: int, out_dir: str | Path, *, orders: Sequence[int] = (1, 3), coulomb: bool = False,
+                    name: str | None = None, fmi_version: int = 2, backend: str = "auto",
+                    platforms: Sequence[Platform] | None = None, compiler: str | None = None) -> Path:
+    """Build the estimator FMU of a chain of ``n_dof`` masses (``ChainEstimator<n>.fmu`` by
+    default; :func:`~duffid.fmu.estimator_table.chain_interface`): inputs ``x1 .. x<n>`` [m]
+    and ``f1`` [N]. ``fmi_version``, ``backend``, ``platforms`` and ``compiler`` as for
+    :func:`build_equation_fmu`.
+
+    Raises
+    ------
+    InputError
+        A chain of fewer than 1 mass, no stiffness order, a name that is not an identifier or
+        a chain beyond the limits of the C core.
+    CompilerNotFoundError, BuildError
+        Backend "c" without a compiler, or compilation failed.
+    """
+    interface = chain_interface(n_dof, orders=orders, coulomb=coulomb, name=name)
+    if _use_c(backend, fmi_version, interface.identifier):
+        return build_estimator_fmu(interface, out_dir, fmi_version, compiler=compiler, platforms=platforms)
+    from .python_estimator import build_chain_fmu as build_python_chain_fmu
+
+    return build_python_chain_fmu(n_dof, out_dir, orders=orders, coulomb=coulomb, name=interface.identifier)
 
 
 def build_estimator_fmus(out_dir: str | Path = Path("build/fmus"), *, python: bool = True,

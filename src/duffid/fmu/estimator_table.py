@@ -1,14 +1,25 @@
 """The interface of the estimator FMUs, C and pythonfmu: names, inputs, units, types,
-parameters and their start values (one table, from which both FMUs are described).
+parameters and their start values (one table, from which every estimator FMU is described).
+
+A model's part of the interface is an :class:`EstimatorInterface`: the built-in models
+(:func:`builtin_interface`: ``duffing1``, ``duffing2``, ``circuit``), a chain
+(:func:`chain_interface`) or the user's own equations (:func:`equation_interface`, units
+from :func:`duffid.models.units.parameter_units`). :func:`estimator_variables` turns any of
+them into the variable table.
 
 Value references follow the order of :func:`estimator_variables` (the C model
 ``fmus/estimator/fmu_model_estimator.c`` checks the count): time, the displacements and the
-force (inputs), the estimates ``<name>_hat``, ``identified``, ``condition``, ``uncertainty``,
+forces (inputs), the estimates ``<name>_hat``, ``identified``, ``condition``, ``uncertainty``,
 ``window_length``, ``<name>_status``, ``outliers`` (outputs), then the parameters: ``method``,
 the options of :mod:`duffid.identification.options`, ``<name>_nominal`` and
 ``sample_period``.
 """
 from __future__ import annotations
+
+import keyword
+import re
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
 
 from ..errors import InputError
 from ..identification.engine import status_codes
@@ -16,8 +27,10 @@ from ..identification.options import ONLINE_METHODS, fmu_parameters
 from ..models.chain import Duffing1, Duffing2, DuffingCircuit
 from .variables import FmuVariable
 
-__all__ = ["C_FMU_NAMES", "MODELS", "MODEL_CODES", "RECIPROCAL", "INPUTS", "PARAMETER_UNITS", "parameter_unit", "OPTIONS",
-           "DEFAULT_SAMPLE_PERIOD", "SAMPLE_PERIOD_DESCRIPTION", "TYPES", "variable_types", "estimator_variables"]
+__all__ = ["C_FMU_NAMES", "MODELS", "MODEL_CODES", "GENERATED_MODEL_CODE", "RECIPROCAL", "INPUTS", "PARAMETER_UNITS",
+           "parameter_unit", "chain_parameter_unit", "OPTIONS", "DEFAULT_SAMPLE_PERIOD", "SAMPLE_PERIOD_DESCRIPTION",
+           "TYPES", "EstimatorInterface", "builtin_interface", "equation_interface", "chain_interface",
+           "interface_from_spec", "variable_types", "variable_units", "estimator_variables"]
 
 #: Model name -> model identifier of the C FMUs (FMI 3 files get a ``_fmi3`` suffix).
 C_FMU_NAMES = {"duffing1": "DuffingEstimator1", "duffing2": "DuffingEstimator2", "circuit": "DuffingCircuitEstimator"}
@@ -26,6 +39,8 @@ MODELS = {"duffing1": Duffing1, "duffing2": Duffing2, "circuit": DuffingCircuit}
 #: Model name -> the C core's model code (DUFFID_DUFFING1, DUFFID_DUFFING2; the circuit is the
 #: Duffing1 equation with L = m, R = b, 1/C = k, a = kp).
 MODEL_CODES = {"duffing1": 1, "duffing2": 2, "circuit": 1}
+#: The C core's code of a model described by generated code (DUFFID_GENERATED): chains and equations.
+GENERATED_MODEL_CODE = 3
 #: Model name -> its parameters that are the reciprocal of the core's (output as 1/value).
 RECIPROCAL = {"circuit": ("C",)}
 #: Model name -> the inputs (name, unit, description): displacements, then forces.
@@ -48,31 +63,222 @@ TYPES = {"method": "Integer", "identified": "Boolean",
          **{o.name: "Boolean" if o.kind == "bool" else "Integer" for o in fmu_parameters() if o.c_kind == "CODE"}}
 
 
-def variable_types(model_name: str) -> dict[str, str]:
-    """:data:`TYPES` with the ``<name>_status`` outputs of the model."""
-    model = MODELS[model_name]()
-    return {**TYPES, "outliers": "Integer", **{f"{name}_status": "Integer" for name in model.parameters}}
 
 
-def parameter_unit(name: str) -> str:
-    """The unit of parameter ``name`` (``"k2"`` -> ``"N/m"``)."""
-    return PARAMETER_UNITS[name.rstrip("0123456789")]
+@dataclass(frozen=True, eq=False)
+class EstimatorInterface:
+    """The model's part of an estimator FMU's interface.
+
+    Attributes
+    ----------
+    kind : {"builtin", "chain", "equation"}
+        Where the model comes from.
+    identifier : str
+        Model identifier (and file stem) of the FMU.
+    x, f : tuple of (name, unit or None, description)
+        The displacement and force inputs, in the order the estimator takes them.
+    parameters : tuple of str
+        Public parameter names, in output order.
+    parameter_units : mapping
+        Parameter -> unit (a parameter without an entry has none).
+    reciprocal : tuple of str
+        Parameters output as the reciprocal of the C core's (the circuit's C).
+    description : str
+        One line for modelDescription.xml.
+    spec : mapping
+        JSON-able data that rebuilds the interface (:func:`interface_from_spec`).
+    """
+
+    kind: str
+    identifier: str
+    x: tuple[tuple[str, str | None, str], ...]
+    f: tuple[tuple[str, str | None, str], ...]
+    parameters: tuple[str, ...]
+    parameter_units: Mapping[str, str]
+    description: str
+    spec: Mapping[str, Any] = field(repr=False)
+    reciprocal: tuple[str, ...] = ()
+
+    @property
+    def inputs(self) -> tuple[tuple[str, str | None, str], ...]:
+        """Displacements, then forces."""
+        return self.x + self.f
+
+    @property
+    def model_code(self) -> int:
+        """The C core's model code (DUFFID_DUFFING1/2 for the built-in models, else
+        :data:`GENERATED_MODEL_CODE`)."""
+        return MODEL_CODES[self.spec["model"]] if self.kind == "builtin" else GENERATED_MODEL_CODE
+
+    def model(self) -> Any:
+        """A new instance of the model estimated."""
+        if self.kind == "builtin":
+            return MODELS[self.spec["model"]]()
+        if self.kind == "chain":
+            from ..models.chain import model_from_name
+
+            return model_from_name("chain", int(self.spec["n_dof"]), orders=self.spec["orders"],
+                                   coulomb=bool(self.spec["coulomb"]))
+        from ..models.equation_model import EquationModel
+
+        return EquationModel(self.spec["equations"], self.spec["columns"])
 
 
-def _defaults(model_name: str) -> dict[str, float]:
-    """Parameter start values: the robust method and the schema's defaults as the C core codes them."""
-    values = {"method": 0.0, **{o.name: float(o.c_default) for o in fmu_parameters()}}
-    model = MODELS[model_name]()
-    values.update({f"{name}_nominal": 0.0 for name in model.parameters})
-    return values
+def _check_identifier(name: str) -> None:
+    if not name.isidentifier() or keyword.iskeyword(name):
+        raise InputError(f"--name {name!r} must be a Python identifier (letters, digits, _; not starting with a digit)")
 
 
-def estimator_variables(model_name: str) -> list[FmuVariable]:
-    """The variable table of an estimator FMU (value references 0, 1, ...)."""
+def builtin_interface(model_name: str) -> EstimatorInterface:
+    """The interface of a built-in estimator FMU (a key of :data:`C_FMU_NAMES`)."""
     if model_name not in C_FMU_NAMES:
         raise InputError(f"unknown model {model_name!r}; choose {', '.join(C_FMU_NAMES)}")
     model = MODELS[model_name]()
-    defaults = _defaults(model_name)
+    inputs = INPUTS[model_name]
+    return EstimatorInterface("builtin", C_FMU_NAMES[model_name], inputs[:model.n_dof], inputs[model.n_dof:],
+                              tuple(model.parameters), {p: parameter_unit(p) for p in model.parameters},
+                              f"duffid online algebraic identification of {type(model).__name__}",
+                              {"kind": "builtin", "model": model_name}, RECIPROCAL.get(model_name, ()))
+
+
+def chain_parameter_unit(name: str) -> str:
+    """The unit of a chain parameter: ``m<i>`` kg, ``b<i>`` N.s/m, ``k<i>_<j>`` N/m^j,
+    ``fc<i>`` and ``c<i>`` N."""
+    match = re.fullmatch(r"k\d+_(\d+)", name)
+    if match:
+        power = int(match.group(1))
+        return "N/m" if power == 1 else f"N/m{power}"
+    units = {"m": "kg", "b": "N.s/m", "fc": "N", "c": "N"}
+    return units[name.rstrip("0123456789")]
+
+
+def chain_interface(n_dof: int, *, orders: Sequence[int] = (1, 3), coulomb: bool = False,
+                    name: str | None = None) -> EstimatorInterface:
+    """The interface of the estimator of a chain of ``n_dof`` masses from a wall
+    (:func:`duffid.models.chain.model_from_name` ``"chain"``: springs of the stiffness
+    ``orders``, optionally Coulomb friction per mass, force on mass 1): inputs ``x1 .. x<n>``
+    [m] and ``f1`` [N]; parameters in kg, N.s/m, N/m^j and N (:func:`chain_parameter_unit`).
+
+    Raises
+    ------
+    InputError
+        A chain of fewer than 1 mass, no positive stiffness order, or a name that is not an identifier.
+    """
+    from ..models.chain import model_from_name
+
+    try:
+        orders = sorted({int(o) for o in orders})
+    except (TypeError, ValueError):
+        raise InputError(f"--orders must be integers, got {list(orders)!r}") from None
+    if not orders or min(orders) < 1:
+        raise InputError(f"--orders must be positive stiffness orders, got {orders}")
+    model = model_from_name("chain", int(n_dof), orders=orders, coulomb=coulomb)  # checks n_dof
+    name = name or f"ChainEstimator{int(n_dof)}"
+    _check_identifier(name)
+    spec = {"kind": "chain", "name": name, "n_dof": int(n_dof), "orders": orders, "coulomb": bool(coulomb)}
+    return EstimatorInterface(
+        "chain", name, tuple((f"x{i + 1}", "m", f"displacement of mass {i + 1}") for i in range(model.n_dof)),
+        (("f1", "N", "force on mass 1"),), tuple(model.parameters),
+        {p: chain_parameter_unit(p) for p in model.parameters},
+        f"duffid online algebraic identification of a chain of {int(n_dof)} masses (stiffness orders {orders}"
+        f"{', Coulomb friction' if coulomb else ''})", spec)
+
+
+def equation_interface(equation: str | Sequence[str], columns: Sequence[str] = ("t", "f", "x"), *,
+                       units: Mapping[str, str] | None = None, name: str = "EquationEstimator") -> EstimatorInterface:
+    """The interface of the estimator of the user's own equations.
+
+    Parameters
+    ----------
+    equation : str or sequence of str
+        The equations, as for :func:`duffid.identification.equation.identify_equation`.
+    columns : sequence of str
+        The signals' names as record columns (``t, f, x`` or ``t, f1.., x1..``): the FMU's
+        inputs are the displacements and forces among them.
+    units : mapping, optional
+        Unit strings of every displacement and force (``{"x": "m", "f": "N"}``), and of
+        parameters whose unit the equations do not determine; the parameters' units follow
+        (:func:`duffid.models.units.parameter_units`). None: no units.
+    name : str
+        Model identifier and file stem (a Python identifier).
+
+    Raises
+    ------
+    EquationError, InputError
+        An equation that cannot be identified (naming the term), a bad name or unit.
+    """
+    from ..models.equation_model import EquationModel
+    from ..models.units import parameter_units
+
+    _check_identifier(name)
+    model = EquationModel(equation, columns)
+    sig = model.regressor.signals
+    signal_units: dict[str, str] = {}
+    params: dict[str, str] = {}
+    if units:
+        signals = set(sig.x_names) | set(sig.f_names)
+        signal_units = {k: v for k, v in units.items() if k in signals}
+        params = parameter_units(model, signal_units, {k: v for k, v in units.items() if k not in signals})
+    spec = {"kind": "equation", "name": name, "equations": list(model.texts), "columns": list(columns),
+            "units": signal_units, "parameter_units": params}
+    return interface_from_spec(spec)
+
+
+def interface_from_spec(spec: Mapping[str, Any]) -> EstimatorInterface:
+    """The interface that ``spec`` (:attr:`EstimatorInterface.spec`) describes; an equation's
+    units are taken as they are (they were derived when the spec was made)."""
+    kind = spec.get("kind")
+    if kind == "builtin":
+        return builtin_interface(spec["model"])
+    if kind == "chain":
+        return chain_interface(spec["n_dof"], orders=spec["orders"], coulomb=spec["coulomb"], name=spec["name"])
+    if kind != "equation":
+        raise InputError(f"unknown estimator interface kind {kind!r}; choose builtin, chain or equation")
+    from ..models.equation_model import EquationModel
+
+    model = EquationModel(spec["equations"], spec["columns"])
+    sig = model.regressor.signals
+    units = dict(spec.get("units") or {})
+    return EstimatorInterface(
+        "equation", spec["name"], tuple((n, units.get(n), f"displacement {n}") for n in sig.x_names),
+        tuple((n, units.get(n), f"force {n}") for n in sig.f_names), tuple(model.parameters),
+        dict(spec.get("parameter_units") or {}),
+        "duffid online algebraic identification of " + "; ".join(model.texts), dict(spec))
+
+
+def _interface(model: str | EstimatorInterface) -> EstimatorInterface:
+    return model if isinstance(model, EstimatorInterface) else builtin_interface(model)
+
+
+def variable_types(model: str | EstimatorInterface) -> dict[str, str]:
+    """:data:`TYPES` with the ``<name>_status`` outputs of the model (a built-in model's name or an interface)."""
+    interface = _interface(model)
+    return {**TYPES, "outliers": "Integer", **{f"{name}_status": "Integer" for name in interface.parameters}}
+
+
+def parameter_unit(name: str) -> str:
+    """The unit of parameter ``name`` of a built-in model (``"k2"`` -> ``"N/m"``)."""
+    return PARAMETER_UNITS[name.rstrip("0123456789")]
+
+
+def _defaults(interface: EstimatorInterface) -> dict[str, float]:
+    """Parameter start values: the robust method and the schema's defaults as the C core codes them."""
+    values = {"method": 0.0, **{o.name: float(o.c_default) for o in fmu_parameters()}}
+    values.update({f"{name}_nominal": 0.0 for name in interface.parameters})
+    return values
+
+
+def variable_units(model: str | EstimatorInterface) -> dict[str, str]:
+    """Variable name -> unit of every variable of :func:`estimator_variables` that has one."""
+    return {v.name: v.unit for v in estimator_variables(model) if v.unit}
+
+
+def estimator_variables(model: str | EstimatorInterface) -> list[FmuVariable]:
+    """The variable table of an estimator FMU (value references 0, 1, ...) of a built-in model
+    (its name) or any :class:`EstimatorInterface`."""
+    interface = _interface(model)
+    defaults = _defaults(interface)
+    units = interface.parameter_units
     table: list[FmuVariable] = []
 
     def add(name: str, causality: str, variability: str, initial: str | None, start: float | None,
@@ -82,24 +288,24 @@ def estimator_variables(model_name: str) -> list[FmuVariable]:
                                  else float("nan"), unit=unit, description=description))
 
     add("time", "independent", "continuous", None, None, "s", "simulation time")
-    for name, unit, text in INPUTS[model_name]:
+    for name, unit, text in interface.inputs:
         add(name, "input", "continuous", None, 0.0, unit, f"{text} (one sample per doStep)")
-    for name in model.parameters:
-        add(f"{name}_hat", "output", "discrete", "calculated", None, parameter_unit(name),
+    for name in interface.parameters:
+        add(f"{name}_hat", "output", "discrete", "calculated", None, units.get(name),
             f"estimate of {name} (NaN unless published)")
     add("identified", "output", "discrete", "calculated", None, None, "1 when every estimate is trustworthy")
     add("condition", "output", "discrete", "calculated", None, "1", "largest condition number of the equations")
     add("uncertainty", "output", "discrete", "calculated", None, "1", "largest relative standard error (robust)")
     add("window_length", "output", "discrete", "calculated", None, "s", "window length")
-    for name in model.parameters:
+    for name in interface.parameters:
         add(f"{name}_status", "output", "discrete", "calculated", None, None,
             f"status of {name}: {status_codes()}")
     add("outliers", "output", "discrete", "calculated", None, None,
         "isolated displacement outliers excluded so far (each one logged, category logStatusWarning)")
     for name, unit, text in OPTIONS:
         add(name, "parameter", "fixed", "exact", defaults[name], unit, text)
-    for name in model.parameters:
-        add(f"{name}_nominal", "parameter", "fixed", "exact", defaults[f"{name}_nominal"], parameter_unit(name),
+    for name in interface.parameters:
+        add(f"{name}_nominal", "parameter", "fixed", "exact", defaults[f"{name}_nominal"], units.get(name),
             f"optional prior size of {name} for the trust test (0: none, the scale comes from the data)")
     add("sample_period", "parameter", "fixed", "exact", DEFAULT_SAMPLE_PERIOD, "s", SAMPLE_PERIOD_DESCRIPTION)
     return table

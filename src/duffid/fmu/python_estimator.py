@@ -57,9 +57,7 @@ run anywhere.
 from __future__ import annotations
 
 import json
-import keyword
 import math
-import re
 import sys
 import tempfile
 from pathlib import Path
@@ -71,11 +69,15 @@ from ..identification.engine import STATUSES, OnlineIdentifier, status_codes
 from ..identification.options import fmu_parameters, from_c, to_c
 from .estimator_table import (
     DEFAULT_SAMPLE_PERIOD,
-    INPUTS,
     MODELS,
-    OPTIONS,
     SAMPLE_PERIOD_DESCRIPTION,
-    estimator_variables,
+    EstimatorInterface,
+    builtin_interface,
+    chain_interface,
+    chain_parameter_unit,
+    equation_interface,
+    interface_from_spec,
+    variable_units,
 )
 from .fmi_xml import unit_definitions
 
@@ -173,27 +175,19 @@ class EstimatorSlave:
         self.chain = chain
         if equation is None and chain is None and model_name not in MODELS:
             raise InputError(f"unknown model {model_name!r}; choose {', '.join(MODELS)}")
+        self.interface = self._interface()
         model = self._model()
         self.names = list(model.parameters)
         self.fmu_name = model_name if equation is not None or chain is not None else FMU_NAMES[model_name]
-        if chain is not None:
-            self.x_names, self.f_names = [f"x{i + 1}" for i in range(model.n_dof)], ["f1"]
-        elif equation is not None:
-            self.x_names, self.f_names = list(model.regressor.signals.x_names), list(model.regressor.signals.f_names)
-        else:
-            inputs = [name for name, _, _ in INPUTS[model_name]]
-            self.x_names = [name for name in inputs if name.startswith("x")]
-            self.f_names = [name for name in inputs if not name.startswith("x")]
+        self.x_names = [name for name, _, _ in self.interface.x]
+        self.f_names = [name for name, _, _ in self.interface.f]
         self.ident: OnlineIdentifier | None = None
         self.used: dict[str, Any] = {}
         self.last_error: str | None = None
         types = {"Real": Real, "Integer": Integer, "Boolean": Boolean, "String": String}
 
-        for name in self.x_names + self.f_names:
+        for name, _, text in self.interface.inputs:
             setattr(slave, name, 0.0)
-            text = "displacement" if name[0] == "x" else "force"
-            if equation is None:  # a built-in model or a chain: SI units
-                text += " [m]" if name[0] == "x" else " [N]"
             slave.register_variable(Real(name, causality=causality.input, variability=variability.continuous,
                                          description=f"{text} (one sample per doStep)"))
         self.outputs = [f"{name}_hat" for name in self.names]
@@ -242,35 +236,23 @@ class EstimatorSlave:
         slave.register_variable(Real("sample_period", causality=causality.parameter, variability=variability.tunable,
                                      description=SAMPLE_PERIOD_DESCRIPTION))
 
+    def _interface(self) -> EstimatorInterface:
+        """The interface of the FMU (duffid.fmu.estimator_table: the C FMUs' table)."""
+        if self.chain is not None:
+            return chain_interface(int(self.chain["n_dof"]), orders=self.chain["orders"],
+                                   coulomb=bool(self.chain["coulomb"]), name=self.model_name)
+        if self.equation is not None:
+            return interface_from_spec({**self.equation, "kind": "equation", "name": self.model_name})
+        return builtin_interface(self.model_name)
+
     def _model(self) -> Any:
         """A new instance of the model estimated (a built-in model, a chain or the FMU's equations)."""
-        if self.chain is not None:
-            from ..models.chain import model_from_name
-
-            return model_from_name("chain", int(self.chain["n_dof"]), orders=self.chain["orders"],
-                                   coulomb=bool(self.chain["coulomb"]))
-        if self.equation is None:
-            return MODELS[self.model_name]()
-        from ..models.equation_model import EquationModel
-
-        return EquationModel(self.equation["equations"], self.equation["columns"])
+        return self.interface.model()
 
     def _units(self) -> dict[str, str]:
-        """Variable name -> unit: the C FMUs' table for a built-in model; for equations the
-        signals' units, the parameters' derived ones, and the options' own."""
-        if self.equation is None and self.chain is None:
-            return {v.name: v.unit for v in estimator_variables(self.model_name) if v.unit}
-        if self.chain is not None:
-            units = {**{x: "m" for x in self.x_names}, "f1": "N"}
-            params = {name: chain_parameter_unit(name) for name in self.names}
-        else:
-            units = dict(self.equation.get("units") or {})
-            params = self.equation.get("parameter_units") or {}
-        units.update({f"{k}_hat": u for k, u in params.items()})
-        units.update({f"{k}_nominal": u for k, u in params.items()})
-        units.update({name: unit for name, unit, _ in OPTIONS if unit})
-        units.update({"window_length": "s", "sample_period": "s", "condition": "1", "uncertainty": "1"})
-        return units
+        """Variable name -> unit: those of the estimator table (the C FMUs' units; for equations
+        the signals' units and the parameters' derived ones)."""
+        return variable_units(self.interface)
 
     def describe(self, root: Element) -> Element:
         """Complete pythonfmu's modelDescription ``root``: the units of the C FMUs' table
@@ -466,34 +448,12 @@ def build_equation_fmu(equation: str | Sequence[str], out_dir: str | Path, *, na
     EquationError, InputError
         An equation that cannot be identified (naming the term), a bad name or unit.
     """
-    from ..models.equation_model import EquationModel
-    from ..models.units import parameter_units
-
-    if not name.isidentifier() or keyword.iskeyword(name):
-        raise InputError(f"--name {name!r} must be a Python identifier (letters, digits, _; not starting with a digit)")
-    model = EquationModel(equation, columns)
-    spec: dict[str, Any] = {"equations": list(model.texts), "columns": list(columns)}
-    if units:
-        signals = set(model.regressor.signals.x_names) | set(model.regressor.signals.f_names)
-        spec["units"] = {k: v for k, v in units.items() if k in signals}
-        spec["parameter_units"] = parameter_units(model, spec["units"],
-                                                  {k: v for k, v in units.items() if k not in signals})
+    interface = equation_interface(equation, columns, units=units, name=name)
+    spec = {k: v for k, v in interface.spec.items() if k not in ("kind", "name")}
     script = _SCRIPT.format(model_name=name, class_name=name, sample_period=DEFAULT_SAMPLE_PERIOD,
                             imports="import json\n", slave_arguments=f", equation=json.loads({json.dumps(spec)!r})",
-                            description="Online algebraic identification of " + "; ".join(model.texts)
-                                        + " (duffid OnlineIdentifier)")
+                            description=interface.description + " (duffid OnlineIdentifier)")
     return _build(script, name, out_dir, needs_execution_tool)
-
-
-def chain_parameter_unit(name: str) -> str:
-    """The unit of a chain parameter: ``m<i>`` kg, ``b<i>`` N.s/m, ``k<i>_<j>`` N/m^j,
-    ``fc<i>`` and ``c<i>`` N."""
-    match = re.fullmatch(r"k\d+_(\d+)", name)
-    if match:
-        power = int(match.group(1))
-        return "N/m" if power == 1 else f"N/m{power}"
-    units = {"m": "kg", "b": "N.s/m", "fc": "N", "c": "N"}
-    return units[name.rstrip("0123456789")]
 
 
 def build_chain_fmu(n_dof: int, out_dir: str | Path, *, orders: Sequence[int] = (1, 3), coulomb: bool = False,
@@ -510,21 +470,13 @@ def build_chain_fmu(n_dof: int, out_dir: str | Path, *, orders: Sequence[int] = 
     InputError
         A chain of fewer than 1 mass, no stiffness order, or a name that is not an identifier.
     """
-    from ..models.chain import model_from_name
-
-    orders = sorted({int(o) for o in orders})
-    if not orders or min(orders) < 1:
-        raise InputError(f"--orders must be positive stiffness orders, got {orders}")
-    model_from_name("chain", int(n_dof), orders=orders, coulomb=coulomb)  # checks n_dof
-    name = name or f"ChainEstimator{int(n_dof)}"
-    if not name.isidentifier() or keyword.iskeyword(name):
-        raise InputError(f"--name {name!r} must be a Python identifier (letters, digits, _; not starting with a digit)")
-    spec = {"n_dof": int(n_dof), "orders": orders, "coulomb": bool(coulomb)}
-    script = _SCRIPT.format(model_name=name, class_name=name, sample_period=DEFAULT_SAMPLE_PERIOD,
-                            imports="import json\n", slave_arguments=f", chain=json.loads({json.dumps(spec)!r})",
-                            description=f"Online algebraic identification of a chain of {n_dof} masses (stiffness "
-                                        f"orders {orders}{', Coulomb friction' if coulomb else ''}; duffid "
-                                        "OnlineIdentifier)")
+    interface = chain_interface(n_dof, orders=orders, coulomb=coulomb, name=name)
+    spec = {k: v for k, v in interface.spec.items() if k not in ("kind", "name")}
+    script = _SCRIPT.format(model_name=interface.identifier, class_name=interface.identifier,
+                            sample_period=DEFAULT_SAMPLE_PERIOD, imports="import json\n",
+                            slave_arguments=f", chain=json.loads({json.dumps(spec)!r})",
+                            description=interface.description + " (duffid OnlineIdentifier)")
+    name = interface.identifier
     return _build(script, name, out_dir, needs_execution_tool)
 
 

@@ -610,9 +610,12 @@ def run_estimator(record: Record, model: Chain, method: str = "robust", *, engin
     """The estimator's run over ``record`` (unchecked), on the C core or in Python.
 
     The C core (:class:`~duffid.identification.c_core.CIdentifier`, one batch call) gives the answers
-    of the Python identifier to rounding, about 50 times faster; ``engine="auto"`` uses it
-    for :class:`~duffid.models.chain.Duffing1` and :class:`~duffid.models.chain.Duffing2` with the online
-    methods when a C compiler is available, and Python otherwise.
+    of the Python identifier to rounding, many times faster; ``engine="auto"`` uses it for
+    every model with the online methods when a C compiler is available, and Python otherwise
+    (or for a model beyond the C core's limits): :class:`~duffid.models.chain.Duffing1`,
+    :class:`~duffid.models.chain.Duffing2` and chains of their structure on the core's own
+    description, any other chain or equation model on its generated description (the
+    generic engine; one cached library per model, compiled on first use).
     """
     if engine not in ENGINES:
         raise InputError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
@@ -645,18 +648,19 @@ def _data_window(record: Record, frequency: float, periods: float) -> float:
     return float(periods / frequency)
 
 
-def _c_model(model: Chain) -> Chain | None:
-    """The C core's model (Duffing1 or Duffing2) with ``model``'s structure and values, or None."""
+def _c_model(model: Any) -> Any:
+    """The model the C core runs for ``model``: the core's own Duffing1 or Duffing2 with
+    ``model``'s values for those and for chains of their structure; ``model`` itself (its
+    generated description) for any other model with equations; None otherwise."""
 
     if isinstance(model, (Duffing1, Duffing2)):
         return model
-    if not isinstance(model, Chain):
-        return None
-    structure = (model.n_dof, model.coulomb is None, tuple(model.forced), tuple(model.orders or ()))
-    if structure not in ((1, True, (0,), (1, 3)), (2, True, (0,), (1, 3))):
-        return None
-    core = Duffing1 if model.n_dof == 1 else Duffing2
-    return _chain_like(core(offset=model.offset), model.canonical_parameters())
+    if isinstance(model, Chain):
+        structure = (model.n_dof, model.coulomb is None, tuple(model.forced), tuple(model.orders or ()))
+        if structure in ((1, True, (0,), (1, 3)), (2, True, (0,), (1, 3))):
+            core = Duffing1 if model.n_dof == 1 else Duffing2
+            return _chain_like(core(offset=model.offset), model.canonical_parameters())
+    return model if hasattr(model, "equations") else None
 
 
 def _chain_like(template: Chain, canonical: Mapping[str, float]) -> Chain:
