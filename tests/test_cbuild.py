@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import dataclasses
 import zipfile
+from pathlib import Path
 
 import pytest
 
@@ -50,6 +51,24 @@ def test_build_fmus_says_what_it_skips(monkeypatch, tmp_path, capsys):
     assert main(["build-fmus", "--out", str(tmp_path), "--platforms", "vax"]) == 2
     assert "--platforms: unknown platform vax" in capsys.readouterr().err
 
+
+
+def test_build_fmus_builds_the_chain_estimators_asked_for(tmp_path, capsys):
+    import fmpy
+    import fmpy.validation
+
+    assert main(["build-fmus", "--out", str(tmp_path), "--plant", "Oscillator1DOF", "--chain", "2",
+                 "--orders", "1,2,3", "--platforms", HOST_PLATFORM.name]) == 0
+    written = capsys.readouterr().out.split()
+    assert [Path(p).name for p in written] == ["Oscillator1DOF.fmu", "Oscillator1DOF_fmi3.fmu",
+                                               "ChainEstimator2.fmu", "ChainEstimator2_fmi3.fmu"]
+    for name in ("ChainEstimator2.fmu", "ChainEstimator2_fmi3.fmu"):
+        assert fmpy.validation.validate_fmu(str(tmp_path / name)) == []
+        units = {v.name: v.unit for v in fmpy.read_model_description(str(tmp_path / name)).modelVariables}
+        assert (units["x2"], units["f1"], units["k1_2_hat"], units["m2_hat"]) == ("m", "N", "N/m2", "kg")
+    assert main(["build-fmus", "--out", str(tmp_path / "none"), "--chain", "2", "--orders", "1,x"]) == 2
+    assert "--orders 1,x: give stiffness orders as integers" in capsys.readouterr().err
+    assert not (tmp_path / "none").exists()                     # refused before anything was built
 
 @pytest.mark.skipif(cbuild.platform_compiler(PLATFORMS["win64"]) is None,
                     reason="needs the Debian package gcc-mingw-w64-x86-64")
