@@ -111,6 +111,11 @@ def test_build_estimator_cli(tmp_path, capsys):
     text = capsys.readouterr().out
     assert str(out) in text and "kp_hat" in text and "N/m3" in text
     assert validate_fmu(str(out)) == []
+    # binaries for every platform whose compiler is installed, as duffid build-fmus gives
+    from duffid.cbuild import resolve_platforms
+    with zipfile.ZipFile(out) as z:
+        folders = {n.split("/")[1] for n in z.namelist() if n.startswith("binaries/")}
+    assert folders == {p.fmi2 for p in resolve_platforms(["all"])[0]}
     # mistakes are named
     assert main(["build-estimator", "--equation", "m*der(x,2) + b*der(x) + k*x = F", "-o", str(tmp_path / "E.fmu"),
                  "--name", "E"]) == 2

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 from rounding import identifier_spread, tolerance
 
-from duffid import Chain, Duffing1, Duffing2, DuffingCircuit, OnlineIdentifier, Record, Step, measure
+from duffid import Chain, Duffing1, Duffing2, OnlineIdentifier, Record, Step, measure
 from duffid.cbuild import find_compiler
 from duffid.errors import BuildError, CompilerNotFoundError
 from duffid.identification.batch import estimate

@@ -60,9 +60,10 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("--backend", choices=BACKENDS, default="auto",
                    help="c: the C estimator core; python: pythonfmu (FMI 2.0, a Python host); auto (default): "
                         "C when a C compiler is found, else python (one line says why)")
-    p.add_argument("--platforms", default=None, metavar="LIST",
-                   help=f"C backend: comma-separated binary platforms, {', '.join(PLATFORMS)} or all (those whose "
-                        "compiler is installed); default: this machine")
+    p.add_argument("--platforms", default="all", metavar="LIST",
+                   help=f"C backend: comma-separated binary platforms, {', '.join(PLATFORMS)} or all (default: "
+                        "those whose compiler is installed; a missing cross compiler is skipped with one line "
+                        "naming the Debian package)")
     p.add_argument("-o", "--output", type=Path, default=None,
                    help="a folder for the FMU, or the FMU file (its stem must be the name, with _fmi3 for FMI 3); "
                         "default: <name>.fmu / <name>_fmi3.fmu here")
@@ -92,9 +93,8 @@ def run(args: argparse.Namespace) -> int:
     columns = [c.strip() for c in args.columns.split(",") if c.strip()]
     name = args.name or ("EquationEstimator" if args.equation is not None else f"ChainEstimator{args.chain}")
     folder = _target(args.output, name, args.fmi)
-    platforms = None
-    if args.platforms is not None:
-        platforms, skipped = resolve_platforms(n.strip() for n in args.platforms.split(",") if n.strip())
+    platforms, skipped = resolve_platforms(n.strip() for n in args.platforms.split(",") if n.strip())
+    if args.backend != "python":
         for line in skipped:
             print(f"duffid build-estimator: {line}", file=sys.stderr)
     import fmpy

@@ -35,7 +35,7 @@ from ..cbuild import CFLAGS as CBUILD_FLAGS
 from ..cbuild import LIBRARY_FLAGS, cached_library, default_build_dir
 from ..data.record import Record
 from ..errors import AssetError, InputError
-from ..models.chain import Chain, Duffing1, Duffing2, model_from_name
+from ..models.chain import Duffing1, Duffing2, model_from_name
 from ..models.description import ModelDescription, describe
 from .engine import STATUSES, Estimate, Identification, check_record, prior_sizes
 from .identifier import Identifier
