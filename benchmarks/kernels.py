@@ -36,7 +36,8 @@ THREADS = ("unset", "1", "2")
 SENSITIVE = ("test_estimator_c.py", "test_fmu_estimator.py", "test_fmu_python.py", "test_identification.py",
              "test_symbolic.py", "test_buffered.py", "test_regressors.py", "test_orthogonal.py",
              "test_control.py", "test_fmu_controller.py", "test_models.py", "test_modelica.py",
-             "test_nonlinearity.py", "test_refine.py", "test_signals.py")
+             "test_nonlinearity.py", "test_refine.py", "test_signals.py", "test_estimator_generic_c.py",
+             "test_equation_fmu.py", "test_equation_model.py")
 SUMMARY = re.compile(r"(\d+) (passed|failed|skipped|errors?|deselected|xfailed|xpassed)")
 
 
