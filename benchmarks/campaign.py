@@ -9,7 +9,10 @@ noise; the paper and robust online methods, bare estimator in Python) with seeds
      the campaign on a local cluster of 1 and of 2 worker processes (cluster start-up
      included), runs per second and the speed-up 1 worker / 2 workers measured in this run
      (on 2 cores expect close to 2x when nothing else runs), and the runs' own seconds
-     summed over the workers (busy = that / wall-clock: the workers kept busy on average).
+     summed over the workers (busy = that / wall-clock: the workers kept busy on average) and
+     what a run costs more in a worker than in the serial loop (task s / the serial loop's
+     seconds - 1; the worker's event loop takes the GIL from the task now and then, see
+     duffid.campaign.runner.WORKER_CONFIG).
   2. Median |error| [%] over the seeds from the campaign (runs where the estimator gave no
      value, NaN, counted apart), and whether every value of every run equals the serial
      loop's (the same computation, bit for bit, NaN for NaN).
@@ -69,13 +72,15 @@ def main() -> None:
             tables[workers] = done.table.to_pylist()
 
     print(f"\n1. Wall-clock time of {len(spec.tasks)} runs (campaigns: cluster start-up included)")
-    print(f"{'':<40}{'seconds':>10}{'runs/s':>10}{'task s':>10}{'busy':>8}")
+    print(f"{'':<40}{'seconds':>10}{'runs/s':>10}{'task s':>10}{'busy':>8}{'per run':>10}")
+    serial_seconds = seconds["serial loop (one process)"]
     for label, value in seconds.items():
         print(f"{label:<40}{value:>10.1f}{len(spec.tasks) / value:>10.2f}{busy[label]:>10.1f}"
-              f"{busy[label] / value:>8.2f}")
+              f"{busy[label] / value:>8.2f}{100 * (busy[label] / serial_seconds - 1):>+8.1f} %")
     one, two = (seconds[k] for k in seconds if k.startswith("campaign"))
     print(f"{'speed-up, 1 -> 2 workers':<40}{one / two:>10.2f}x   (load average now "
-          f"{os.getloadavg()[0]:.1f}; task s: the runs' own seconds summed, busy: task s / wall-clock)")
+          f"{os.getloadavg()[0]:.1f}; task s: the runs' own seconds summed, busy: task s / wall-clock, "
+          f"per run: task s against the serial loop)")
 
     print(f"\n2. Median |error| [%] over {args.seeds} seeds (campaign, 2 workers) and agreement with the serial loop")
     print("   (runs with no value, NaN, are left out of the medians and counted)")

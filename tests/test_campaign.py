@@ -19,11 +19,13 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from distributed import Client
+from dask.utils import parse_timedelta
+from distributed import Client, get_worker
 
 from duffid import Duffing1, Step, identify, measure, simulate
 from duffid.analysis.nonlinearity import analyse, sweep_record
 from duffid.campaign import load_spec, read_results, run_campaign
+from duffid.campaign.runner import WORKER_CONFIG
 from duffid.campaign.systems import configured_system
 from duffid.cli import main
 from duffid.errors import ConfigError
@@ -235,9 +237,20 @@ def test_resume_after_an_interrupt_runs_only_what_is_missing(cluster, tmp_path, 
 
 
 # ---------------------------------------------------------------------------- local cluster
+def worker_settings(result) -> dict[str, float]:
+    """A cosim metric that reports, instead of a score, what the event loop of the worker
+    running the task does while the task runs (:data:`duffid.campaign.runner.WORKER_CONFIG`)."""
+    callbacks = get_worker().periodic_callbacks
+    return {"profiling": float("profile" in callbacks and callbacks["profile"].is_running()),
+            "tick_ms": float(callbacks["tick"].callback_time),
+            "monitor_ms": float(callbacks["monitor"].callback_time),
+            "memory_ms": float(callbacks["memory_monitor"].callback_time)}
+
+
 def test_local_cluster_run_and_worker_folders_removed(tmp_path, loop_fmus):
     (tmp_path / "loop.json").write_text(json.dumps(_loop_config(loop_fmus)))
-    spec = _write(tmp_path, "loop_campaign.toml", COSIM.replace("[25.0, 5.0]", "[25.0]"))
+    spec = _write(tmp_path, "loop_campaign.toml", COSIM.replace("[25.0, 5.0]", "[25.0]")
+                  + f'settings = {{ function = "{__name__}:worker_settings" }}\n')
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
                           text=True, check=True)
     stale = Path(tempfile.mkdtemp(prefix=f"duffid-campaign-{int(dead.stdout)}-"))   # a killed worker's
@@ -247,6 +260,12 @@ def test_local_cluster_run_and_worker_folders_removed(tmp_path, loop_fmus):
     assert not stale.exists()                                         # removed by the next worker
     assert done.workers == 2 and done.ran == 2 and done.failed == 0
     assert read_results(tmp_path / "local.parquet").num_rows == 2
+    # the workers run with WORKER_CONFIG: no sampling of the task's stack, fewer wake-ups
+    every = {"tick_ms": "distributed.admin.tick.interval", "monitor_ms": "distributed.admin.system-monitor.interval",
+             "memory_ms": "distributed.worker.memory.monitor-interval"}
+    assert done.table.column("settings.profiling").to_pylist() == [0.0, 0.0]
+    for column, key in every.items():
+        assert done.table.column(f"settings.{column}").to_pylist() == [1000 * parse_timedelta(WORKER_CONFIG[key])] * 2
     pids = {int(w.rsplit(":", 1)[1]) for w in done.table.column("worker").to_pylist()}
     assert os.getpid() not in pids                                    # run in worker processes
     left = {p for p in set(Path(tempfile.gettempdir()).glob("duffid-campaign-*")) - before
@@ -349,6 +368,25 @@ def test_existing_results_are_not_overwritten_and_a_foreign_file_is_refused(tmp_
     assert main(["campaign", str(other), "-o", str(out), "--resume", "--no-progress"]) == 2
     assert "holds results of another campaign" in capsys.readouterr().err
     assert math.isfinite(pq.read_table(out).column("eta").to_pylist()[0])
+
+
+def test_the_worker_settings_as_environment_variables_are_what_dask_reads(monkeypatch):
+    """worker_environment() (for workers started by hand; the README lists them) gives
+    WORKER_CONFIG back through Dask's own reading of the environment."""
+    import dask
+
+    from duffid.campaign.runner import WORKER_CONFIG, worker_environment
+
+    for name, value in worker_environment().items():
+        monkeypatch.setenv(name, value)
+    env = dask.config.collect_env()
+    for key, value in WORKER_CONFIG.items():
+        node = env
+        for part in key.split("."):
+            node = node[part.replace("-", "_")] if part.replace("-", "_") in node else node[part]
+        assert node == value, key
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    assert " ".join(f"{k}={v}" for k, v in worker_environment().items()) in readme
 
 
 def test_a_scheduler_address_where_nothing_listens_fails_at_once(tmp_path, capsys):

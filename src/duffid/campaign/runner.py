@@ -9,6 +9,16 @@ that fails records its error in its row; a worker that dies takes its running ta
 and the scheduler runs them again on another worker (a task that kills
 ``distributed.scheduler.allowed-failures`` workers is recorded as failed). Each worker keeps
 its files in one folder of its own (:class:`WorkerFolder`), removed when it closes.
+
+The local cluster's workers run with :data:`WORKER_CONFIG`: a task runs in a thread of the
+worker process while the worker's event loop runs in its main thread, and every time the
+loop wakes up (by default: a sample of the task's stack every 10 ms, a health check of the
+loop every 20 ms, ...) the task hands the GIL over and waits to get it back, most often when
+numpy releases it (a LAPACK call) and cannot take it again at once. With Dask's defaults a
+case-B run (0.28 s) took about 11 % longer in a worker than in the serial loop; with these
+settings about 5 % (benchmarks/campaign.py, "per run"). Workers started for ``--scheduler``
+have their own Dask configuration: :func:`worker_environment` gives the same settings as
+environment variables for them.
 """
 from __future__ import annotations
 
@@ -23,6 +33,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterator
 from urllib.parse import urlsplit
 
+import dask
 import pyarrow as pa
 from distributed import Client, LocalCluster, as_completed
 from distributed.diagnostics.plugin import WorkerPlugin
@@ -35,7 +46,24 @@ from .store import ResultStore
 from .systems import remove_worker_folder, worker_folder
 from .tasks import run_task
 
-__all__ = ["CampaignRun", "WorkerFolder", "run_campaign"]
+__all__ = ["CampaignRun", "WorkerFolder", "run_campaign", "WORKER_CONFIG", "worker_environment"]
+
+#: Dask settings of the local cluster (see the module documentation): what the worker's event
+#: loop does while a task runs, only for the dashboard or for warnings, done less often.
+WORKER_CONFIG: dict[str, Any] = {
+    "distributed.worker.profile.enabled": False,       # the dashboard's profile: the task's stack every 10 ms
+    "distributed.admin.tick.interval": "1s",           # the event loop's health check (a warning): every 20 ms
+    "distributed.admin.system-monitor.interval": "2s",  # the dashboard's CPU/memory/network figures: every 0.5 s
+    # the memory limits (spill, pause; the nanny's terminate) checked every second, not 0.1 s
+    "distributed.worker.memory.monitor-interval": "1s",
+}
+
+
+def worker_environment() -> dict[str, str]:
+    """:data:`WORKER_CONFIG` as the environment variables Dask reads (for workers started by
+    hand, ``dask worker``): ``{"DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False", ...}``."""
+    return {"DASK_" + key.upper().replace(".", "__").replace("-", "_"): str(value)
+            for key, value in WORKER_CONFIG.items()}
 
 
 class WorkerFolder(WorkerPlugin):
@@ -122,8 +150,9 @@ def _client(scheduler: str | None, workers: int | None) -> Iterator[Client]:
     if workers is not None and workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
     n = workers or os.cpu_count() or 1
-    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                      silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+    with dask.config.set(WORKER_CONFIG), \
+            LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                         silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
         yield client
 
 
@@ -155,7 +184,8 @@ def run_campaign(spec: CampaignSpec | str | os.PathLike[str], output: str | os.P
         The results (Parquet), written as rows arrive.
     scheduler : str, optional
         Address of a running Dask scheduler (``tcp://host:8786``); default: a local
-        cluster of worker processes started for the run and stopped after it.
+        cluster of worker processes started for the run and stopped after it (Dask
+        configured with :data:`WORKER_CONFIG`).
     workers : int, optional
         Worker processes of the local cluster (default: one per core).
     resume : bool
