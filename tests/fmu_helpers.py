@@ -1,6 +1,10 @@
 """Helpers shared by the FMU tests: run a record through an FMU with fmpy."""
 from __future__ import annotations
 
+import re
+import subprocess
+from pathlib import Path
+
 import fmpy
 import numpy as np
 
@@ -65,3 +69,35 @@ def start_fmi2(path, tmp_path, messages, start=None, types=None, logging_on=Fals
     fmu.enterInitializationMode()
     fmu.exitInitializationMode()
     return fmu, vr
+
+
+#: Sanitizers of the fuzzing hosts (tests/c/fuzz_state.c, tests/c/fuzz_api.c) and of the FMUs'
+#: code they load; a report ends the run (no recovery).
+SANITIZE = ("-g", "-O1", "-fno-omit-frame-pointer", "-fsanitize=address,undefined,float-cast-overflow",
+            "-fno-sanitize-recover=all")
+#: A sanitizer report in a fuzzing host's output.
+SANITIZER_REPORT = re.compile(r"ERROR: (Address|Leak|Undefined)Sanitizer|runtime error:")
+
+
+def sanitizer_compiler(tmp: Path) -> str:
+    """The C compiler, if it builds and runs a program with ASan and UBSan; else skip the test."""
+    import pytest
+
+    from duffid.cbuild import find_compiler
+    from duffid.errors import CompilerNotFoundError
+
+    try:
+        cc = find_compiler()
+    except CompilerNotFoundError as error:
+        pytest.skip(str(error))
+    probe = tmp / "probe.c"
+    probe.write_text("#include <stdlib.h>\nint main(void) { char *p = malloc(4); p[0] = 1; free(p); return 0; }\n")
+    built = subprocess.run([cc, *SANITIZE, str(probe), "-o", str(tmp / "probe")], check=False, capture_output=True,
+                           text=True)
+    if built.returncode != 0:
+        pytest.skip(f"{cc} cannot build with -fsanitize=address,undefined (install libasan and libubsan, e.g. "
+                    f"the Debian package gcc): {built.stderr.strip()[:200]}")
+    ran = subprocess.run([str(tmp / "probe")], check=False, capture_output=True, text=True)
+    if ran.returncode != 0:
+        pytest.skip(f"programs built with AddressSanitizer do not run here: {ran.stderr.strip()[:200]}")
+    return cc

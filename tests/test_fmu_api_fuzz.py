@@ -26,17 +26,14 @@ from pathlib import Path
 
 import fmpy
 import pytest
+from fmu_helpers import SANITIZE, SANITIZER_REPORT, sanitizer_compiler
 
 from duffid.assets import fmu_sources
-from duffid.cbuild import find_compiler
-from duffid.errors import CompilerNotFoundError
 from duffid.fmu.package import fmi_include_dir
 
 pytestmark = pytest.mark.slow
 
 HOST = Path(__file__).parent / "c" / "fuzz_api.c"
-SANITIZE = ("-g", "-O1", "-fno-omit-frame-pointer", "-fsanitize=address,undefined,float-cast-overflow",
-            "-fno-sanitize-recover=all")
 #: Random calls per run; instantiate/run/free cycles of the sanitized run (LeakSanitizer checks
 #: at exit) and of the plain build, whose resident memory is measured (the sanitizers' quarantine
 #: holds freed memory back, so their RSS grows by design).
@@ -47,25 +44,8 @@ CYCLES = 20000
 #: cycles and the end: the allocator's 64 kB steps; a leak of 16 bytes per cycle would add
 #: 281 kB over the 18,000 cycles measured. Measured: 0 to 68 kB.
 RSS_GROWTH_KB = 256
-REPORT = re.compile(r"ERROR: (Address|Leak|Undefined)Sanitizer|runtime error:")
 _CAUSALITY = {"parameter", "calculatedParameter", "input", "output", "local", "independent"}
 _TABLE: list[str] = []
-
-
-def _sanitizer_compiler(tmp: Path) -> str:
-    """The C compiler, if it builds and runs a program with ASan and UBSan; else skip."""
-    try:
-        cc = find_compiler()
-    except CompilerNotFoundError as error:
-        pytest.skip(str(error))
-    probe = tmp / "probe.c"
-    probe.write_text("#include <stdlib.h>\nint main(void) { char *p = malloc(4); p[0] = 1; free(p); return 0; }\n")
-    built = subprocess.run([cc, *SANITIZE, str(probe), "-o", str(tmp / "probe")], check=False, capture_output=True,
-                           text=True)
-    if built.returncode != 0 or subprocess.run([str(tmp / "probe")], check=False).returncode != 0:
-        pytest.skip(f"{cc} cannot build and run programs with -fsanitize=address,undefined (install libasan and "
-                    "libubsan, e.g. the Debian package gcc)")
-    return cc
 
 
 def _write_spec(path: Path, fmu: Path, folder: Path) -> None:
@@ -96,7 +76,7 @@ def targets(loop_fmus, tmp_path_factory) -> dict[str, tuple[Path, Path, Path, tu
     from duffid.control.closed_loop import build_closed_loop_fmu, closed_loop_case
 
     tmp = tmp_path_factory.mktemp("fuzz_api")
-    cc = _sanitizer_compiler(tmp)
+    cc = sanitizer_compiler(tmp)
     include = fmi_include_dir()
     host, plain_host = tmp / "fuzz_api", tmp / "fuzz_api_plain"
     for exe, flags in ((host, SANITIZE), (plain_host, ("-O2",))):
@@ -152,7 +132,7 @@ def test_the_fmi_api_cannot_be_misused_into_a_crash(targets, name, fmi):
                   f"{counts.get('coverage', '-')} | {counts.get('violations', '-')} |")
     print(f"\n{name} FMI {fmi}: " + " ".join(f"{k}={v}" for k, v in counts.items()) + f" (plain: {leak_kb} kB, "
           f"{fd_growth} fds over {CYCLES} cycles)")
-    assert not crashed and not REPORT.search(output), output[-4000:]
+    assert not crashed and not SANITIZER_REPORT.search(output), output[-4000:]
     assert not plain_crashed and plain == {**counts, **{k: plain[k] for k in plain if k.startswith(("rss", "fds"))},
                                            "cycles": str(CYCLES)}, (plain, counts, plain_output[-2000:])
     assert int(counts["violations"]) == 0 and int(counts["silent"]) == 0, output[-4000:]
@@ -174,7 +154,7 @@ def test_the_host_catches_a_missing_check(targets, tmp_path):
     assert n == 1
     glue.write_text(text)
     broken = tmp_path / "broken.so"
-    subprocess.run([_sanitizer_compiler(tmp_path), "-std=gnu99", "-shared", "-fPIC", "-w", *SANITIZE, f"-I{sources}",
+    subprocess.run([sanitizer_compiler(tmp_path), "-std=gnu99", "-shared", "-fPIC", "-w", *SANITIZE, f"-I{sources}",
                     f"-I{fmi_include_dir()}", *map(str, sorted(sources.glob("*.c"))), "-o", str(broken), "-lm"],
                    check=True)
     crashed, counts, output = _run(host, broken, spec, 2, 10)

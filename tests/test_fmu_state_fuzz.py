@@ -29,19 +29,15 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
+from fmu_helpers import SANITIZE, SANITIZER_REPORT, sanitizer_compiler
 
 from duffid import Duffing1, Duffing2, Step, measure, simulate
 from duffid.assets import fmu_sources
-from duffid.cbuild import find_compiler
-from duffid.errors import CompilerNotFoundError
 from duffid.fmu.package import fmi_include_dir
 
 pytestmark = pytest.mark.slow
 
 HARNESS = Path(__file__).parent / "c" / "fuzz_state.c"
-#: Sanitizers of the harness and of the FMUs' code; a report ends the case (no recovery).
-SANITIZE = ("-g", "-O1", "-fno-omit-frame-pointer", "-fsanitize=address,undefined,float-cast-overflow",
-            "-fno-sanitize-recover=all")
 #: Cases per FMU of each random mode.
 CASES = 1000
 #: Cases of the sweep: every (4-byte offset, value) pair of the plant's and the controllers'
@@ -54,8 +50,6 @@ SWEEP_VALUES = 16
 #: Steps after the state was set, checked against the untouched instance.
 STEPS = 3
 DT = 1e-3
-#: Sanitizer report markers in the harness's output.
-REPORT = re.compile(r"ERROR: (Address|Leak|Undefined)Sanitizer|runtime error:")
 
 
 @dataclass(frozen=True)
@@ -163,30 +157,11 @@ def _write_spec(path: Path, fmu: Path, target: FuzzTarget) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
-def _sanitizer_compiler(tmp: Path) -> str:
-    """The C compiler, if it builds and runs a program with ASan and UBSan; else skip."""
-    try:
-        cc = find_compiler()
-    except CompilerNotFoundError as error:
-        pytest.skip(str(error))
-    probe = tmp / "probe.c"
-    probe.write_text("#include <stdlib.h>\nint main(void) { char *p = malloc(4); p[0] = 1; free(p); return 0; }\n")
-    built = subprocess.run([cc, *SANITIZE, str(probe), "-o", str(tmp / "probe")], check=False, capture_output=True,
-                           text=True)
-    if built.returncode != 0:
-        pytest.skip(f"{cc} cannot build with -fsanitize=address,undefined (install libasan and libubsan, e.g. "
-                    f"the Debian package gcc): {built.stderr.strip()[:200]}")
-    ran = subprocess.run([str(tmp / "probe")], check=False, capture_output=True, text=True)
-    if ran.returncode != 0:
-        pytest.skip(f"programs built with AddressSanitizer do not run here: {ran.stderr.strip()[:200]}")
-    return cc
-
-
 @pytest.fixture(scope="module")
 def fuzz_build(tmp_path_factory, loop_fmus):
     """The harness and each target FMU's sanitized binary (FMI 2 and 3 functions) and spec."""
     tmp = tmp_path_factory.mktemp("fuzz_state")
-    cc = _sanitizer_compiler(tmp)
+    cc = sanitizer_compiler(tmp)
     include = fmi_include_dir()
     exe = tmp / "fuzz_state"
     subprocess.run([cc, "-std=gnu99", "-Wall", "-Wextra", "-Werror", *SANITIZE, f"-I{include}",
@@ -240,7 +215,7 @@ def test_corrupted_states_cannot_hurt_the_host(fuzz_build, name, mode, fmi):
                   f"{counts['rejected']} | {counts['accepted_consistent']} | {counts['accepted_inconsistent']} | "
                   f"{counts['crashes']} | {counts['hangs']} |")
     print(f"\n{name} FMI {fmi} {mode}: " + " ".join(f"{k}={v}" for k, v in counts.items()))
-    assert not REPORT.search(output), output[-4000:]
+    assert not SANITIZER_REPORT.search(output), output[-4000:]
     assert counts["crashes"] == 0 and counts["hangs"] == 0 and counts["sanitizer"] == 0, output[-4000:]
     # every case ran (the sweep skips only writes that change nothing, e.g. into the checksum
     # field that resealing rewrites)
@@ -269,11 +244,11 @@ def test_the_harness_catches_an_unchecked_state(fuzz_build, tmp_path):
     assert n == 1
     model.write_text(text)
     broken = tmp_path / "broken.so"
-    subprocess.run([_sanitizer_compiler(tmp_path), "-std=gnu99", "-shared", "-fPIC", "-w", *SANITIZE,
+    subprocess.run([sanitizer_compiler(tmp_path), "-std=gnu99", "-shared", "-fPIC", "-w", *SANITIZE,
                     f"-I{sources}", f"-I{fmi_include_dir()}", *map(str, sorted(sources.glob("*.c"))), "-o",
                     str(broken), "-lm"], check=True)
     counts, output = _fuzz(exe, broken, spec, "sweep", 2, SWEEP_CASES)
-    assert counts["crashes"] > 0 and counts["sanitizer"] > 0 and REPORT.search(output), output[-4000:]
+    assert counts["crashes"] > 0 and counts["sanitizer"] > 0 and SANITIZER_REPORT.search(output), output[-4000:]
     assert counts["accepted_inconsistent"] > 0, output[-4000:]
 
 
