@@ -27,7 +27,7 @@ from ..identification.options import ONLINE_METHODS, fmu_parameters
 from ..models.chain import Duffing1, Duffing2, DuffingCircuit
 from .variables import FmuVariable
 
-__all__ = ["C_FMU_NAMES", "MODELS", "MODEL_CODES", "GENERATED_MODEL_CODE", "RECIPROCAL", "INPUTS", "PARAMETER_UNITS",
+__all__ = ["C_FMU_NAMES", "MODELS", "MODEL_CODES", "GENERATED_MODEL_CODE", "INPUTS", "PARAMETER_UNITS",
            "parameter_unit", "chain_parameter_unit", "OPTIONS", "DEFAULT_SAMPLE_PERIOD", "SAMPLE_PERIOD_DESCRIPTION",
            "TYPES", "EstimatorInterface", "builtin_interface", "equation_interface", "chain_interface",
            "interface_from_spec", "variable_types", "variable_units", "estimator_variables"]
@@ -41,8 +41,6 @@ MODELS = {"duffing1": Duffing1, "duffing2": Duffing2, "circuit": DuffingCircuit}
 MODEL_CODES = {"duffing1": 1, "duffing2": 2, "circuit": 1}
 #: The C core's code of a model described by generated code (DUFFID_GENERATED): chains and equations.
 GENERATED_MODEL_CODE = 3
-#: Model name -> its parameters that are the reciprocal of the core's (output as 1/value).
-RECIPROCAL = {"circuit": ("C",)}
 #: Model name -> the inputs (name, unit, description): displacements, then forces.
 INPUTS = {"duffing1": (("x", "m", "displacement of the mass"), ("f", "N", "force on the mass")),
            "duffing2": (("x1", "m", "displacement of m1"), ("x2", "m", "displacement of m2"),
@@ -138,7 +136,7 @@ def builtin_interface(model_name: str) -> EstimatorInterface:
     return EstimatorInterface("builtin", C_FMU_NAMES[model_name], inputs[:model.n_dof], inputs[model.n_dof:],
                               tuple(model.parameters), {p: parameter_unit(p) for p in model.parameters},
                               f"duffid online algebraic identification of {type(model).__name__}",
-                              {"kind": "builtin", "model": model_name}, RECIPROCAL.get(model_name, ()))
+                              {"kind": "builtin", "model": model_name}, model.reciprocal)
 
 
 def chain_parameter_unit(name: str) -> str:

@@ -28,7 +28,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any, ClassVar, Mapping, Sequence
 
 import casadi as ca
 import numpy as np
@@ -210,6 +210,8 @@ class Chain:
     forced: tuple[int, ...] = (0,)
     offset: bool = False
     orders: tuple[int, ...] | None = None
+    #: Public parameters whose value is one over their canonical one (the circuit's C = 1/k1_1).
+    reciprocal: ClassVar[tuple[str, ...]] = ()
 
     def __post_init__(self) -> None:
         n = len(self.masses)
@@ -351,7 +353,7 @@ class Chain:
         """
         public = {}
         for name in self.parameters:
-            if self._is_reciprocal(name):
+            if name in self.reciprocal:
                 raise InputError(f"{self.name}: its parameter {name} enters the equation as 1/{name}, which an "
                                  f"equation linear in its parameters cannot state (write it with k = 1/{name})")
             public[self.canonical_name(name)] = name
@@ -381,9 +383,6 @@ class Chain:
             texts.append(" ".join(t if t.startswith("- ") else f"+ {t}" for t in terms)[2:] + f" = {rhs}")
         return "; ".join(texts)
 
-    def _is_reciprocal(self, public: str) -> bool:
-        """Whether public parameter ``public`` is the reciprocal of its canonical one."""
-        return False
 
 
     # ------------------------------------------------------------------ identification
@@ -726,18 +725,16 @@ class DuffingCircuit(_Named):
     """
 
     _names = {"L": "m1", "R": "b1", "C": "k1_1", "a": "k1_3"}
+    reciprocal: ClassVar[tuple[str, ...]] = ("C",)
 
     def __init__(self, L: float = 0.1, R: float = 2.0, C: float = 1e-3, a: float = 5e6,
                  *, offset: bool = False) -> None:
         super().__init__(masses=(L,), damping=(R,), stiffness=({1: 1.0 / _positive("C", C), 3: a},),
                          offset=offset, orders=(1, 3))
 
-    def _is_reciprocal(self, public: str) -> bool:
-        return public == "C"
-
     def _to_public(self, public: str, canonical: Mapping[str, float]) -> float:
         value = canonical[self._names[public]]
-        if public == "C":
+        if public in self.reciprocal:
             return 1.0 / value if value != 0.0 else float("inf")
         return value
 

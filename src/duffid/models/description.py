@@ -188,12 +188,8 @@ def describe(model: Any) -> ModelDescription:
             sources = tuple((j, equations[j].unknowns.index(key)) for j, key in model.share_sources(name))
         parameters.append(ParameterDescription(name, physical, name in periods, name in offsets, scale_of,
                                                sources, shares))
-    public = []
-    probe_values = dict(model.canonical_parameters())
-    for name in model.parameters:
-        c = model.canonical_name(name)
-        shown = model.from_canonical({**probe_values, c: 2.0})[name]
-        public.append((name, position[c], shown == 0.5))
+    reciprocal = getattr(model, "reciprocal", ())
+    public = [(name, position[model.canonical_name(name)], name in reciprocal) for name in model.parameters]
     mass, stiffness = _linear_maps(model, position) if is_chain else _equation_linear_maps(model, position)
     return ModelDescription(model.name, model.n_dof, model.n_forces, max(eq.max_order for eq in equations),
                             tuple(c.label for c in chans), function, uses_sign, tuple(blocks),
