@@ -100,8 +100,8 @@ def run(args: argparse.Namespace) -> int:
         result = identify_equation(record, equation_text(args, record.n_dof), method, offsets=args.offset,
                                    refine=not args.no_refine, **options)
     else:
-        result = identify(record, model_from_arguments(args, record.n_dof), method, offsets=args.offset,
-                          refine=not args.no_refine, **options)
+        model = model_from_arguments(args, record.n_dof)
+        result = identify(record, model, method, offsets=args.offset, refine=not args.no_refine, **options)
     if args.plot is not None:
         from ..apps.plots import plot_estimates
         plot_estimates(result, args.plot)
@@ -111,8 +111,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"{record.source}: {record.n_samples} samples, dt {record.dt:g} s, model {result.model}, method {method}")
     if args.equation is not None:
         print(f"  equation: {result.options['equation']}")
-    elif args.model != "circuit":
-        print(f"  equation: {model_from_arguments(args, record.n_dof).equation_text()}")
+    elif not model.reciprocal:  # the circuit's q/C has no text linear in its parameters
+        print(f"  equation: {model.equation_text()}")
     print(result_text(result))
     return 0
 
