@@ -65,12 +65,13 @@ def run(args: argparse.Namespace) -> int:
             print(path)
         mark_fmus_current(args.out)
         print(build_closed_loop_fmu(args.out))
-    for n in args.chain or ():
+    if args.chain:
         from ..fmu.estimator import build_chain_fmu
 
-        for version in (2, 3):
-            print(build_chain_fmu(n, args.out, orders=orders, coulomb=args.coulomb, fmi_version=version,
-                                  backend="c", platforms=platforms))
+        for n in args.chain:
+            for version in (2, 3):
+                print(build_chain_fmu(n, args.out, orders=orders, coulomb=args.coulomb, fmi_version=version,
+                                      backend="c", platforms=platforms))
     return 0
 
 
