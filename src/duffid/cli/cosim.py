@@ -2,7 +2,9 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -49,8 +51,26 @@ def _exported(path: Path) -> str:
             f"{count['parameter']} parameter(s); binaries for {', '.join(platforms)}")
 
 
+def _stop_once(signum: int, frame: Any) -> None:
+    """The first Ctrl-C stops the run; later ones (and SIGTERM) are ignored, so that the
+    instances are released and the rows so far written whenever they come."""
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, signal.SIG_IGN)
+    raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``duffid cosim``; returns the exit status (1: the run failed; bad files raise)."""
+    if threading.current_thread() is not threading.main_thread():
+        return _run(args)
+    previous = signal.signal(signal.SIGINT, _stop_once)
+    try:
+        return _run(args)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _run(args: argparse.Namespace) -> int:
     try:
         config = load_config(args.config)
         if args.export_container is not None:
