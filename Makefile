@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-kernels venv bench clean generated
+.PHONY: demo test test-kernels venv bench embedded clean generated
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +33,13 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/platforms.py
 	$(BIN)/python benchmarks/equations.py
 	$(BIN)/python benchmarks/campaign.py
+	$(BIN)/python benchmarks/embedded.py
+
+# the C core on a Cortex-M4F under QEMU (instructions per update, flash, RAM, ARM = x86) and its
+# x86 time per sample against a QR-RLS floor (needs gcc-arm-none-eabi, libnewlib-arm-none-eabi,
+# qemu-system-arm)
+embedded: $(STAMP)
+	$(BIN)/python benchmarks/embedded.py
 
 # files generated from one source: the C tables of the estimator options and the controller
 # parameters, from duffid.identification.options and duffid.control.settings

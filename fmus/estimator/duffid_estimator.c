@@ -15,13 +15,23 @@
  *   combination     Chain/EquationModel.combine_solutions, auto_window
  *   publication     OnlineIdentifier._publish, _window_ok, _after_publish
  *
- * The order of floating-point operations follows the Python code wherever it is defined
- * by the source (not by BLAS/LAPACK), so that both round alike.
+ * The per-sample work is fixed and O(unknowns^2 + degree x channels) (the online update at its
+ * arithmetic floor; see fmus/estimator/README.md for the measured cost):
+ *   - the window's moments are kept in the falling-factorial basis (i)_j / N^j, in which the
+ *     shift by one sample is bidiagonal with positive coefficients (O(degree) per channel,
+ *     no cancellation, no per-sample powers), and converted to the power moments of Python
+ *     by the positive Stirling matrix once per sample;
+ *   - the kernel's polynomials are evaluated over their non-zero powers only;
+ *   - the condition number comes from a one-sided Jacobi iteration started from the previous
+ *     sample's right singular vectors (one or two sweeps), the unknowns and their errors
+ *     from the inverse of the triangular factor (no SVD per sample);
+ *   - the ring buffer is indexed by a running position, not a 64-bit remainder.
+ * The results equal Python's to rounding (tests/test_estimator_c.py). All memory is one
+ * block sized from the configuration: the model's own counts, the window and the rows.
  */
 #include "duffid_estimator.h"
 #include "duffid_linalg.h"
 
-#include <math.h>
 #include <stdarg.h>
 #include <stdint.h>
 #ifndef DUFFID_NO_STDIO
@@ -39,16 +49,42 @@
 #define N_ORD (MAX_ORDER + 1)
 #define MAX_DEG (DUFFID_MAX_ROWS + 4) /* highest moment power */
 #define MAX_POW (MAX_DEG + 1)
-#define MAX_BROWS (DUFFID_MAX_PARTS * DUFFID_MAX_ROWS) /* rows of one block per window */
 #define MAX_CORR 6                   /* quadrature end corrections */
 #define MIN_SAMPLES 8                /* identification._MIN_SAMPLES */
 #define MAX_CAPACITY 100000000L      /* longest robust window in samples */
 #define ANY_SIGN (DUFFID_ALLOW_POSITIVE | DUFFID_ALLOW_ZERO | DUFFID_ALLOW_NEGATIVE)
+/* the built-in models' largest description (Duffing2 with offsets) */
+#define BUILTIN_BLOCKS 2
+#define BUILTIN_TERMS 24
+#define BUILTIN_RULES 4
+#define BUILTIN_LINEAR 8
+#define BUILTIN_PARAMS 10
 
-#define DNAN ((double)NAN)      /* NAN and INFINITY are float constants in C99 */
-#define DINF ((double)INFINITY)
+/* A solution whose column-equilibrated condition number exceeds this is singular to the
+ * arithmetic (identification.solve_factor's 1e14 in double). In single precision the limit
+ * follows the precision: beyond 0.01 / eps, rounding alone moves a solution by 1 %. */
+#if DUFFID_SINGLE
+#define COND_SINGULAR (RC(0.01) / R_EPS)
+/* Shadow accumulators of the sliding moments, started a window / SHADOWS apart: the main one is
+ * replaced when a shadow holds exactly the window, so no accumulator lives longer than
+ * (1 + 1/SHADOWS) windows, and the rounding errors of its first samples, which the shift
+ * amplifies by up to (age / window)^degree, stay small (2^degree with one shadow: fine in
+ * double, a 1e-4 moment error in float). */
+#define SHADOWS 4
+/* Single precision: the rounding of the moments and rows is part of each unknown's standard
+ * error, so that what float arithmetic cannot determine is not published. A row entry is a
+ * sum of moments that cancel (the kernel's alternating coefficients): its rounding error is
+ * about eps sqrt(L) times the sum of the magnitudes of its terms (L samples in the moments'
+ * sums), and an unknown's relative error about the condition number times the rows' relative
+ * error; this factor, calibrated on benchmarks/trust.py's records (tests/test_float_core.py),
+ * scales that estimate. */
+#define ARITHMETIC_FACTOR RC(0.25)
+#else
+#define COND_SINGULAR RC(1e14)
+#define SHADOWS 1 /* regressors.SlidingMoments' one shadow */
+#endif
 
-static const double PI = 3.141592653589793238462643383279502884;
+static const duffid_real PI = RC(3.141592653589793238462643383279502884);
 
 /* channel kinds of the built-in models (a generated model computes its channels itself) */
 enum { CH_X = 0, CH_DEFL = 1, CH_FORCE = 2, CH_ONE = 3 };
@@ -59,90 +95,127 @@ typedef struct {
     int kind, index, power;
 } channel_t;
 
+/* a block of the description at run time: its terms and rules are ranges of the model's */
+typedef struct {
+    int n_unknowns, n_parts, n_terms, forced, n_rules, term0, rule0;
+} block_t;
+
+typedef struct {
+    int part, unknown, channel, order;
+    duffid_real coef;
+} term_t;
+
+/* The model at run time: its counts, and its tables in the estimator's memory block (sized
+ * to the model: a description holds only what the model has). */
+typedef struct {
+    int n_dof, n_forces, n_channels, max_order, n_blocks, n_params;
+    int n_terms, n_rules, linear, n_mass, n_stiffness, channel_work, uses_sign;
+    char signature[DUFFID_SIGNATURE_SIZE];
+} model_counts;
+
+typedef struct {
+    model_counts c;
+    block_t *blocks;
+    term_t *terms;
+    duffid_rule *rules;
+    duffid_parameter *params;   /* canonical order; NULL while only counting */
+    duffid_public *publics;     /* public order; NULL while only counting */
+    duffid_linear *mass, *stiffness;
+    channel_t *ch;              /* built-in models: what each channel is */
+} rt_model;
+
 typedef struct {
     int n_in, depth;   /* inputs and integrator depth (y has depth + 1 levels) */
-    double *y, *p1, *p2;
+    duffid_real *y, *p1, *p2;
     int count;         /* samples pushed, saturated at 2 */
 } integrators_t;
 
 typedef struct { /* the state of one block of the description */
-    double theta[MAX_UNK], rse[MAX_UNK], cond;
-    double share[MAX_UNK], rhs_share; /* shares of the terms and of the right-hand side */
-    double R[MAX_AUG * MAX_AUG]; /* robust: accumulated factor of [A D] */
-    double rows;
-    integrators_t reg, det;      /* paper */
+    duffid_real *theta, *rse, *share; /* n_unknowns each */
+    duffid_real *R;                   /* robust: accumulated factor of [A D], p x p (p = n + 1) */
+    duffid_real *V;                   /* right singular vectors of the last solve (warm start) */
+    duffid_real cond, rhs_share, rows;
+    duffid_real rounding;             /* float: the rows' relative rounding error (their average) */
+    int warm;                         /* V is from the previous sample */
+    integrators_t reg, det;           /* paper */
 } equation_t;
 
 struct duffid_estimator {
     duffid_config cfg;
-    duffid_model model;                    /* the description (a copy: the state is self-contained) */
+    rt_model m;
     int n_dof, n_forces, n_params, n_ch, n_eq;
-    channel_t ch[MAX_CH];                  /* built-in models: what each channel is */
     equation_t eq[MAX_EQ];
-    double nominal[DUFFID_MAX_PARAMS];     /* canonical order, |prior size| (0: none) */
+    /* derived from the configuration at init (the "structure": duffid_check_state compares it) */
+    duffid_real dt, max_condition, max_uncertainty, min_time, deadband;
+    duffid_real *nominal;                  /* canonical order, |prior size| (0: none) */
+    long capacity;
+    int auto_window;
+    int n_rows, degree, p_max, n_max, rows_max;
+    duffid_real lam, sqrt_lam, inv_cap;
+    int64_t settle_count;
+    int row_a[DUFFID_MAX_ROWS], row_b[DUFFID_MAX_ROWS], raw_b[DUFFID_MAX_ROWS];
+    duffid_real norm[DUFFID_MAX_ROWS];
+    int norm_power[DUFFID_MAX_ROWS];
+    duffid_real d_scale[N_ORD];
+    int k_first[DUFFID_MAX_ROWS * N_ORD], k_count[DUFFID_MAX_ROWS * N_ORD], k_at[DUFFID_MAX_ROWS * N_ORD];
+    int n_coef;
+    duffid_real *k_coef;                   /* packed non-zero kernel coefficients */
+    int *k_expo;                           /* ... and their powers of tau */
+    int n_used, used_order[N_ORD * MAX_CH], used_channel[N_ORD * MAX_CH]; /* what the terms read */
+    int n_jobs;                            /* the kernel entries to compute: n_used x n_rows */
+    int *job;                              /* [5 per entry]: poly at, moment at, count, entry, row */
+    duffid_real *stirling;                 /* [k][j] = S2(k, j) N^(j - k) / N: power moments */
+    duffid_real *step;                     /* [j] = j / N: the shift in the factorial basis */
+    size_t structure_bytes;                /* the block's bytes before the first mutable array */
 
     /* common state */
     int64_t n;                             /* index of the newest sample, -1 before any */
     int window_fixed;
-    int64_t steady[DUFFID_MAX_PARAMS];     /* canonical order, saturated at settle_count */
-    double anchor[DUFFID_MAX_PARAMS];      /* canonical order: value the estimate stays near */
-    int64_t anchored[DUFFID_MAX_PARAMS];   /* ... since this sample */
-    int64_t settled[DUFFID_MAX_PARAMS];    /* canonical order, saturated at settle_count */
-    int64_t unsettled[DUFFID_MAX_PARAMS];  /* canonical order, saturated at settle_count */
-    int status[DUFFID_MAX_PARAMS];         /* canonical order, DUFFID_STATUS_* */
-    double held[DUFFID_MAX_PARAMS];        /* public order */
-    int64_t settle_count;
+    int64_t *steady;                       /* canonical order, saturated at settle_count */
+    duffid_real *anchor;                   /* canonical order: value the estimate stays near */
+    int64_t *anchored;                     /* ... since this sample */
+    int64_t *settled;                      /* canonical order, saturated at settle_count */
+    int64_t *unsettled;                    /* canonical order, saturated at settle_count */
+    int *status;                           /* canonical order, DUFFID_STATUS_* */
+    duffid_real *held;                     /* public order */
     int has_last_x;                        /* signs of velocity (identification._Channels) */
-    double last_x[DUFFID_MAX_DOF], sgn[DUFFID_MAX_DOF];
+    duffid_real last_x[DUFFID_MAX_DOF], sgn[DUFFID_MAX_DOF];
 
     /* robust */
-    long capacity, target;
-    int auto_window;
-    int n_rows, degree;
-    double lam, sqrt_lam;
-    int row_a[DUFFID_MAX_ROWS], row_b[DUFFID_MAX_ROWS], raw_b[DUFFID_MAX_ROWS];
-    double coef[DUFFID_MAX_ROWS * N_ORD * MAX_POW];
-    double expo[DUFFID_MAX_ROWS * N_ORD * MAX_POW];
-    double norm[DUFFID_MAX_ROWS], norm_power[DUFFID_MAX_ROWS];
-    double d_scale[N_ORD];
-    double t_ref;
-    double shift[MAX_POW * MAX_POW];
+    long target;
+    long head;                              /* ring position of the newest sample */
+    duffid_real *ring;                      /* (capacity + 2) x n_ch */
+    duffid_real *acc, *mom, *fact;          /* (degree + 1) x n_ch each */
+    duffid_real *shadow;                    /* SHADOWS of those */
+    int64_t start, shadow_from[SHADOWS];    /* first sample of each shadow, -1: not started */
     long poly_L;                            /* cache key of poly/row_scale (-1: empty) */
-    double poly[DUFFID_MAX_ROWS * N_ORD * MAX_POW];
-    double row_scale[DUFFID_MAX_ROWS];
-    double raw_pow[DUFFID_MAX_ROWS];
+    duffid_real *poly;                      /* packed like k_coef */
+    duffid_real entry_scale[DUFFID_MAX_ROWS * N_ORD], raw_pow[DUFFID_MAX_ROWS];
     long corr_L;                            /* cache key of the corrections (-1: empty) */
-    int corr_n;
+    int corr_n, corr_top[MAX_CORR];         /* ... the non-zero extent of each in the basis */
     long corr_off[MAX_CORR];
-    double corr_w[MAX_CORR * MAX_POW];      /* [m][k] */
-    double *ring;                           /* (capacity + 2) x n_ch */
-    double *chan_work;                      /* workspace of a generated channel function */
-    double main_acc[MAX_POW * MAX_CH], shadow[MAX_POW * MAX_CH], mom[MAX_POW * MAX_CH];
-    int64_t start, shadow_from;
-    double E[DUFFID_MAX_ROWS * N_ORD * MAX_CH];
+    duffid_real *corr_w;                    /* [m][j]: delta_m x the factorial basis at its offset */
+    long leave_i;                           /* cache key of leave_phi (-1: empty) */
+    duffid_real *leave_phi;                 /* the basis at the offset where samples leave */
+    duffid_real *E;                         /* [r][order][channel] */
+    duffid_real *E_size, *B_size;           /* float: E and B from the magnitudes of the terms */
 
     /* workspace of one update (no allocation, no large stack frames) */
-    double g[MAX_CH];
-    double B[MAX_BROWS * MAX_AUG];
-    double W[MAX_AUG * MAX_AUG];
-    double U[MAX_UNK * MAX_UNK], V[MAX_UNK * MAX_UNK], Rinv[MAX_UNK * MAX_UNK];
-    double sv[MAX_UNK], scale[MAX_UNK], tmp[MAX_UNK * MAX_UNK];
-    double u_in[3 * MAX_CH];
-    double Ap[MAX_UNK * MAX_UNK], Dp[MAX_UNK], Aw[MAX_UNK * MAX_UNK];
-    double canon[DUFFID_MAX_PARAMS], canon_rse[DUFFID_MAX_PARAMS], canon_share[DUFFID_MAX_PARAMS];
-    double lin[2 * DUFFID_MAX_DOF * DUFFID_MAX_DOF];
+    duffid_real *g, *B, *W, *U, *Rinv, *scale, *u_in, *Ap, *Dp, *Aw, *lin;
+    duffid_real *canon, *canon_rse, *canon_share;
+    double *chan_work;                      /* a generated channel function's (double) */
 
     /* isolated outliers (identification._OutlierGuard) */
     int64_t received;                      /* index of the newest sample received */
-    double gh[3 * DUFFID_MAX_DOF];         /* accepted x at n-1, n-2, n-3: [level * n_dof + j] */
+    duffid_real gh[3 * DUFFID_MAX_DOF];    /* accepted x at n-1, n-2, n-3: [level * n_dof + j] */
     int64_t g_count;
-    double g_mean[DUFFID_MAX_DOF], g_lo[DUFFID_MAX_DOF], g_hi[DUFFID_MAX_DOF], g_step[DUFFID_MAX_DOF];
+    duffid_real g_mean[DUFFID_MAX_DOF], g_lo[DUFFID_MAX_DOF], g_hi[DUFFID_MAX_DOF], g_step[DUFFID_MAX_DOF];
     int pending;
     int64_t p_k;
-    double p_x[DUFFID_MAX_DOF], p_f[DUFFID_MAX_FORCES], p_threshold[DUFFID_MAX_DOF];
+    duffid_real p_x[DUFFID_MAX_DOF], p_f[DUFFID_MAX_FORCES], p_threshold[DUFFID_MAX_DOF];
     int p_suspect[DUFFID_MAX_DOF];
     long outliers;
-    double outlier_t, outlier_value, outlier_replaced_by;
+    duffid_real outlier_t, outlier_value, outlier_replaced_by;
     int outlier_column;
     duffid_output last;                    /* output after the latest processed sample */
 
@@ -166,40 +239,72 @@ static void set_msg(char *msg, size_t size, const char *fmt, ...)
     va_end(ap);
 }
 
-static int is_finite(double v)
+static int is_finite(duffid_real v)
 {
-    return v == v && v - v == 0.0;
+    return v == v && v - v == RC(0.0);
 }
 
-/* Python's round() of a float (half to even), as a double. */
-static double round_half_even(double v)
+/* Python's round() of a float (half to even) */
+static duffid_real round_half_even(duffid_real v)
 {
-    double r = floor(v);
-    double diff = v - r;
-    if (diff > 0.5) {
-        r += 1.0;
-    } else if (diff == 0.5) {
-        if (fmod(r, 2.0) != 0.0) {
-            r += 1.0;
-        }
+    duffid_real r = R_FLOOR(v);
+    duffid_real diff = v - r;
+    if (diff > RC(0.5) || (diff == RC(0.5) && R_FMOD(r, RC(2.0)) != RC(0.0))) {
+        r += RC(1.0);
     }
     return r;
 }
 
-static double sign_of(double v) /* np.sign */
+static duffid_real sign_of(duffid_real v) /* np.sign */
 {
-    if (v > 0.0) {
-        return 1.0;
+    if (v > RC(0.0)) {
+        return RC(1.0);
     }
-    if (v < 0.0) {
-        return -1.0;
+    if (v < RC(0.0)) {
+        return RC(-1.0);
     }
     return v; /* 0 or NaN */
 }
 
-static double max_builtin(double current, double candidate) /* Python max(current, candidate) */
+static duffid_real max_builtin(duffid_real current, duffid_real candidate) /* Python max(current, candidate) */
 {
     return candidate > current ? candidate : current;
+}
+
+/* hypot(a, b) (math.hypot), exact where one side is 0 (a forced block's scale error) */
+static duffid_real hypot_of(duffid_real a, duffid_real b)
+{
+    if (a == RC(0.0)) {
+        return R_FABS(b);
+    }
+    if (b == RC(0.0)) {
+        return R_FABS(a);
+    }
+#if DUFFID_SINGLE /* hypotf is a libm call; this is the FPU's square root */
+    {
+        duffid_real x = R_FABS(a), y = R_FABS(b), r;
+        if (x < y) {
+            r = x;
+            x = y;
+            y = r;
+        }
+        r = y / x;
+        return x * R_SQRT(RC(1.0) + r * r);
+    }
+#else
+    return R_HYPOT(a, b);
+#endif
+}
+
+/* v^power for a small integer power (a channel's), by multiplication */
+static duffid_real int_power(duffid_real v, int power)
+{
+    duffid_real r = v;
+    int i;
+    for (i = 1; i < power; i++) {
+        r *= v;
+    }
+    return power == 0 ? RC(1.0) : r;
 }
 
 static const char *const NAMES1[] = {"m", "b", "k", "kp", "c1"};
@@ -248,7 +353,7 @@ static const char *public_name(const duffid_config *cfg, int i)
 }
 
 /* ------------------------------------------------------------------ configuration */
-int duffid_default_config(duffid_config *cfg, int model, int method, double dt)
+int duffid_default_config(duffid_config *cfg, int model, int method, duffid_real dt)
 {
     if (cfg == NULL || model_dofs(model) == 0) {
         return DUFFID_ERR_ARGUMENT;
@@ -259,7 +364,7 @@ int duffid_default_config(duffid_config *cfg, int model, int method, double dt)
     cfg->offset = 0;
     cfg->dt = dt;
 #define DUFFID_SET_DEFAULT(kind, name, default_value, minimum, maximum, methods, valid) \
-    cfg->name = default_value;
+    cfg->name = (DUFFID_CTYPE_##kind)(default_value);
     DUFFID_OPTIONS(DUFFID_SET_DEFAULT)
 #undef DUFFID_SET_DEFAULT
     return DUFFID_OK;
@@ -268,18 +373,18 @@ int duffid_default_config(duffid_config *cfg, int model, int method, double dt)
 /* The range checks of the option table (duffid_options.h): a REAL option is a finite
  * number >= its minimum, a CODE option an int in 0 .. maximum (maximum < 0: no bound);
  * only the options the configured method reads are checked. */
-static int check_REAL(const char *name, int used, double v, double minimum, int maximum, const char *valid,
-                      char *msg, size_t size)
+static int check_REAL(const char *name, int used, duffid_real v, duffid_real minimum, int maximum,
+                      const char *valid, char *msg, size_t size)
 {
     (void)maximum;
     if (used && !(is_finite(v) && v >= minimum)) {
-        set_msg(msg, size, "option %s must be %s, got %g", name, valid, v);
+        set_msg(msg, size, "option %s must be %s, got %g", name, valid, (double)v);
         return DUFFID_ERR_CONFIG;
     }
     return DUFFID_OK;
 }
 
-static int check_CODE(const char *name, int used, int v, double minimum, int maximum, const char *valid,
+static int check_CODE(const char *name, int used, int v, duffid_real minimum, int maximum, const char *valid,
                       char *msg, size_t size)
 {
     (void)minimum;
@@ -290,199 +395,44 @@ static int check_CODE(const char *name, int used, int v, double minimum, int max
     return DUFFID_OK;
 }
 
-/* unknowns of block e */
-static int block_unknowns(const duffid_config *cfg, int e)
-{
-    if (cfg->model == DUFFID_GENERATED) {
-        return generated_model()->blocks[e].n_unknowns;
-    }
-    /* DOF 1: m1 b1 k1_1 k1_3 [b2 k2_1 k2_3] [c1]; DOF 2 (unforced): b2/m2 k2_1/m2 k2_3/m2 [c2/m2] */
-    if (e == 0) {
-        return (cfg->model == DUFFID_DUFFING2 ? 7 : 4) + (cfg->offset ? 1 : 0);
-    }
-    return 3 + (cfg->offset ? 1 : 0);
-}
-
-static int block_count(const duffid_config *cfg)
-{
-    return cfg->model == DUFFID_GENERATED ? generated_model()->n_blocks : model_dofs(cfg->model);
-}
-
-static int n_unknowns_max(const duffid_config *cfg)
-{
-    int e, best = 0;
-    for (e = 0; e < block_count(cfg); e++) {
-        if (block_unknowns(cfg, e) > best) {
-            best = block_unknowns(cfg, e);
-        }
-    }
-    return best;
-}
-
-static int effective_rows(const duffid_config *cfg)
-{
-    int def = n_unknowns_max(cfg) + 1;
-    if (def < 8) {
-        def = 8;
-    }
-    return cfg->n_rows ? cfg->n_rows : def;
-}
-
 static long capacity_of(const duffid_config *cfg)
 {
-    double seconds = cfg->window > 0.0 ? cfg->window : cfg->max_window;
-    double r = round_half_even(seconds / cfg->dt);
-    if (!(r <= (double)MAX_CAPACITY)) {
+    duffid_real seconds = cfg->window > RC(0.0) ? cfg->window : cfg->max_window;
+    duffid_real r = round_half_even(seconds / cfg->dt);
+    if (!(r <= (duffid_real)MAX_CAPACITY)) {
         return -1;
     }
-    return r < 2.0 ? 2L : (long)r;
+    return r < RC(2.0) ? 2L : (long)r;
 }
 
-/* distinct channels: x1 x1 x1^3 f1 (Duffing1) or x1 x1 x1^3 (x2-x1) (x2-x1)^3 f1 x2
- * (Duffing2), x and the first deflection counted apart as in Python; + 1 with offsets */
-static int channel_count(const duffid_config *cfg)
-{
-    if (cfg->model == DUFFID_GENERATED) {
-        return generated_model()->n_channels;
-    }
-    return (model_dofs(cfg->model) == 1 ? 4 : 7) + (cfg->offset ? 1 : 0);
-}
-
-static int channel_work(const duffid_config *cfg)
-{
-    return cfg->model == DUFFID_GENERATED ? generated_model()->channel_work : 0;
-}
-
-int duffid_check_config(const duffid_config *cfg, char *msg, size_t size)
-{
-    int i, rc, n_pub, method_bit;
-    if (cfg == NULL) {
-        set_msg(msg, size, "no configuration");
-        return DUFFID_ERR_ARGUMENT;
-    }
-    if (model_dofs(cfg->model) == 0) {
-        set_msg(msg, size,
-                cfg->model == DUFFID_GENERATED
-                    ? "model DUFFID_GENERATED (3): no generated model was compiled in (-DDUFFID_GENERATED_MODEL)"
-                    : "unknown model %d; choose DUFFID_DUFFING1 (1), DUFFID_DUFFING2 (2) or DUFFID_GENERATED (3)",
-                cfg->model);
-        return DUFFID_ERR_CONFIG;
-    }
-    if (cfg->method != DUFFID_ROBUST && cfg->method != DUFFID_PAPER) {
-        set_msg(msg, size, "unknown method %d; choose DUFFID_ROBUST (0) or DUFFID_PAPER (1)", cfg->method);
-        return DUFFID_ERR_CONFIG;
-    }
-    if (cfg->offset != 0 && cfg->offset != 1) {
-        set_msg(msg, size, "offset must be 0 or 1, got %d", cfg->offset);
-        return DUFFID_ERR_CONFIG;
-    }
-    if (cfg->offset && cfg->model == DUFFID_GENERATED) {
-        set_msg(msg, size, "offset must be 0 for the generated model (its description has its offsets)");
-        return DUFFID_ERR_CONFIG;
-    }
-    if (!(is_finite(cfg->dt) && cfg->dt > 0.0)) {
-        set_msg(msg, size, "dt must be a positive number of seconds, got %g", cfg->dt);
-        return DUFFID_ERR_CONFIG;
-    }
-    n_pub = public_count(cfg->model, cfg->offset);
-    for (i = 0; i < n_pub; i++) {
-        double v = cfg->nominal[i];
-        if (!is_finite(v)) {
-            set_msg(msg, size, "the prior size %s_nominal must be a finite number (0: none), got %g",
-                    public_name(cfg, i), v);
-            return DUFFID_ERR_CONFIG;
-        }
-    }
-    method_bit = cfg->method == DUFFID_ROBUST ? DUFFID_FOR_ROBUST : DUFFID_FOR_PAPER;
-#define DUFFID_CHECK_OPTION(kind, name, default_value, minimum, maximum, methods, valid) \
-    if ((rc = check_##kind(#name, ((methods) & method_bit) != 0, cfg->name, minimum, maximum, valid, msg, \
-                           size)) != DUFFID_OK) {                                                         \
-        return rc;                                                                                        \
-    }
-    DUFFID_OPTIONS(DUFFID_CHECK_OPTION)
-#undef DUFFID_CHECK_OPTION
-    if (cfg->method == DUFFID_PAPER && cfg->model == DUFFID_GENERATED) {
-        for (i = 0; i < generated_model()->n_blocks; i++) {
-            if (generated_model()->blocks[i].n_parts > 1) {
-                set_msg(msg, size,
-                        "the paper method solves each equation alone, and block %d has %d equations solved together: "
-                        "use the robust method",
-                        i + 1, generated_model()->blocks[i].n_parts);
-                return DUFFID_ERR_CONFIG;
-            }
-        }
-    }
-    if (cfg->method == DUFFID_ROBUST) {
-        if (effective_rows(cfg) > DUFFID_MAX_ROWS) {
-            set_msg(msg, size, "n_rows must be at most %d in the C core, got %d", DUFFID_MAX_ROWS,
-                    effective_rows(cfg));
-            return DUFFID_ERR_CONFIG;
-        }
-        if (capacity_of(cfg) < 0 ||
-            ((double)capacity_of(cfg) + 2.0) * (double)MAX_CH * (double)sizeof(double) >
-                (double)SIZE_MAX / 2.0) {
-            set_msg(msg, size, "the window (%g s at dt %g s) exceeds %ld samples or the address space",
-                    cfg->window > 0.0 ? cfg->window : cfg->max_window, cfg->dt, MAX_CAPACITY);
-            return DUFFID_ERR_CONFIG;
-        }
-    }
-    set_msg(msg, size, "");
-    return DUFFID_OK;
-}
-
-/* ------------------------------------------------------------------ memory layout */
-#define ALIGNMENT 8u /* doubles and 64-bit integers */
-#define ALIGN_UP(v) (((v) + (ALIGNMENT - 1u)) & ~(size_t)(ALIGNMENT - 1u))
-
-static size_t dynamic_doubles(const duffid_config *cfg)
-{
-    int n_ch = channel_count(cfg);
-    size_t total = (size_t)channel_work(cfg);
-    if (cfg->method == DUFFID_ROBUST) {
-        return total + (size_t)(capacity_of(cfg) + 2) * (size_t)n_ch;
-    } else {
-        int e;
-        for (e = 0; e < block_count(cfg); e++) {
-            int n_unk = block_unknowns(cfg, e);
-            total += 3u * (size_t)(n_unk + 2) * (size_t)(3 * n_ch); /* regressor integrators */
-            total += 3u * 3u * (size_t)(n_unk + 1);                 /* determinant integrators */
-        }
-        return total;
-    }
-}
-
-size_t duffid_memory_size(const duffid_config *cfg)
-{
-    if (duffid_check_config(cfg, NULL, 0) != DUFFID_OK) {
-        return 0;
-    }
-    return ALIGN_UP(sizeof(struct duffid_estimator)) + dynamic_doubles(cfg) * sizeof(double) + ALIGNMENT;
-}
-
-/* ------------------------------------------------------------------ structure */
-static int add_channel(duffid_estimator *est, int kind, int index, int power)
+/* ------------------------------------------------------------------ the model's description */
+static int add_channel(rt_model *m, int kind, int index, int power)
 {
     int i;
-    for (i = 0; i < est->model.n_channels; i++) {
-        if (est->ch[i].kind == kind && est->ch[i].index == index && est->ch[i].power == power) {
+    if (kind == CH_DEFL && index == 0) {
+        kind = CH_X; /* the first deflection is the first displacement: one channel */
+    }
+    for (i = 0; i < m->c.n_channels; i++) {
+        if (m->ch[i].kind == kind && m->ch[i].index == index && m->ch[i].power == power) {
             return i;
         }
     }
-    est->ch[i].kind = kind;
-    est->ch[i].index = index;
-    est->ch[i].power = power;
-    return est->model.n_channels++;
+    m->ch[i].kind = kind;
+    m->ch[i].index = index;
+    m->ch[i].power = power;
+    return m->c.n_channels++;
 }
 
-static void add_term(duffid_estimator *est, duffid_block *block, int unknown, int kind, int index, int power,
-                     int order, double coef)
+static void add_term(rt_model *m, block_t *b, int unknown, int kind, int index, int power, int order,
+                     duffid_real coef)
 {
-    duffid_term *t = &block->terms[block->n_terms++];
+    term_t *t = &m->terms[b->term0 + b->n_terms++];
     t->part = 0;
     t->unknown = unknown;
-    t->channel = add_channel(est, kind, index, power);
+    t->channel = add_channel(m, kind, index, power);
     t->order = order;
     t->coef = coef;
+    m->c.n_terms++;
 }
 
 static void set_name(char *dst, const char *prefix, int i, const char *suffix)
@@ -497,7 +447,7 @@ static void set_name(char *dst, const char *prefix, int i, const char *suffix)
 #endif
 }
 
-static int block_unknown_of(const duffid_block *b, const int *param_of_unknown, int param)
+static int block_unknown_of(const block_t *b, const int *param_of_unknown, int param)
 {
     int u;
     for (u = 0; u < b->n_unknowns; u++) {
@@ -509,56 +459,87 @@ static int block_unknown_of(const duffid_block *b, const int *param_of_unknown, 
 }
 
 /* The description of Duffing1/Duffing2 (models.Chain.equations() for orders (1, 3), a force on
- * DOF 1, no Coulomb friction, and what Chain answers about its parameters). Channels are
+ * DOF 1, no Coulomb friction, and what Chain answers about its parameters) into m's arrays
+ * (params and publics may be NULL: only the counts and terms are wanted). Channels are
  * registered in first-use order (lhs then rhs terms, equation by equation). */
-static void describe_builtin(duffid_estimator *est)
+static void describe_builtin(const duffid_config *cfg, rt_model *m)
 {
-    duffid_model *m = &est->model;
-    const int n = model_dofs(est->cfg.model), offset = est->cfg.offset;
+    const int n = model_dofs(cfg->model), offset = cfg->offset;
     int param_of[MAX_EQ][MAX_UNK];
     int i, j, e, p;
-    m->n_dof = n;
-    m->n_forces = 1;
-    m->max_order = 2;
-    m->n_blocks = n;
-    m->n_params = 4 * n + (offset ? n : 0);
-    m->uses_sign = 0;
+    m->c.n_dof = n;
+    m->c.n_forces = 1;
+    m->c.max_order = 2;
+    m->c.n_blocks = n;
+    m->c.n_params = 4 * n + (offset ? n : 0);
+    m->c.uses_sign = 0;
+    m->c.n_channels = m->c.n_terms = m->c.n_rules = 0;
     for (i = 0; i < n; i++) {
-        duffid_block *b = &est->model.blocks[i];
+        block_t *b = &m->blocks[i];
+        memset(b, 0, sizeof *b);
         b->n_parts = 1;
         b->forced = i == 0;
+        b->term0 = m->c.n_terms;
         if (b->forced) {
             param_of[i][b->n_terms] = 4 * i + P_M;
-            add_term(est, b, b->n_unknowns++, CH_X, i, 1, 2, 1.0);
+            add_term(m, b, b->n_unknowns++, CH_X, i, 1, 2, RC(1.0));
         }
         param_of[i][b->n_terms] = 4 * i + P_B;
-        add_term(est, b, b->n_unknowns++, CH_DEFL, i, 1, 1, 1.0);
+        add_term(m, b, b->n_unknowns++, CH_DEFL, i, 1, 1, RC(1.0));
         param_of[i][b->n_terms] = 4 * i + P_K1;
-        add_term(est, b, b->n_unknowns++, CH_DEFL, i, 1, 0, 1.0);
+        add_term(m, b, b->n_unknowns++, CH_DEFL, i, 1, 0, RC(1.0));
         param_of[i][b->n_terms] = 4 * i + P_K3;
-        add_term(est, b, b->n_unknowns++, CH_DEFL, i, 3, 0, 1.0);
+        add_term(m, b, b->n_unknowns++, CH_DEFL, i, 3, 0, RC(1.0));
         if (i + 1 < n) {
             param_of[i][b->n_terms] = 4 * (i + 1) + P_B;
-            add_term(est, b, b->n_unknowns++, CH_DEFL, i + 1, 1, 1, -1.0);
+            add_term(m, b, b->n_unknowns++, CH_DEFL, i + 1, 1, 1, RC(-1.0));
             param_of[i][b->n_terms] = 4 * (i + 1) + P_K1;
-            add_term(est, b, b->n_unknowns++, CH_DEFL, i + 1, 1, 0, -1.0);
+            add_term(m, b, b->n_unknowns++, CH_DEFL, i + 1, 1, 0, RC(-1.0));
             param_of[i][b->n_terms] = 4 * (i + 1) + P_K3;
-            add_term(est, b, b->n_unknowns++, CH_DEFL, i + 1, 3, 0, -1.0);
+            add_term(m, b, b->n_unknowns++, CH_DEFL, i + 1, 3, 0, RC(-1.0));
         }
         if (offset) {
             param_of[i][b->n_terms] = 4 * n + i;
-            add_term(est, b, b->n_unknowns++, CH_ONE, 0, 1, 0, 1.0);
+            add_term(m, b, b->n_unknowns++, CH_ONE, 0, 1, 0, RC(1.0));
         }
         if (b->forced) {
-            add_term(est, b, -1, CH_FORCE, 0, 1, 0, 1.0);
+            add_term(m, b, -1, CH_FORCE, 0, 1, 0, RC(1.0));
         } else {
-            add_term(est, b, -1, CH_X, i, 1, 2, -1.0);
+            add_term(m, b, -1, CH_X, i, 1, 2, RC(-1.0));
         }
     }
-    for (p = 0; p < m->n_params; p++) {
+    for (i = 0; i < n; i++) { /* scale rules of the unforced DOFs (Chain.combine_solutions) */
+        block_t *b = &m->blocks[i];
+        b->rule0 = m->c.n_rules;
+        if (b->forced) {
+            continue;
+        }
+        for (e = i + 1; e <= i + 2 && e <= n; e++) { /* 1-based elements of mass i */
+            int u = block_unknown_of(b, param_of[i], 4 * (e - 1) + P_K1);
+            if (u < 0) {
+                continue;
+            }
+            for (j = e - 2; j <= e - 1; j++) { /* the equations that contain element e */
+                int v;
+                if (j == i || j < 0 || j >= n) {
+                    continue;
+                }
+                v = block_unknown_of(&m->blocks[j], param_of[j], 4 * (e - 1) + P_K1);
+                if (v >= 0) {
+                    duffid_rule *r = &m->rules[m->c.n_rules++];
+                    r->unknown = u;
+                    r->other = j;
+                    r->other_unknown = v;
+                    b->n_rules++;
+                }
+            }
+        }
+    }
+    for (p = 0; m->params != NULL && p < m->c.n_params; p++) {
         duffid_parameter *q = &m->params[p];
         const int dof = p < 4 * n ? p / 4 : p - 4 * n, kind = p < 4 * n ? p % 4 : -1;
         static const char *const prefix[] = {"m", "b", "k", "k"};
+        memset(q, 0, sizeof *q);
         set_name(q->name, kind < 0 ? "c" : prefix[kind], dof + 1, kind == P_K1 ? "_1" : (kind == P_K3 ? "_3" : ""));
         q->physical = kind == P_M ? DUFFID_ALLOW_POSITIVE
                                   : (kind == P_B ? DUFFID_ALLOW_POSITIVE | DUFFID_ALLOW_ZERO : ANY_SIGN);
@@ -580,200 +561,564 @@ static void describe_builtin(duffid_estimator *est)
             }
         }
     }
-    for (i = 0; i < n; i++) { /* scale rules of the unforced DOFs (Chain.combine_solutions) */
-        duffid_block *b = &m->blocks[i];
-        if (b->forced) {
-            continue;
-        }
-        for (e = i + 1; e <= i + 2 && e <= n; e++) { /* 1-based elements of mass i */
-            int u = block_unknown_of(b, param_of[i], 4 * (e - 1) + P_K1);
-            if (u < 0) {
-                continue;
-            }
-            for (j = e - 2; j <= e - 1; j++) { /* the equations that contain element e */
-                int v;
-                if (j == i || j < 0 || j >= n) {
-                    continue;
-                }
-                v = block_unknown_of(&m->blocks[j], param_of[j], 4 * (e - 1) + P_K1);
-                if (v >= 0) {
-                    b->rules[b->n_rules].unknown = u;
-                    b->rules[b->n_rules].other = j;
-                    b->rules[b->n_rules++].other_unknown = v;
-                }
-            }
-        }
-    }
-    for (i = 0; i < m->n_params; i++) {
-        const char *name = est->cfg.model == DUFFID_DUFFING1 ? NAMES1[i] : NAMES2[i];
-        strcpy(m->publics[i].name, name);
-        m->publics[i].canonical = public_to_canon(est->cfg.model, i);
+    for (i = 0; m->publics != NULL && i < m->c.n_params; i++) {
+        memset(&m->publics[i], 0, sizeof m->publics[i]);
+        strcpy(m->publics[i].name, cfg->model == DUFFID_DUFFING1 ? NAMES1[i] : NAMES2[i]);
+        m->publics[i].canonical = public_to_canon(cfg->model, i);
         m->publics[i].reciprocal = 0;
     }
     /* linearisation: M = diag(m), K = the chain matrix of the linear stiffnesses */
-    m->linear = 1;
+    m->c.linear = 1;
+    m->c.n_mass = m->c.n_stiffness = 0;
     for (i = 0; i < n; i++) {
-        duffid_linear *l = &m->mass[m->n_mass++];
+        duffid_linear *l = &m->mass[m->c.n_mass++];
         l->row = l->col = i;
         l->param = 4 * i + P_M;
         l->coef = 1.0;
     }
     for (i = 0; i < n; i++) {
-        duffid_linear *l = &m->stiffness[m->n_stiffness++];
+        duffid_linear *l = &m->stiffness[m->c.n_stiffness++];
         l->row = l->col = i;
         l->param = 4 * i + P_K1;
         l->coef = 1.0;
     }
     for (i = 0; i + 1 < n; i++) {
-        duffid_linear *l = &m->stiffness[m->n_stiffness++];
+        duffid_linear *l = &m->stiffness[m->c.n_stiffness++];
         l->row = l->col = i;
         l->param = 4 * (i + 1) + P_K1;
         l->coef = 1.0;
     }
     for (i = 0; i + 1 < n; i++) {
-        duffid_linear *l = &m->stiffness[m->n_stiffness++];
+        duffid_linear *l = &m->stiffness[m->c.n_stiffness++];
         l->row = i;
         l->col = i + 1;
         l->param = 4 * (i + 1) + P_K1;
         l->coef = -1.0;
-        l = &m->stiffness[m->n_stiffness++];
+        l = &m->stiffness[m->c.n_stiffness++];
         l->row = i + 1;
         l->col = i;
         l->param = 4 * (i + 1) + P_K1;
         l->coef = -1.0;
     }
+    m->c.channel_work = 0;
+    m->c.signature[0] = '\0';
 }
 
-/* est->model from the configuration; the counts the engine reads in est */
-static void build_structure(duffid_estimator *est)
+/* The generated description into m's arrays (m->blocks ... NULL: the counts only). */
+static void copy_generated(rt_model *m)
 {
-    memset(&est->model, 0, sizeof est->model);
-    memset(est->ch, 0, sizeof est->ch);
-    if (est->cfg.model == DUFFID_GENERATED) {
-        est->model = *generated_model();
+    const duffid_model *g = generated_model();
+    int i, k;
+    memset(&m->c, 0, sizeof m->c);
+    m->c.n_dof = g->n_dof;
+    m->c.n_forces = g->n_forces;
+    m->c.n_channels = g->n_channels;
+    m->c.max_order = g->max_order;
+    m->c.n_blocks = g->n_blocks;
+    m->c.n_params = g->n_params;
+    m->c.linear = g->linear;
+    m->c.n_mass = g->n_mass;
+    m->c.n_stiffness = g->n_stiffness;
+    m->c.channel_work = g->channel_work;
+    m->c.uses_sign = g->uses_sign;
+    memcpy(m->c.signature, g->signature, sizeof m->c.signature);
+    for (i = 0; i < g->n_blocks; i++) {
+        const duffid_block *b = &g->blocks[i];
+        if (m->blocks != NULL) {
+            block_t *t = &m->blocks[i];
+            t->n_unknowns = b->n_unknowns;
+            t->n_parts = b->n_parts;
+            t->n_terms = b->n_terms;
+            t->forced = b->forced;
+            t->n_rules = b->n_rules;
+            t->term0 = m->c.n_terms;
+            t->rule0 = m->c.n_rules;
+            for (k = 0; k < b->n_terms; k++) {
+                term_t *d = &m->terms[t->term0 + k];
+                d->part = b->terms[k].part;
+                d->unknown = b->terms[k].unknown;
+                d->channel = b->terms[k].channel;
+                d->order = b->terms[k].order;
+                d->coef = (duffid_real)b->terms[k].coef;
+            }
+            for (k = 0; k < b->n_rules; k++) {
+                m->rules[t->rule0 + k] = b->rules[k];
+            }
+        }
+        m->c.n_terms += b->n_terms;
+        m->c.n_rules += b->n_rules;
+    }
+    if (m->params != NULL) {
+        memcpy(m->params, g->params, (size_t)g->n_params * sizeof *m->params);
+        memcpy(m->publics, g->publics, (size_t)g->n_params * sizeof *m->publics);
+        memcpy(m->mass, g->mass, (size_t)g->n_mass * sizeof *m->mass);
+        memcpy(m->stiffness, g->stiffness, (size_t)g->n_stiffness * sizeof *m->stiffness);
+    }
+}
+
+/* What the memory block's layout depends on: the model's counts, the method, the window. */
+typedef struct {
+    rt_model m;          /* counts, and (counting only) the scratch tables below */
+    int method, n_rows, degree, n_coef;
+    long capacity;
+    int unknowns[MAX_EQ], parts[MAX_EQ];
+    block_t blocks[BUILTIN_BLOCKS > MAX_EQ ? BUILTIN_BLOCKS : MAX_EQ];
+    term_t terms[BUILTIN_TERMS];
+    duffid_rule rules[BUILTIN_RULES];
+    duffid_linear mass[BUILTIN_LINEAR], stiffness[BUILTIN_LINEAR];
+    channel_t ch[MAX_CH];
+} shape_t;
+
+/* the kernel rows (a, b) of regressors.row_exponents */
+static void row_exponents(int family, int n_rows, int *row_a, int *row_b)
+{
+    int r;
+    for (r = 0; r < n_rows; r++) {
+        if (family == DUFFID_ROWS_PAPER) {
+            row_a[r] = 1 + r;
+            row_b[r] = 2;
+        } else if (family == DUFFID_ROWS_INTEGRALS) {
+            row_a[r] = 3 + r;
+            row_b[r] = 2;
+        } else {
+            row_a[r] = 2 + r;
+            row_b[r] = 1 + n_rows - r;
+        }
+    }
+}
+
+/* the non-zero powers of row r's order-d kernel: s^(a+m-d), m = 0..b, those >= 0 */
+static int kernel_first(int a, int d)
+{
+    return a - d < 0 ? 0 : a - d;
+}
+
+static void shape_of(const duffid_config *cfg, shape_t *s)
+{
+    int e, n_max = 0, r, d;
+    memset(&s->m, 0, sizeof s->m);
+    if (cfg->model == DUFFID_GENERATED) {
+        copy_generated(&s->m); /* counts only */
+        for (e = 0; e < s->m.c.n_blocks; e++) {
+            s->unknowns[e] = generated_model()->blocks[e].n_unknowns;
+            s->parts[e] = generated_model()->blocks[e].n_parts;
+        }
     } else {
-        describe_builtin(est);
+        s->m.blocks = s->blocks;
+        s->m.terms = s->terms;
+        s->m.rules = s->rules;
+        s->m.mass = s->mass;
+        s->m.stiffness = s->stiffness;
+        s->m.ch = s->ch;
+        describe_builtin(cfg, &s->m);
+        for (e = 0; e < s->m.c.n_blocks; e++) {
+            s->unknowns[e] = s->blocks[e].n_unknowns;
+            s->parts[e] = s->blocks[e].n_parts;
+        }
     }
-    est->n_dof = est->model.n_dof;
-    est->n_forces = est->model.n_forces;
-    est->n_params = est->model.n_params;
-    est->n_ch = est->model.n_channels;
-    est->n_eq = est->model.n_blocks;
-}
-static uint64_t factorial_u64(int n)
-{
-    uint64_t r = 1;
-    int i;
-    for (i = 2; i <= n; i++) {
-        r *= (uint64_t)i;
+    for (e = 0; e < s->m.c.n_blocks; e++) {
+        n_max = s->unknowns[e] > n_max ? s->unknowns[e] : n_max;
     }
-    return r;
+    s->method = cfg->method;
+    s->n_rows = cfg->n_rows ? cfg->n_rows : (n_max + 1 > 8 ? n_max + 1 : 8);
+    s->capacity = cfg->method == DUFFID_ROBUST ? capacity_of(cfg) : 0;
+    s->degree = s->n_coef = 0;
+    if (cfg->method == DUFFID_ROBUST && s->n_rows <= DUFFID_MAX_ROWS) {
+        int row_a[DUFFID_MAX_ROWS], row_b[DUFFID_MAX_ROWS];
+        row_exponents(cfg->rows, s->n_rows, row_a, row_b);
+        for (r = 0; r < s->n_rows; r++) {
+            s->degree = row_a[r] + row_b[r] > s->degree ? row_a[r] + row_b[r] : s->degree;
+            for (d = 0; d <= MAX_ORDER; d++) {
+                s->n_coef += row_a[r] + row_b[r] - d - kernel_first(row_a[r], d) + 1;
+            }
+        }
+    }
 }
 
-static uint64_t comb_u64(int n, int k)
+int duffid_check_config(const duffid_config *cfg, char *msg, size_t size)
 {
-    uint64_t r = 1;
-    int i;
-    for (i = 1; i <= k; i++) {
-        r = r * (uint64_t)(n - k + i) / (uint64_t)i;
+    int i, rc, n_pub, method_bit;
+    if (cfg == NULL) {
+        set_msg(msg, size, "no configuration");
+        return DUFFID_ERR_ARGUMENT;
     }
-    return r;
+    if (model_dofs(cfg->model) == 0) {
+        set_msg(msg, size,
+                cfg->model == DUFFID_GENERATED
+                    ? "model DUFFID_GENERATED (3): no generated model was compiled in (-DDUFFID_GENERATED_MODEL)"
+                    : "unknown model %d; choose DUFFID_DUFFING1 (1), DUFFID_DUFFING2 (2) or DUFFID_GENERATED (3)",
+                cfg->model);
+        return DUFFID_ERR_CONFIG;
+    }
+    if (cfg->method != DUFFID_ROBUST && cfg->method != DUFFID_PAPER) {
+        set_msg(msg, size, "unknown method %d; choose DUFFID_ROBUST (0) or DUFFID_PAPER (1)", cfg->method);
+        return DUFFID_ERR_CONFIG;
+    }
+#if DUFFID_SINGLE
+    if (cfg->method == DUFFID_PAPER) {
+        set_msg(msg, size, "the paper method needs double precision: its raw Cramer determinants (1e-75 .. 1e-33) "
+                           "underflow in single precision; use the robust method or a double build");
+        return DUFFID_ERR_CONFIG;
+    }
+#endif
+    if (cfg->offset != 0 && cfg->offset != 1) {
+        set_msg(msg, size, "offset must be 0 or 1, got %d", cfg->offset);
+        return DUFFID_ERR_CONFIG;
+    }
+    if (cfg->offset && cfg->model == DUFFID_GENERATED) {
+        set_msg(msg, size, "offset must be 0 for the generated model (its description has its offsets)");
+        return DUFFID_ERR_CONFIG;
+    }
+    if (!(is_finite(cfg->dt) && cfg->dt > RC(0.0))) {
+        set_msg(msg, size, "dt must be a positive number of seconds, got %g", (double)cfg->dt);
+        return DUFFID_ERR_CONFIG;
+    }
+    n_pub = public_count(cfg->model, cfg->offset);
+    for (i = 0; i < n_pub; i++) {
+        duffid_real v = cfg->nominal[i];
+        if (!is_finite(v)) {
+            set_msg(msg, size, "the prior size %s_nominal must be a finite number (0: none), got %g",
+                    public_name(cfg, i), (double)v);
+            return DUFFID_ERR_CONFIG;
+        }
+    }
+    method_bit = cfg->method == DUFFID_ROBUST ? DUFFID_FOR_ROBUST : DUFFID_FOR_PAPER;
+#define DUFFID_CHECK_OPTION(kind, name, default_value, minimum, maximum, methods, valid) \
+    if ((rc = check_##kind(#name, ((methods) & method_bit) != 0, cfg->name, RC(minimum), maximum, valid, msg, \
+                           size)) != DUFFID_OK) {                                                             \
+        return rc;                                                                                            \
+    }
+    DUFFID_OPTIONS(DUFFID_CHECK_OPTION)
+#undef DUFFID_CHECK_OPTION
+    if (cfg->method == DUFFID_PAPER && cfg->model == DUFFID_GENERATED) {
+        for (i = 0; i < generated_model()->n_blocks; i++) {
+            if (generated_model()->blocks[i].n_parts > 1) {
+                set_msg(msg, size,
+                        "the paper method solves each equation alone, and block %d has %d equations solved together: "
+                        "use the robust method",
+                        i + 1, generated_model()->blocks[i].n_parts);
+                return DUFFID_ERR_CONFIG;
+            }
+        }
+    }
+    if (cfg->method == DUFFID_ROBUST) {
+        shape_t s;
+        shape_of(cfg, &s);
+        if (s.n_rows > DUFFID_MAX_ROWS) {
+            set_msg(msg, size, "n_rows must be at most %d in the C core, got %d", DUFFID_MAX_ROWS, s.n_rows);
+            return DUFFID_ERR_CONFIG;
+        }
+        if (s.capacity < 0 || ((duffid_real)s.capacity + RC(2.0)) * (duffid_real)s.m.c.n_channels *
+                                      (duffid_real)sizeof(duffid_real) >
+                                  (duffid_real)SIZE_MAX / RC(2.0)) {
+            set_msg(msg, size, "the window (%g s at dt %g s) exceeds %ld samples or the address space",
+                    (double)(cfg->window > RC(0.0) ? cfg->window : cfg->max_window), (double)cfg->dt, MAX_CAPACITY);
+            return DUFFID_ERR_CONFIG;
+        }
+    }
+    set_msg(msg, size, "");
+    return DUFFID_OK;
 }
 
-/* regressors.row_exponents + KernelBank.build (+ __post_init__) */
+/* ------------------------------------------------------------------ memory layout */
+#define ALIGNMENT 8u /* doubles and 64-bit integers */
+#define ALIGN_UP(v) (((v) + (ALIGNMENT - 1u)) & ~(size_t)(ALIGNMENT - 1u))
+
+/* Carves the arrays of a memory block one after the other (base NULL: only counts). */
+typedef struct {
+    char *base;
+    size_t used;
+} carver_t;
+
+static void *carve(carver_t *c, size_t count, size_t item)
+{
+    void *p = c->base != NULL ? (void *)(c->base + c->used) : NULL;
+    c->used += ALIGN_UP(count * item);
+    return p;
+}
+
+#define CARVE(c, ptr, count) ((ptr) = carve((c), (size_t)(count), sizeof *(ptr)))
+
+/* The arrays of the block after the estimator structure, in order: first the structure (the
+ * model's tables and everything init derives from the configuration, never written after),
+ * then the state. With est == NULL the pointers go to a scratch estimator (sizes only).
+ * Returns the bytes used. */
+static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
+{
+    duffid_estimator scratch;
+    carver_t c;
+    const int n_ch = s->m.c.n_channels, n_blk = s->m.c.n_blocks, np = s->m.c.n_params;
+    const int D = s->degree, robust = s->method == DUFFID_ROBUST;
+    int e, n_max = 0, p_max, rows_max = 0;
+    c.base = base;
+    c.used = 0;
+    if (est == NULL) {
+        est = &scratch;
+        c.base = NULL;
+    }
+    for (e = 0; e < n_blk; e++) {
+        n_max = s->unknowns[e] > n_max ? s->unknowns[e] : n_max;
+        rows_max = s->parts[e] * s->n_rows > rows_max ? s->parts[e] * s->n_rows : rows_max;
+    }
+    p_max = n_max + 1;
+    est->n_max = n_max;
+    est->p_max = p_max;
+    est->rows_max = rows_max;
+    /* structure */
+    CARVE(&c, est->m.blocks, n_blk);
+    CARVE(&c, est->m.terms, s->m.c.n_terms);
+    CARVE(&c, est->m.rules, s->m.c.n_rules);
+    CARVE(&c, est->m.params, np);
+    CARVE(&c, est->m.publics, np);
+    CARVE(&c, est->m.mass, s->m.c.n_mass);
+    CARVE(&c, est->m.stiffness, s->m.c.n_stiffness);
+    CARVE(&c, est->m.ch, n_ch);
+    CARVE(&c, est->nominal, np);
+    CARVE(&c, est->k_coef, robust ? s->n_coef : 0);
+    CARVE(&c, est->k_expo, robust ? s->n_coef : 0);
+    CARVE(&c, est->stirling, robust ? (D + 1) * (D + 1) : 0);
+    CARVE(&c, est->job, robust ? 5 * N_ORD * n_ch * s->n_rows : 0);
+    CARVE(&c, est->step, robust ? D + 1 : 0);
+    est->structure_bytes = c.used;
+    /* state */
+    CARVE(&c, est->steady, np);
+    CARVE(&c, est->anchor, np);
+    CARVE(&c, est->anchored, np);
+    CARVE(&c, est->settled, np);
+    CARVE(&c, est->unsettled, np);
+    CARVE(&c, est->status, np);
+    CARVE(&c, est->held, np);
+    CARVE(&c, est->canon, np);
+    CARVE(&c, est->canon_rse, np);
+    CARVE(&c, est->canon_share, np);
+    CARVE(&c, est->chan_work, s->m.c.channel_work);
+    CARVE(&c, est->g, n_ch);
+    CARVE(&c, est->lin, 2 * s->m.c.n_dof * s->m.c.n_dof);
+    for (e = 0; e < n_blk; e++) {
+        equation_t *eq = &est->eq[e];
+        const int n = s->unknowns[e], p = n + 1;
+        CARVE(&c, eq->theta, n);
+        CARVE(&c, eq->rse, n);
+        CARVE(&c, eq->share, n);
+        CARVE(&c, eq->V, n * n);
+        CARVE(&c, eq->R, robust ? p * p : 0);
+        if (!robust) {
+            integrators_t *it = &eq->reg;
+            int k;
+            for (k = 0; k < 2; k++, it = &eq->det) {
+                const int n_in = k == 0 ? 3 * n_ch : n + 1, depth = k == 0 ? n + 1 : 2;
+                it->n_in = n_in;
+                it->depth = depth;
+                CARVE(&c, it->y, (depth + 1) * n_in);
+                CARVE(&c, it->p1, (depth + 1) * n_in);
+                CARVE(&c, it->p2, (depth + 1) * n_in);
+            }
+        }
+    }
+    CARVE(&c, est->U, n_max * n_max);
+    CARVE(&c, est->Rinv, n_max * n_max);
+    CARVE(&c, est->scale, n_max);
+    if (robust) {
+        CARVE(&c, est->ring, (s->capacity + 2) * n_ch);
+        CARVE(&c, est->acc, (D + 1) * n_ch);
+        CARVE(&c, est->shadow, SHADOWS * (D + 1) * n_ch);
+        CARVE(&c, est->fact, (D + 1) * n_ch);
+        CARVE(&c, est->mom, (D + 1) * n_ch);
+        CARVE(&c, est->poly, s->n_coef);
+        CARVE(&c, est->corr_w, MAX_CORR * (D + 1));
+        CARVE(&c, est->leave_phi, D + 1);
+        CARVE(&c, est->E, s->n_rows * N_ORD * n_ch);
+        CARVE(&c, est->E_size, DUFFID_SINGLE ? s->n_rows * N_ORD * n_ch : 0);
+        CARVE(&c, est->B, rows_max * p_max);
+        CARVE(&c, est->B_size, DUFFID_SINGLE ? rows_max * p_max : 0);
+        CARVE(&c, est->W, p_max * p_max);
+    } else {
+        CARVE(&c, est->E, (n_max + 2) * N_ORD * n_ch);
+        CARVE(&c, est->B, n_max * p_max);
+        CARVE(&c, est->u_in, 3 * n_ch);
+        CARVE(&c, est->Ap, n_max * n_max);
+        CARVE(&c, est->Dp, n_max);
+        CARVE(&c, est->Aw, n_max * n_max);
+        CARVE(&c, est->W, n_max * n_max);
+    }
+    return c.used;
+}
+#undef CARVE
+
+size_t duffid_memory_size(const duffid_config *cfg)
+{
+    shape_t s;
+    if (duffid_check_config(cfg, NULL, 0) != DUFFID_OK) {
+        return 0;
+    }
+    shape_of(cfg, &s);
+    return ALIGN_UP(sizeof(struct duffid_estimator)) + layout(&s, NULL, NULL) + ALIGNMENT;
+}
+
+/* ------------------------------------------------------------------ structure */
+/* regressors.row_exponents + KernelBank.build (+ __post_init__), the falling-factorial
+ * basis of the moments and its map to power moments */
 static void build_kernel_bank(duffid_estimator *est)
 {
-    int r, m, d, k, n_rows = est->n_rows;
+    int r, m, d, k, j, at = 0, n_rows = est->n_rows;
+    const duffid_real inv_n = RC(1.0) / (duffid_real)est->capacity;
+    row_exponents(est->cfg.rows, n_rows, est->row_a, est->row_b);
     est->degree = 0;
     for (r = 0; r < n_rows; r++) {
-        int a, b;
-        if (est->cfg.rows == DUFFID_ROWS_PAPER) {
-            a = 1 + r;
-            b = 2;
-        } else if (est->cfg.rows == DUFFID_ROWS_INTEGRALS) {
-            a = 3 + r;
-            b = 2;
-        } else {
-            a = 2 + r;
-            b = 1 + n_rows - r;
-        }
-        est->row_a[r] = a;
-        est->row_b[r] = b;
-        if (a + b > est->degree) {
-            est->degree = a + b;
-        }
+        est->degree = est->row_a[r] + est->row_b[r] > est->degree ? est->row_a[r] + est->row_b[r] : est->degree;
     }
-    memset(est->coef, 0, sizeof est->coef);
-    memset(est->expo, 0, sizeof est->expo);
     for (r = 0; r < n_rows; r++) {
-        int a = est->row_a[r], b = est->row_b[r];
-        uint64_t prod = 1;
-        for (m = 0; m <= b; m++) {
-            int power = a + m;
-            for (d = 0; d <= MAX_ORDER; d++) {
-                double num;
-                int idx;
+        const int a = est->row_a[r], b = est->row_b[r];
+        duffid_real prod = RC(1.0), fact_a = RC(1.0);
+        for (k = 2; k <= a; k++) {
+            fact_a *= (duffid_real)k;
+        }
+        for (d = 0; d <= MAX_ORDER; d++) {
+            const int first = kernel_first(a, d), last = a + b - d;
+            est->k_first[r * N_ORD + d] = first;
+            est->k_count[r * N_ORD + d] = last - first + 1;
+            est->k_at[r * N_ORD + d] = at;
+            for (k = first; k <= last; k++) {
+                est->k_coef[at + k - first] = RC(0.0);
+                est->k_expo[at + k - first] = 0;
+            }
+            for (m = 0; m <= b; m++) {
+                const int power = a + m;
+                duffid_real num = RC(1.0), binom = RC(1.0);
                 if (power - d < 0) {
                     continue;
                 }
-                /* comb(b, m) * (-1)**m * falling / factorial(a): exact integers, one rounding */
-                num = (double)(comb_u64(b, m) * (factorial_u64(power) / factorial_u64(power - d)));
-                if (m % 2) {
-                    num = -num;
+                for (k = 0; k < m; k++) { /* C(b, m), exact */
+                    binom = binom * (duffid_real)(b - k) / (duffid_real)(k + 1);
                 }
-                idx = (r * N_ORD + d) * MAX_POW + (power - d);
-                est->coef[idx] += num / (double)factorial_u64(a);
-                est->expo[idx] = (double)(b - m);
+                for (k = 0; k < d; k++) { /* power! / (power - d)! */
+                    num *= (duffid_real)(power - k);
+                }
+                num *= binom;
+                est->k_coef[at + power - d - first] += (m % 2 ? -num : num) / fact_a;
+                est->k_expo[at + power - d - first] = b - m;
+            }
+            at += last - first + 1;
+        }
+        est->raw_b[r] = (a == 1 && est->m.c.max_order >= 2) ? b : -1;
+        for (k = b + 1; k <= a + b + 1; k++) {
+            prod *= (duffid_real)k; /* (a+b+1)! / b! */
+        }
+        est->norm[r] = prod;
+        est->norm_power[r] = a + b + 1;
+    }
+    est->n_coef = at;
+    /* the falling-factorial basis phi_j(i) = i (i-1) ... (i-j+1) / N^j: one step later every
+     * sample is one further away, phi_j(i+1) = phi_j(i) + (j / N) phi_(j-1)(i); and
+     * (i/N)^k = sum_j S2(k, j) N^(j-k) phi_j(i) (Stirling numbers of the second kind) */
+    for (j = 0; j <= est->degree; j++) {
+        est->step[j] = (duffid_real)j * inv_n;
+    }
+    for (k = 0; k <= est->degree; k++) {
+        for (j = 0; j <= est->degree; j++) {
+            duffid_real *t = &est->stirling[k * (est->degree + 1) + j];
+            if (j > k) {
+                *t = RC(0.0);
+            } else if (k == 0) {
+                *t = RC(1.0);
+            } else if (j == 0) {
+                *t = RC(0.0);
+            } else { /* S2(k,j) = j S2(k-1,j) + S2(k-1,j-1), each times N^(j-k) */
+                const duffid_real *above = &est->stirling[(k - 1) * (est->degree + 1)];
+                *t = (duffid_real)j * above[j] * inv_n + above[j - 1];
             }
         }
-        est->raw_b[r] = (a == 1 && est->model.max_order >= 2) ? b : -1;
-        for (k = b + 1; k <= a + b + 1; k++) {
-            prod *= (uint64_t)k; /* (a+b+1)! / b! */
-        }
-        est->norm[r] = (double)prod;
-        est->norm_power[r] = (double)(a + b + 1);
     }
-    /* SlidingMoments._shift: B[k, r] = C(k, r) (1/N)^(k-r) */
-    for (k = 0; k <= est->degree; k++) {
-        for (r = 0; r <= est->degree; r++) {
-            est->shift[k * MAX_POW + r] =
-                r <= k ? (double)comb_u64(k, r) * pow(1.0 / (double)est->capacity, (double)(k - r)) : 0.0;
+    for (k = 0; k <= est->degree; k++) { /* the moments' 1/N */
+        for (j = 0; j <= k; j++) {
+            est->stirling[k * (est->degree + 1) + j] *= inv_n;
         }
     }
-    est->t_ref = (double)est->capacity * est->cfg.dt;
-    for (d = 0; d <= MAX_ORDER; d++) {
-        est->d_scale[d] = pow(est->t_ref, -(double)d);
+    est->d_scale[0] = RC(1.0);
+    for (d = 1; d <= MAX_ORDER; d++) {
+        est->d_scale[d] = est->d_scale[d - 1] / ((duffid_real)est->capacity * est->cfg.dt);
     }
 }
 
-static void integrators_reset(integrators_t *it)
+/* the structure of est (its model, tables and constants) from est->cfg */
+static void build_structure(duffid_estimator *est, const shape_t *s)
 {
-    size_t n = (size_t)(it->depth + 1) * (size_t)it->n_in;
-    memset(it->y, 0, n * sizeof(double));
-    memset(it->p1, 0, n * sizeof(double));
-    memset(it->p2, 0, n * sizeof(double));
-    it->count = 0;
-}
-
-static double *integrators_setup(integrators_t *it, int n_in, int depth, double *mem)
-{
-    size_t n = (size_t)(depth + 1) * (size_t)n_in;
-    it->n_in = n_in;
-    it->depth = depth;
-    it->y = mem;
-    it->p1 = mem + n;
-    it->p2 = mem + 2 * n;
-    return mem + 3 * n;
+    int i, k;
+    if (est->cfg.model == DUFFID_GENERATED) {
+        copy_generated(&est->m);
+    } else {
+        describe_builtin(&est->cfg, &est->m);
+        for (i = 0; i < s->m.c.n_channels; i++) {
+            est->m.ch[i] = s->ch[i];
+        }
+    }
+    est->n_dof = est->m.c.n_dof;
+    est->n_forces = est->m.c.n_forces;
+    est->n_params = est->m.c.n_params;
+    est->n_ch = est->m.c.n_channels;
+    est->n_eq = est->m.c.n_blocks;
+    for (i = 0; i < est->n_params; i++) {
+        est->nominal[est->m.publics[i].canonical] = R_FABS(est->cfg.nominal[i]);
+    }
+    est->n_used = 0;
+    for (i = 0; i < N_ORD * est->n_ch; i++) { /* the (order, channel) pairs the terms read */
+        for (k = 0; k < est->m.c.n_terms; k++) {
+            if (est->m.terms[k].order * est->n_ch + est->m.terms[k].channel == i) {
+                est->used_order[est->n_used] = i / est->n_ch;
+                est->used_channel[est->n_used++] = i % est->n_ch;
+                break;
+            }
+        }
+    }
+    est->dt = est->cfg.dt;
+    est->max_condition = est->cfg.max_condition;
+    est->max_uncertainty = est->cfg.max_uncertainty;
+    est->min_time = est->cfg.min_time;
+    est->deadband = est->cfg.deadband;
+    est->n_rows = s->n_rows;
+    if (est->cfg.method == DUFFID_ROBUST) {
+        duffid_real settle;
+        est->capacity = s->capacity;
+        est->auto_window = !(est->cfg.window > RC(0.0));
+        est->lam = est->cfg.forgetting > RC(0.0) ? R_EXP(-est->cfg.dt / est->cfg.forgetting) : RC(1.0);
+        est->sqrt_lam = R_SQRT(est->lam);
+        est->inv_cap = RC(1.0) / (duffid_real)est->capacity;
+        build_kernel_bank(est);
+        est->n_jobs = 0;
+        for (i = 0; i < est->n_used; i++) { /* the kernel entries: E[(r * N_ORD + d) * n_ch + c] */
+            const int d = est->used_order[i], c = est->used_channel[i];
+            int r;
+            for (r = 0; r < est->n_rows; r++) {
+                int *job = est->job + 5 * est->n_jobs++;
+                job[0] = est->k_at[r * N_ORD + d];
+                job[1] = c * (est->degree + 1) + est->k_first[r * N_ORD + d];
+                job[2] = est->k_count[r * N_ORD + d];
+                job[3] = (r * N_ORD + d) * est->n_ch + c;
+                job[4] = d == 2 && est->raw_b[r] >= 0 ? r : -1;
+            }
+        }
+        settle = round_half_even(est->cfg.settle / est->cfg.dt);
+        est->settle_count = settle < RC(1.0) ? 1 : (settle > RC(4e18) ? (int64_t)4e18 : (int64_t)settle);
+    }
 }
 
 /* ------------------------------------------------------------------ lifecycle */
+static duffid_estimator *place(void *memory)
+{
+    return (duffid_estimator *)(((uintptr_t)memory + (ALIGNMENT - 1u)) & ~(uintptr_t)(ALIGNMENT - 1u));
+}
+
+static char *dynamic_base(duffid_estimator *est)
+{
+    return (char *)est + ALIGN_UP(sizeof(struct duffid_estimator));
+}
+
 int duffid_init(duffid_estimator **out, void *memory, size_t size, const duffid_config *cfg, char *msg,
                 size_t msg_size)
 {
     duffid_estimator *est;
-    uintptr_t base;
-    double *dyn;
-    int rc, i;
+    shape_t s;
+    int rc;
     if (out == NULL || memory == NULL) {
         set_msg(msg, msg_size, "NULL argument");
         return DUFFID_ERR_ARGUMENT;
@@ -788,41 +1133,13 @@ int duffid_init(duffid_estimator **out, void *memory, size_t size, const duffid_
                 (unsigned long)duffid_memory_size(cfg));
         return DUFFID_ERR_ARGUMENT;
     }
-    base = ((uintptr_t)memory + (ALIGNMENT - 1u)) & ~(uintptr_t)(ALIGNMENT - 1u);
-    est = (duffid_estimator *)base;
+    shape_of(cfg, &s);
+    est = place(memory);
     memset(est, 0, sizeof *est);
+    memset(dynamic_base(est), 0, layout(&s, NULL, NULL));
     est->cfg = *cfg;
-    build_structure(est);
-    for (i = 0; i < est->n_params; i++) {
-        est->nominal[est->model.publics[i].canonical] = fabs(cfg->nominal[i]);
-    }
-    if (est->n_ch != channel_count(cfg)) { /* cannot happen: the layout below relies on it */
-        set_msg(msg, msg_size, "internal error: %d channels, expected %d", est->n_ch, channel_count(cfg));
-        return DUFFID_ERR_CONFIG;
-    }
-    dyn = (double *)(base + ALIGN_UP(sizeof(struct duffid_estimator)));
-    est->chan_work = dyn;
-    dyn += est->model.channel_work;
-    if (cfg->method == DUFFID_ROBUST) {
-        est->capacity = capacity_of(cfg);
-        est->auto_window = !(cfg->window > 0.0);
-        est->n_rows = effective_rows(cfg);
-        est->lam = cfg->forgetting > 0.0 ? exp(-cfg->dt / cfg->forgetting) : 1.0;
-        est->sqrt_lam = sqrt(est->lam);
-        est->ring = dyn;
-        build_kernel_bank(est);
-        {
-            double s = round_half_even(cfg->settle / cfg->dt);
-            est->settle_count = s < 1.0 ? 1 : (s > 4e18 ? (int64_t)4e18 : (int64_t)s);
-        }
-    } else {
-        for (i = 0; i < est->n_eq; i++) {
-            equation_t *eq = &est->eq[i];
-            const int n_unk = est->model.blocks[i].n_unknowns;
-            dyn = integrators_setup(&eq->reg, 3 * est->n_ch, n_unk + 1, dyn);
-            dyn = integrators_setup(&eq->det, n_unk + 1, 2, dyn);
-        }
-    }
+    layout(&s, est, dynamic_base(est));
+    build_structure(est, &s);
     duffid_reset(est);
     *out = est;
     return DUFFID_OK;
@@ -831,27 +1148,13 @@ int duffid_init(duffid_estimator **out, void *memory, size_t size, const duffid_
 duffid_estimator *duffid_relocate(void *memory)
 {
     duffid_estimator *est;
-    uintptr_t base;
-    double *dyn;
-    int i;
+    shape_t s;
     if (memory == NULL) {
         return NULL;
     }
-    base = ((uintptr_t)memory + (ALIGNMENT - 1u)) & ~(uintptr_t)(ALIGNMENT - 1u);
-    est = (duffid_estimator *)base;
-    dyn = (double *)(base + ALIGN_UP(sizeof(struct duffid_estimator)));
-    est->chan_work = dyn;
-    dyn += est->model.channel_work;
-    if (est->cfg.method == DUFFID_ROBUST) {
-        est->ring = dyn;
-    } else {
-        for (i = 0; i < est->n_eq; i++) {
-            equation_t *eq = &est->eq[i];
-            const int n_unk = est->model.blocks[i].n_unknowns;
-            dyn = integrators_setup(&eq->reg, 3 * est->n_ch, n_unk + 1, dyn);
-            dyn = integrators_setup(&eq->det, n_unk + 1, 2, dyn);
-        }
-    }
+    est = place(memory);
+    shape_of(&est->cfg, &s);
+    layout(&s, est, dynamic_base(est));
     est->block = NULL;
     return est;
 }
@@ -894,16 +1197,29 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     }
     /* structure: everything duffid_init derives from the configuration */
     STATE_SAME(n_dof) STATE_SAME(n_forces) STATE_SAME(n_params) STATE_SAME(n_ch) STATE_SAME(n_eq)
-    STATE_SAME(ch) STATE_SAME(model) STATE_SAME(nominal) STATE_SAME(settle_count)
+    if (memcmp(&est->m.c, &fresh->m.c, sizeof est->m.c) != 0) { /* another model (its counts, signature) */
+        bad = "model";
+        goto done;
+    }
+    STATE_SAME(settle_count) STATE_SAME(dt) STATE_SAME(max_condition)
+    STATE_SAME(max_uncertainty) STATE_SAME(min_time) STATE_SAME(deadband)
     STATE_SAME(capacity) STATE_SAME(auto_window) STATE_SAME(n_rows) STATE_SAME(degree) STATE_SAME(lam)
-    STATE_SAME(sqrt_lam) STATE_SAME(row_a) STATE_SAME(row_b) STATE_SAME(raw_b) STATE_SAME(coef)
-    STATE_SAME(expo) STATE_SAME(norm) STATE_SAME(norm_power) STATE_SAME(d_scale) STATE_SAME(t_ref)
-    STATE_SAME(shift)
+    STATE_SAME(sqrt_lam) STATE_SAME(inv_cap) STATE_SAME(row_a) STATE_SAME(row_b) STATE_SAME(raw_b)
+    STATE_SAME(norm) STATE_SAME(norm_power) STATE_SAME(d_scale) STATE_SAME(k_first) STATE_SAME(k_count)
+    STATE_SAME(k_at) STATE_SAME(n_coef) STATE_SAME(n_used) STATE_SAME(used_order) STATE_SAME(used_channel) STATE_SAME(n_jobs) STATE_SAME(p_max) STATE_SAME(n_max) STATE_SAME(rows_max)
+    STATE_SAME(structure_bytes)
+    if (memcmp((const char *)est + ALIGN_UP(sizeof *est), dynamic_base(fresh), fresh->structure_bytes) != 0) {
+        bad = "structure (the model's tables)";
+        goto done;
+    }
     for (i = 0; i < est->n_eq; i++) {
-        STATE_SAME(eq[i].reg.n_in)
-        STATE_SAME(eq[i].reg.depth) STATE_SAME(eq[i].det.n_in) STATE_SAME(eq[i].det.depth)
-        STATE_RANGE(est->eq[i].reg.count, 0, 2)
-        STATE_RANGE(est->eq[i].det.count, 0, 2)
+        STATE_RANGE(est->eq[i].warm, 0, 1)
+        if (cfg.method == DUFFID_PAPER) {
+            STATE_SAME(eq[i].reg.n_in)
+            STATE_SAME(eq[i].reg.depth) STATE_SAME(eq[i].det.n_in) STATE_SAME(eq[i].det.depth)
+            STATE_RANGE(est->eq[i].reg.count, 0, 2)
+            STATE_RANGE(est->eq[i].det.count, 0, 2)
+        }
     }
     /* counts, indices and buffer positions */
     n = est->n;
@@ -922,13 +1238,24 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     for (i = 0; i < DUFFID_MAX_DOF; i++) {
         STATE_RANGE(est->p_suspect[i], 0, 1)
     }
+    {
+        /* the per-parameter state lives in the block: read it through a relocated view */
+        const char *dyn = (const char *)est + ALIGN_UP(sizeof *est);
+        const int64_t *steady = (const int64_t *)(dyn + ((const char *)fresh->steady - dynamic_base(fresh)));
+        const int64_t *anchored = (const int64_t *)(dyn + ((const char *)fresh->anchored - dynamic_base(fresh)));
+        const int64_t *settled = (const int64_t *)(dyn + ((const char *)fresh->settled - dynamic_base(fresh)));
+        const int64_t *unsettled = (const int64_t *)(dyn + ((const char *)fresh->unsettled - dynamic_base(fresh)));
+        const int *status = (const int *)(dyn + ((const char *)fresh->status - dynamic_base(fresh)));
+        for (i = 0; i < est->n_params; i++) {
+            STATE_RANGE(status[i], DUFFID_STATUS_UNCERTAIN, DUFFID_STATUS_LOST)
+            STATE_RANGE(steady[i], 0, limit)
+            STATE_RANGE(anchored[i], -1, limit)
+            STATE_RANGE(settled[i], 0, limit)
+            STATE_RANGE(unsettled[i], 0, limit)
+        }
+    }
     for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
-        STATE_RANGE(est->status[i], DUFFID_STATUS_UNCERTAIN, DUFFID_STATUS_LOST)
         STATE_RANGE(est->last.status[i], DUFFID_STATUS_UNCERTAIN, DUFFID_STATUS_LOST)
-        STATE_RANGE(est->steady[i], 0, limit)
-        STATE_RANGE(est->anchored[i], -1, limit)
-        STATE_RANGE(est->settled[i], 0, limit)
-        STATE_RANGE(est->unsettled[i], 0, limit)
     }
     STATE_RANGE(est->last.n_parameters, 0, DUFFID_MAX_PARAMS)
     STATE_RANGE(est->last.identified, 0, 1)
@@ -937,11 +1264,17 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     if (cfg.method == DUFFID_ROBUST) {
         const long N = est->capacity;
         STATE_RANGE(est->target, 1, N)
+        STATE_RANGE(est->head, 0, N + 1)
         STATE_RANGE(est->start, 0, n + 1)
         STATE_RANGE(n - est->start, -1, (int64_t)N)
-        STATE_RANGE(est->shadow_from, est->start, n + 1)
+        for (i = 0; i < SHADOWS; i++) {
+            if (est->shadow_from[i] >= 0) {
+                STATE_RANGE(est->shadow_from[i], est->start, n + 1)
+            }
+        }
         STATE_RANGE(est->poly_L, -1, N)
         STATE_RANGE(est->corr_L, -1, N)
+        STATE_RANGE(est->leave_i, -1, N + 1)
         STATE_RANGE(est->corr_n, 0, MAX_CORR)
         for (i = 0; i < est->corr_n; i++) {
             STATE_RANGE(est->corr_off[i], 0, est->corr_L)
@@ -994,6 +1327,15 @@ void duffid_destroy(duffid_estimator *est)
     }
 }
 
+static void integrators_reset(integrators_t *it)
+{
+    size_t n = (size_t)(it->depth + 1) * (size_t)it->n_in;
+    memset(it->y, 0, n * sizeof(duffid_real));
+    memset(it->p1, 0, n * sizeof(duffid_real));
+    memset(it->p2, 0, n * sizeof(duffid_real));
+    it->count = 0;
+}
+
 void duffid_reset(duffid_estimator *est)
 {
     int i, u;
@@ -1009,39 +1351,50 @@ void duffid_reset(duffid_estimator *est)
     memset(est->gh, 0, sizeof est->gh);
     est->g_count = 0;
     for (i = 0; i < DUFFID_MAX_DOF; i++) {
-        est->g_mean[i] = 0.0;
-        est->g_lo[i] = DINF;
-        est->g_hi[i] = -DINF;
-        est->g_step[i] = DINF;
+        est->g_mean[i] = RC(0.0);
+        est->g_lo[i] = R_INF;
+        est->g_hi[i] = -R_INF;
+        est->g_step[i] = R_INF;
     }
     est->pending = 0;
     est->outliers = 0;
-    est->outlier_t = DNAN;
-    est->outlier_value = DNAN;
-    est->outlier_replaced_by = DNAN;
+    est->outlier_t = R_NAN;
+    est->outlier_value = R_NAN;
+    est->outlier_replaced_by = R_NAN;
     est->outlier_column = -1;
     memset(&est->last, 0, sizeof est->last);
     for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
+        est->last.parameters[i] = R_NAN;
+        est->last.current[i] = R_NAN;
+        est->last.status[i] = DUFFID_STATUS_UNCERTAIN;
+    }
+    for (i = 0; i < est->n_params; i++) {
         est->steady[i] = 0;
-        est->anchor[i] = DNAN;
+        est->anchor[i] = R_NAN;
         est->anchored[i] = 0;
         est->settled[i] = 0;
         est->unsettled[i] = 0;
         est->status[i] = DUFFID_STATUS_UNCERTAIN;
-        est->held[i] = DNAN;
+        est->held[i] = R_NAN;
     }
     if (est->cfg.method == DUFFID_ROBUST) {
-        memset(est->ring, 0, (size_t)(est->capacity + 2) * (size_t)est->n_ch * sizeof(double));
-        memset(est->main_acc, 0, sizeof est->main_acc);
-        memset(est->shadow, 0, sizeof est->shadow);
+        const size_t moments = (size_t)(est->degree + 1) * (size_t)est->n_ch * sizeof(duffid_real);
+        memset(est->ring, 0, (size_t)(est->capacity + 2) * (size_t)est->n_ch * sizeof(duffid_real));
+        memset(est->acc, 0, moments);
+        memset(est->shadow, 0, SHADOWS * moments);
+        est->head = est->capacity + 1; /* the first sample goes to position 0 */
         est->start = 0;
-        est->shadow_from = 0;
+        for (i = 0; i < SHADOWS; i++) {
+            est->shadow_from[i] = i == 0 ? 0 : -1;
+        }
         est->target = est->capacity;
         est->poly_L = -1;
         est->corr_L = -1;
+        est->leave_i = -1;
         for (i = 0; i < est->n_eq; i++) {
-            memset(est->eq[i].R, 0, sizeof est->eq[i].R);
-            est->eq[i].rows = 0.0;
+            const int p = est->m.blocks[i].n_unknowns + 1;
+            memset(est->eq[i].R, 0, (size_t)(p * p) * sizeof(duffid_real));
+            est->eq[i].rows = RC(0.0);
         }
     } else {
         for (i = 0; i < est->n_eq; i++) {
@@ -1050,24 +1403,25 @@ void duffid_reset(duffid_estimator *est)
         }
     }
     for (i = 0; i < est->n_eq; i++) {
-        for (u = 0; u < MAX_UNK; u++) {
-            est->eq[i].theta[u] = DNAN;
-            est->eq[i].rse[u] = DINF;
-            est->eq[i].share[u] = DNAN;
+        for (u = 0; u < est->m.blocks[i].n_unknowns; u++) {
+            est->eq[i].theta[u] = R_NAN;
+            est->eq[i].rse[u] = R_INF;
+            est->eq[i].share[u] = R_NAN;
         }
-        est->eq[i].rhs_share = DNAN;
-        est->eq[i].cond = DINF;
+        est->eq[i].rhs_share = R_NAN;
+        est->eq[i].cond = R_INF;
+        est->eq[i].warm = 0;
     }
 }
 
 /* ------------------------------------------------------------------ channels */
-static void evaluate_channels(duffid_estimator *est, const double *x, const double *f)
+static void evaluate_channels(duffid_estimator *est, const duffid_real *x, const duffid_real *f)
 {
     int i;
-    if (est->model.uses_sign) { /* _Channels: sgn(dx) where |dx| > deadband, else the previous sign */
+    if (est->m.c.uses_sign) { /* _Channels: sgn(dx) where |dx| > deadband, else the previous sign */
         for (i = 0; i < est->n_dof && est->has_last_x; i++) {
-            double dx = x[i] - est->last_x[i];
-            if (fabs(dx) > est->cfg.deadband) {
+            duffid_real dx = x[i] - est->last_x[i];
+            if (R_FABS(dx) > est->deadband) {
                 est->sgn[i] = sign_of(dx);
             }
         }
@@ -1078,28 +1432,37 @@ static void evaluate_channels(duffid_estimator *est, const double *x, const doub
     }
     if (est->cfg.model == DUFFID_GENERATED) {
 #ifdef DUFFID_GENERATED_MODEL
-        duffid_generated_channels(x, f, (double)est->n * est->cfg.dt, est->sgn, est->g, est->chan_work);
+        /* the channel function is CasADi's double code */
+        double xd[DUFFID_MAX_DOF], fd[DUFFID_MAX_FORCES], sd[DUFFID_MAX_DOF], gd[MAX_CH];
+        for (i = 0; i < est->n_dof; i++) {
+            xd[i] = (double)x[i];
+            sd[i] = (double)est->sgn[i];
+        }
+        for (i = 0; i < est->n_forces; i++) {
+            fd[i] = (double)f[i];
+        }
+        duffid_generated_channels(xd, fd, (double)est->n * (double)est->dt, sd, gd, est->chan_work);
+        for (i = 0; i < est->n_ch; i++) {
+            est->g[i] = (duffid_real)gd[i];
+        }
 #endif
         return;
     }
     for (i = 0; i < est->n_ch; i++) {
-        const channel_t *c = &est->ch[i];
-        double v;
+        const channel_t *c = &est->m.ch[i];
+        duffid_real v;
         switch (c->kind) {
         case CH_X:
-            v = x[c->index];
+            v = int_power(x[c->index], c->power);
             break;
         case CH_DEFL:
-            v = x[c->index] - (c->index > 0 ? x[c->index - 1] : 0.0);
-            if (c->power != 1) {
-                v = pow(v, (double)c->power);
-            }
+            v = int_power(x[c->index] - (c->index > 0 ? x[c->index - 1] : RC(0.0)), c->power);
             break;
         case CH_FORCE:
             v = f[c->index];
             break;
         default:
-            v = 1.0;
+            v = RC(1.0);
             break;
         }
         est->g[i] = v;
@@ -1107,287 +1470,490 @@ static void evaluate_channels(duffid_estimator *est, const double *x, const doub
 }
 
 /* ------------------------------------------------------------------ moments */
-/* regressors.gregory_corrections + SlidingMoments._corrections, cached for one L */
+/* The sliding moments (regressors.SlidingMoments) are kept in the falling-factorial basis
+ * phi_j(i) = i (i-1) ... (i-j+1) / N^j of the sample's distance i from the newest sample:
+ * when a sample arrives every distance grows by one, phi_j(i+1) = phi_j(i) + (j/N) phi_(j-1)(i),
+ * a bidiagonal step with positive coefficients. */
+
+/* ring position of the sample `back` samples before the newest */
+static long ring_at(const duffid_estimator *est, long back)
+{
+    long k = est->head - back;
+    return k < 0 ? k + est->capacity + 2 : k;
+}
+
+/* phi_j(i), j = 0..degree */
+static void factorial_basis(const duffid_estimator *est, long i, duffid_real *phi)
+{
+    int j;
+    phi[0] = RC(1.0);
+    for (j = 1; j <= est->degree; j++) {
+        phi[j] = phi[j - 1] * (duffid_real)(i - j + 1) * est->inv_cap;
+    }
+}
+
+/* regressors.gregory_corrections (SlidingMoments._corrections) in the factorial basis, cached
+ * for one L */
 static void corrections(duffid_estimator *est, long L)
 {
-    static const double gregory[3] = {-5.0 / 8.0, 1.0 / 6.0, -1.0 / 24.0};
+    static const duffid_real gregory[3] = {RC(-5.0) / RC(8.0), RC(1.0) / RC(6.0), RC(-1.0) / RC(24.0)};
     static const int nc_num[5][6] = {
         {1, 1, 0, 0, 0, 0}, {1, 4, 1, 0, 0, 0}, {3, 9, 9, 3, 0, 0},
         {14, 64, 24, 64, 14, 0}, {95, 375, 250, 250, 375, 95}};
     static const int nc_den[5] = {2, 3, 8, 45, 288};
-    double delta[MAX_CORR];
-    int m, k;
+    duffid_real delta[MAX_CORR];
+    const int D1 = est->degree + 1;
+    int m, j;
     if (est->corr_L == L) {
         return;
     }
     if (L < 1) {
         est->corr_n = 1;
         est->corr_off[0] = 0;
-        delta[0] = -1.0;
+        delta[0] = RC(-1.0);
     } else if (L <= 5) {
         est->corr_n = (int)L + 1;
         for (m = 0; m <= L; m++) {
             est->corr_off[m] = m;
-            delta[m] = (double)nc_num[L - 1][m] / (double)nc_den[L - 1] - 1.0;
+            delta[m] = (duffid_real)nc_num[L - 1][m] / (duffid_real)nc_den[L - 1] - RC(1.0);
         }
     } else {
-        long off[6];
-        off[0] = 0;
-        off[1] = 1;
-        off[2] = 2;
-        off[3] = L;
-        off[4] = L - 1;
-        off[5] = L - 2;
         est->corr_n = 6;
+        est->corr_off[0] = 0;
+        est->corr_off[1] = 1;
+        est->corr_off[2] = 2;
+        est->corr_off[3] = L;
+        est->corr_off[4] = L - 1;
+        est->corr_off[5] = L - 2;
         for (m = 0; m < 6; m++) {
-            est->corr_off[m] = off[m];
             delta[m] = gregory[m % 3];
         }
     }
     for (m = 0; m < est->corr_n; m++) {
-        double s = (double)est->corr_off[m] / (double)est->capacity;
-        for (k = 0; k <= est->degree; k++) {
-            est->corr_w[m * MAX_POW + k] = pow(s, (double)k) * delta[m];
+        duffid_real *w = est->corr_w + m * D1;
+        factorial_basis(est, est->corr_off[m], w);
+        for (j = 0; j < D1; j++) {
+            w[j] *= delta[m];
         }
+        est->corr_top[m] = est->corr_off[m] + 1 < D1 ? (int)est->corr_off[m] + 1 : D1; /* phi_j(i) = 0, j > i */
     }
     est->corr_L = L;
 }
 
-static void shift_accumulator(const duffid_estimator *est, double *acc)
+/* step an accumulator: every sample one further away (acc[c * (degree + 1) + j]), the new
+ * sample g in; leaving (if not NULL) is the sample that leaves the window, phi its basis
+ * values at its distance */
+static void shift_accumulator(const duffid_estimator *est, duffid_real *acc, const duffid_real *g,
+                              const duffid_real *leaving, const duffid_real *phi)
 {
-    int k, r, c, D = est->degree, n_ch = est->n_ch;
-    for (k = D; k >= 0; k--) { /* row k uses rows 0..k of the old values: go downwards */
-        for (c = 0; c < n_ch; c++) {
-            double sum = 0.0;
-            for (r = 0; r <= k; r++) {
-                sum += est->shift[k * MAX_POW + r] * acc[r * MAX_CH + c];
+    const int D1 = est->degree + 1;
+    int j, c;
+    for (c = 0; c < est->n_ch; c++) {
+        duffid_real *a = acc + c * D1, below = a[0];
+        if (leaving != NULL) {
+            const duffid_real old = leaving[c];
+            for (j = 1; j < D1; j++) { /* row j uses the old row j-1 */
+                const duffid_real here = a[j];
+                a[j] = here + est->step[j] * below - phi[j] * old;
+                below = here;
             }
-            acc[k * MAX_CH + c] = sum;
+            a[0] += g[c] - phi[0] * old;
+        } else {
+            for (j = 1; j < D1; j++) {
+                const duffid_real here = a[j];
+                a[j] = here + est->step[j] * below;
+                below = here;
+            }
+            a[0] += g[c];
         }
     }
 }
 
-/* SlidingMoments.push: the moments of the window (into est->mom) and its length L */
+/* acc += sign * phi(i) x sample */
+static void accumulate(const duffid_estimator *est, duffid_real *acc, const duffid_real *phi,
+                       const duffid_real *sample, duffid_real sign)
+{
+    const int D1 = est->degree + 1;
+    int j, c, top = 0;
+    while (top < D1 && phi[top] != RC(0.0)) {
+        top++; /* phi_j(i) = 0 for j > i */
+    }
+    for (c = 0; c < est->n_ch; c++) {
+        const duffid_real w = sign * sample[c];
+        duffid_real *a = acc + c * D1;
+        for (j = 0; j < top; j++) {
+            a[j] += w * phi[j];
+        }
+    }
+}
+
+/* the leaving sample's basis values at distance i (cached: in a sliding window it is always the same) */
+static const duffid_real *leaving_basis(duffid_estimator *est, long i)
+{
+    if (est->leave_i != i) {
+        factorial_basis(est, i, est->leave_phi);
+        est->leave_i = i;
+    }
+    return est->leave_phi;
+}
+
+/* SlidingMoments.push: the moments of the window (into est->mom, mom[c * (degree + 1) + k])
+ * and its length L */
 static long moments_push(duffid_estimator *est, long window)
 {
     const long N = est->capacity;
-    const int n_ch = est->n_ch, D = est->degree;
-    const int64_t ring_len = (int64_t)N + 2;
-    int64_t n, j, new_start;
+    const int n_ch = est->n_ch, D = est->degree, D1 = D + 1;
+    const int64_t n = est->n; /* SlidingMoments.n == OnlineIdentifier.n */
+    const size_t bytes = (size_t)(D1 * n_ch) * sizeof(duffid_real);
+    duffid_real phi[MAX_POW];
+    int64_t j, new_start;
     long w, L;
     int k, c, m;
-    double *slot;
+    duffid_real *slot;
 
-    n = est->n; /* SlidingMoments.n == OnlineIdentifier.n */
-    slot = est->ring + (size_t)(n % ring_len) * (size_t)n_ch;
+    est->head = est->head == N + 1 ? 0 : est->head + 1;
+    slot = est->ring + (size_t)est->head * (size_t)n_ch;
     for (c = 0; c < n_ch; c++) {
         slot[c] = est->g[c];
     }
-    shift_accumulator(est, est->main_acc);
-    shift_accumulator(est, est->shadow);
-    for (c = 0; c < n_ch; c++) {
-        est->main_acc[c] += est->g[c];
-        est->shadow[c] += est->g[c];
-    }
     w = window < N ? window : N;
     new_start = n - w > est->start ? n - w : est->start;
-    for (j = est->start; j < new_start; j++) { /* samples leaving the window */
-        double s = (double)(n - j) / (double)N;
-        const double *old = est->ring + (size_t)(j % ring_len) * (size_t)n_ch;
-        for (k = 0; k <= D; k++) {
-            double p = pow(s, (double)k);
-            for (c = 0; c < n_ch; c++) {
-                est->main_acc[k * MAX_CH + c] -= p * old[c];
+    if (new_start == est->start + 1) { /* a sliding window: one sample leaves */
+        const long i = (long)(n - est->start);
+        shift_accumulator(est, est->acc, est->g, est->ring + (size_t)ring_at(est, i) * (size_t)n_ch,
+                          leaving_basis(est, i));
+        est->start = new_start;
+    } else {
+        shift_accumulator(est, est->acc, est->g, NULL, NULL);
+        if (new_start - est->start > (int64_t)w + 1) {
+            /* many samples leave at once (the window shrank): rebuilding from the new window
+             * costs less than removing them one by one */
+            est->start = new_start;
+            est->shadow_from[0] = est->start - 1; /* rebuilt below */
+        } else {
+            for (j = est->start; j < new_start; j++) { /* samples leaving the window */
+                const long i = (long)(n - j);
+                accumulate(est, est->acc, leaving_basis(est, i), est->ring + (size_t)ring_at(est, i) * (size_t)n_ch,
+                           RC(-1.0));
             }
+            est->start = new_start;
         }
     }
-    est->start = new_start;
-    if (est->shadow_from < est->start) { /* the shadow holds samples outside the window: rebuild */
-        int64_t i;
-        est->shadow_from = est->start;
-        for (k = 0; k <= D; k++) {
-            for (c = 0; c < n_ch; c++) {
-                double sum = 0.0;
-                for (i = 0; i <= n - est->start; i++) {
-                    sum += pow((double)i / (double)N, (double)k) *
-                           est->ring[(size_t)((n - i) % ring_len) * (size_t)n_ch + (size_t)c];
+    for (k = 0; k < SHADOWS; k++) {
+        if (est->shadow_from[k] >= 0) {
+            shift_accumulator(est, est->shadow + k * D1 * n_ch, est->g, NULL, NULL);
+        }
+    }
+    for (k = 0; k < SHADOWS; k++) {
+        duffid_real *shadow = est->shadow + k * D1 * n_ch;
+        if (est->shadow_from[k] >= 0 && est->shadow_from[k] < est->start) {
+            /* the shadow holds samples outside the window (it shrank): the first is rebuilt
+             * from the window, the others start again */
+            if (k == 0) {
+                long i;
+                est->shadow_from[0] = est->start;
+                memset(shadow, 0, bytes);
+                for (i = 0; i <= (long)(n - est->start); i++) {
+                    factorial_basis(est, i, phi);
+                    accumulate(est, shadow, phi, est->ring + (size_t)ring_at(est, i) * (size_t)n_ch, RC(1.0));
                 }
-                est->shadow[k * MAX_CH + c] = sum;
+            } else {
+                est->shadow_from[k] = -1;
             }
         }
     }
-    if (est->shadow_from == est->start && n - est->start >= 1) {
-        /* the shadow holds exactly the window: it becomes the main accumulator */
-        memcpy(est->main_acc, est->shadow, sizeof est->main_acc);
-        memset(est->shadow, 0, sizeof est->shadow);
-        est->shadow_from = n + 1;
+    for (k = 0; k < SHADOWS; k++) {
+        duffid_real *shadow = est->shadow + k * D1 * n_ch;
+        if (est->shadow_from[k] == est->start && n - est->start >= 1) {
+            /* the shadow holds exactly the window: it becomes the main accumulator */
+            memcpy(est->acc, shadow, bytes);
+            memset(shadow, 0, bytes);
+            est->shadow_from[k] = n + 1;
+        }
     }
+#if SHADOWS > 1
+    { /* start a free shadow a window / SHADOWS after the latest */
+        int64_t latest = -1;
+        for (k = 0; k < SHADOWS; k++) {
+            latest = est->shadow_from[k] > latest ? est->shadow_from[k] : latest;
+        }
+        for (k = 0; k < SHADOWS; k++) {
+            if (est->shadow_from[k] < 0 && SHADOWS * (n + 1 - latest) >= (int64_t)w) {
+                memset(est->shadow + k * D1 * n_ch, 0, bytes);
+                est->shadow_from[k] = n + 1;
+                break;
+            }
+        }
+    }
+#endif
     L = (long)(n - est->start);
     corrections(est, L);
-    for (k = 0; k <= D; k++) {
-        for (c = 0; c < n_ch; c++) {
-            double corr = 0.0;
-            for (m = 0; m < est->corr_n; m++) {
-                corr += est->corr_w[m * MAX_POW + k] *
-                        est->ring[(size_t)((n - est->corr_off[m]) % ring_len) * (size_t)n_ch + (size_t)c];
+    { /* fact = acc + the quadrature's end corrections (those near the newest sample are short) */
+        const duffid_real *sample[MAX_CORR];
+        int full[MAX_CORR], n_full = 0;
+        for (m = 0; m < est->corr_n; m++) {
+            sample[m] = est->ring + (size_t)ring_at(est, est->corr_off[m]) * (size_t)n_ch;
+            if (est->corr_top[m] == D1) {
+                full[n_full++] = m;
             }
-            est->mom[k * MAX_CH + c] = (est->main_acc[k * MAX_CH + c] + corr) / (double)N;
+        }
+        for (c = 0; c < n_ch; c++) {
+            const duffid_real *a = est->acc + c * D1;
+            duffid_real *out = est->fact + c * D1, v[MAX_CORR] = {RC(0.0)};
+            for (m = 0; m < est->corr_n; m++) {
+                v[m] = sample[m][c];
+            }
+            if (n_full == 3) { /* a window of six samples or more: the three oldest */
+                const duffid_real *c0 = est->corr_w + full[0] * D1, *c1 = est->corr_w + full[1] * D1;
+                const duffid_real *c2 = est->corr_w + full[2] * D1;
+                const duffid_real v0 = v[full[0]], v1 = v[full[1]], v2 = v[full[2]];
+                for (k = 0; k < D1; k++) {
+                    out[k] = a[k] + c0[k] * v0 + c1[k] * v1 + c2[k] * v2;
+                }
+            } else {
+                for (k = 0; k < D1; k++) {
+                    duffid_real sum = a[k];
+                    int f;
+                    for (f = 0; f < n_full; f++) {
+                        sum += est->corr_w[full[f] * D1 + k] * v[full[f]];
+                    }
+                    out[k] = sum;
+                }
+            }
+            for (m = 0; m < est->corr_n; m++) {
+                if (est->corr_top[m] < D1) {
+                    const duffid_real *cw = est->corr_w + m * D1;
+                    for (k = 0; k < est->corr_top[m]; k++) {
+                        out[k] += cw[k] * v[m];
+                    }
+                }
+            }
+        }
+    }
+    /* the power moments S_k = sum_j S2(k, j) N^(j-k) / N x fact_j (positive weights;
+     * S2(k, 0) = 0 for k > 0) */
+    for (c = 0; c + 1 < n_ch; c += 2) { /* two channels at a time: each weight is loaded once */
+        const duffid_real *in = est->fact + c * D1, *in2 = in + D1;
+        duffid_real *out = est->mom + c * D1, *out2 = out + D1;
+        out[0] = est->stirling[0] * in[0];
+        out2[0] = est->stirling[0] * in2[0];
+        for (k = 1; k <= D; k++) {
+            const duffid_real *st = est->stirling + k * D1;
+            duffid_real sum = RC(0.0), sum2 = RC(0.0);
+            int i;
+            for (i = 1; i <= k; i++) {
+                sum += st[i] * in[i];
+                sum2 += st[i] * in2[i];
+            }
+            out[k] = sum;
+            out2[k] = sum2;
+        }
+    }
+    if (c < n_ch) { /* an odd channel */
+        const duffid_real *in = est->fact + c * D1;
+        duffid_real *out = est->mom + c * D1;
+        out[0] = est->stirling[0] * in[0];
+        for (k = 1; k <= D; k++) {
+            const duffid_real *st = est->stirling + k * D1;
+            duffid_real sum = RC(0.0);
+            int i;
+            for (i = 1; i <= k; i++) {
+                sum += st[i] * in[i];
+            }
+            out[k] = sum;
         }
     }
     return L;
 }
 
 /* ------------------------------------------------------------------ kernel entries */
-/* KernelBank.entries: E[r, d, channel] for a window of L samples */
+/* KernelBank.entries: E[r, d, channel] for a window of L samples (the orders and channels
+ * a term reads) */
 static void kernel_entries(duffid_estimator *est, long L)
 {
-    const int n_rows = est->n_rows, n_ch = est->n_ch, D = est->degree;
-    const double tau = (double)L / (double)est->capacity;
-    int r, d, k, c;
+    const int n_rows = est->n_rows, n_ch = est->n_ch;
+    const duffid_real tau = (duffid_real)L * est->inv_cap;
+    int r, k, u;
     if (est->poly_L != L) {
+        duffid_real tau_pow[2 * MAX_POW + 2];
+        tau_pow[0] = RC(1.0);
+        for (k = 1; k < 2 * MAX_POW + 2; k++) {
+            tau_pow[k] = tau_pow[k - 1] * tau;
+        }
+        for (k = 0; k < est->n_coef; k++) {
+            est->poly[k] = est->k_coef[k] * tau_pow[est->k_expo[k]];
+        }
         for (r = 0; r < n_rows; r++) {
-            for (d = 0; d <= MAX_ORDER; d++) {
-                for (k = 0; k <= D; k++) {
-                    int idx = (r * N_ORD + d) * MAX_POW + k;
-                    est->poly[idx] = est->coef[idx] != 0.0 ? est->coef[idx] * pow(tau, est->expo[idx]) : 0.0;
-                }
+            const duffid_real row_scale = est->norm[r] / tau_pow[est->norm_power[r]];
+            int d;
+            for (d = 0; d < N_ORD; d++) {
+                est->entry_scale[r * N_ORD + d] = row_scale * est->d_scale[d];
             }
-            est->row_scale[r] = est->norm[r] / pow(tau, est->norm_power[r]);
-            est->raw_pow[r] = est->raw_b[r] >= 0 ? pow(tau, (double)est->raw_b[r]) : 0.0;
+            est->raw_pow[r] = est->raw_b[r] >= 0 ? tau_pow[est->raw_b[r]] : RC(0.0);
         }
         est->poly_L = L;
     }
-    for (r = 0; r < n_rows; r++) {
-        for (d = 0; d <= MAX_ORDER; d++) {
-            const double *poly = est->poly + (r * N_ORD + d) * MAX_POW;
-            double scale = est->row_scale[r] * est->d_scale[d];
-            for (c = 0; c < n_ch; c++) {
-                double sum = 0.0;
-                for (k = 0; k <= D; k++) {
-                    if (poly[k] != 0.0) {
-                        sum += poly[k] * est->mom[k * MAX_CH + c];
-                    }
-                }
-                if (d == 2 && est->raw_b[r] >= 0) {
-                    sum += est->raw_pow[r] * est->g[c];
-                }
-                est->E[(r * N_ORD + d) * MAX_CH + c] = sum * scale;
+    for (u = 0; u < est->n_jobs; u++) {
+        const int *job = est->job + 5 * u, count = job[2], entry = job[3];
+        const duffid_real *poly = est->poly + job[0], *m = est->mom + job[1];
+        duffid_real sum = RC(0.0);
+        for (k = 0; k < count; k++) {
+            sum += poly[k] * m[k];
+        }
+        if (job[4] >= 0) { /* the raw term of a row with a = 1 */
+            sum += est->raw_pow[job[4]] * est->g[entry % n_ch];
+        }
+        est->E[entry] = sum * est->entry_scale[entry / n_ch];
+#if DUFFID_SINGLE
+        {
+            duffid_real size = RC(0.0);
+            for (k = 0; k < count; k++) {
+                size += R_FABS(poly[k] * m[k]);
             }
+            if (job[4] >= 0) {
+                size += R_FABS(est->raw_pow[job[4]] * est->g[entry % n_ch]);
+            }
+            est->E_size[entry] = size * R_FABS(est->entry_scale[entry / n_ch]);
+        }
+#endif
+    }
+}
+
+/* rows of [A D] of one block (identification._Assembly) into B, column after column
+ * (B[col * m + row], m = parts * n_rows rows: those of each equation of the block, one
+ * equation after the other); E[(r * N_ORD + d) * n_ch + c] */
+static void assemble(const duffid_estimator *est, const block_t *b, const duffid_real *E, int n_rows,
+                     duffid_real *B)
+{
+    const int p = b->n_unknowns + 1, n_ch = est->n_ch, m = b->n_parts * n_rows;
+    int r, k;
+    memset(B, 0, (size_t)(m * p) * sizeof(duffid_real));
+    for (k = 0; k < b->n_terms; k++) {
+        const term_t *t = &est->m.terms[b->term0 + k];
+        const int col = t->unknown >= 0 ? t->unknown : b->n_unknowns;
+        duffid_real *out = B + col * m + t->part * n_rows;
+        const duffid_real *in = E + t->order * n_ch + t->channel;
+        for (r = 0; r < n_rows; r++) {
+            out[r] += t->coef * in[r * N_ORD * n_ch];
         }
     }
 }
 
-/* rows of [A D] of one block (identification._Assembly) into B (parts * n_rows x (n_unk + 1)):
- * the rows of each equation of the block, one equation after the other */
-static void assemble(const duffid_block *b, const double *E, int n_rows, double *B)
+#if DUFFID_SINGLE
+/* the magnitudes of the rows of B (assemble on E_size: every term counted positive), into out */
+static void assemble_size(const duffid_estimator *est, const block_t *b, int n_rows, duffid_real *out)
 {
-    const int p = b->n_unknowns + 1;
+    const int p = b->n_unknowns + 1, n_ch = est->n_ch, m = b->n_parts * n_rows;
     int r, k;
-    memset(B, 0, (size_t)(b->n_parts * n_rows * p) * sizeof(double));
+    memset(out, 0, (size_t)(m * p) * sizeof(duffid_real));
     for (k = 0; k < b->n_terms; k++) {
-        const duffid_term *t = &b->terms[k];
+        const term_t *t = &est->m.terms[b->term0 + k];
         const int col = t->unknown >= 0 ? t->unknown : b->n_unknowns;
+        duffid_real *o = out + col * m + t->part * n_rows;
+        const duffid_real *in = est->E_size + t->order * n_ch + t->channel;
         for (r = 0; r < n_rows; r++) {
-            B[(t->part * n_rows + r) * p + col] += t->coef * E[(r * N_ORD + t->order) * MAX_CH + t->channel];
+            o[r] += R_FABS(t->coef) * in[r * N_ORD * n_ch];
         }
     }
 }
+#endif
 
 /* ------------------------------------------------------------------ least squares */
-/* identification.solve_factor on the p x p factor Raug (p = n + 1) */
-static void solve_factor(duffid_estimator *est, equation_t *eq, int n, const double *Raug, double rows,
-                         double overlap)
+static void singular(equation_t *eq, int n)
+{
+    int i;
+    for (i = 0; i < n; i++) {
+        eq->theta[i] = R_NAN;
+        eq->rse[i] = R_INF;
+        eq->share[i] = R_NAN;
+    }
+    eq->rhs_share = R_NAN;
+    eq->cond = R_INF;
+    eq->warm = 0;
+}
+
+/* identification.solve_factor on the p x p factor Raug (p = n + 1): the condition number of
+ * the column-equilibrated factor by a warm-started Jacobi iteration, the unknowns and their
+ * standard errors from its triangular inverse */
+static void solve_factor(duffid_estimator *est, equation_t *eq, int n, const duffid_real *Raug, duffid_real rows,
+                         duffid_real overlap)
 {
     const int p = n + 1;
-    double cond, dof, s2;
+    duffid_real cond, dof, s2, hi, lo;
     int i, j, k;
     for (j = 0; j < n; j++) { /* column norms: np.linalg.norm(R, axis=0), rows in order */
-        double sum = 0.0;
-        for (i = 0; i < n; i++) {
+        duffid_real sum = RC(0.0);
+        for (i = 0; i <= j; i++) {
             sum += Raug[i * p + j] * Raug[i * p + j];
         }
-        est->scale[j] = sqrt(sum);
+        est->scale[j] = R_SQRT(sum);
     }
     for (j = 0; j < n; j++) {
-        if (!(est->scale[j] > 0.0)) {
-            goto singular;
+        if (!(est->scale[j] > RC(0.0))) {
+            singular(eq, n);
+            return;
         }
     }
     for (i = 0; i < n; i++) {
         for (j = 0; j < n; j++) {
-            est->U[i * n + j] = Raug[i * p + j] / est->scale[j];
+            est->U[i * n + j] = j >= i ? Raug[i * p + j] / est->scale[j] : RC(0.0);
         }
     }
-    duffid_la_jacobi_svd(n, est->U, est->sv, est->V);
-    cond = est->sv[n - 1] > 0.0 ? est->sv[0] / est->sv[n - 1] : DINF;
-    if (!is_finite(cond) || cond > 1e14) {
-        goto singular;
+    if (duffid_la_upper_inverse(n, est->U, n, est->Rinv) != 0) {
+        singular(eq, n);
+        return;
     }
-    /* Rinv = (V / sv) @ U.T */
-    for (i = 0; i < n; i++) {
-        for (j = 0; j < n; j++) {
-            est->tmp[i * n + j] = est->V[i * n + j] / est->sv[j];
-        }
+    duffid_la_singular_range(n, est->U, eq->V, eq->warm, &hi, &lo);
+    cond = lo > RC(0.0) ? hi / lo : R_INF;
+    if (!is_finite(cond) || cond > COND_SINGULAR) {
+        singular(eq, n);
+        return;
     }
-    for (i = 0; i < n; i++) {
-        for (k = 0; k < n; k++) {
-            double sum = 0.0;
-            for (j = 0; j < n; j++) {
-                sum += est->tmp[i * n + j] * est->U[k * n + j];
-            }
-            est->Rinv[i * n + k] = sum;
-        }
-    }
-    for (i = 0; i < n; i++) {
-        double sum = 0.0;
-        for (k = 0; k < n; k++) {
+    eq->warm = 1;
+    for (i = 0; i < n; i++) { /* theta = R^-1 d / scale: the triangular inverse is R^-1 */
+        duffid_real sum = RC(0.0);
+        for (k = i; k < n; k++) {
             sum += est->Rinv[i * n + k] * Raug[k * p + n];
         }
         eq->theta[i] = sum / est->scale[i];
     }
     eq->cond = cond;
     { /* shares of the terms |theta_i| ||A_i|| and of ||D|| in the force balance */
-        double sq[MAX_AUG], rhs, balance;
+        duffid_real sq[MAX_AUG], rhs, balance;
         for (k = 0; k < p; k++) {
             sq[k] = Raug[k * p + n] * Raug[k * p + n];
         }
-        rhs = sqrt(duffid_la_pairwise_sum(sq, p, 1));
+        rhs = R_SQRT(duffid_la_pairwise_sum(sq, p, 1));
         for (i = 0; i < n; i++) {
-            double term = fabs(eq->theta[i]) * est->scale[i];
+            duffid_real term = R_FABS(eq->theta[i]) * est->scale[i];
             sq[i] = term * term;
         }
         sq[n] = rhs * rhs;
-        balance = sqrt(duffid_la_pairwise_sum(sq, p, 1));
+        balance = R_SQRT(duffid_la_pairwise_sum(sq, p, 1));
         for (i = 0; i < n; i++) {
-            eq->share[i] = balance > 0.0 ? fabs(eq->theta[i]) * est->scale[i] / balance : DNAN;
+            eq->share[i] = balance > RC(0.0) ? R_FABS(eq->theta[i]) * est->scale[i] / balance : R_NAN;
         }
-        eq->rhs_share = balance > 0.0 ? rhs / balance : DNAN;
+        eq->rhs_share = balance > RC(0.0) ? rhs / balance : R_NAN;
     }
-    dof = rows - (double)n;
-    if (dof <= 0.0) {
+    dof = rows - (duffid_real)n;
+    if (dof <= RC(0.0)) {
         for (i = 0; i < n; i++) {
-            eq->rse[i] = DINF;
+            eq->rse[i] = R_INF;
         }
         return;
     }
-    s2 = pow(Raug[n * p + n], 2.0) / dof * overlap;
+    s2 = Raug[n * p + n] * Raug[n * p + n] / dof * overlap;
     for (i = 0; i < n; i++) {
-        double sq[MAX_UNK], std;
-        for (k = 0; k < n; k++) {
-            sq[k] = est->Rinv[i * n + k] * est->Rinv[i * n + k];
+        duffid_real sq[MAX_UNK], std;
+        for (k = 0; k < n - i; k++) {
+            sq[k] = est->Rinv[i * n + i + k] * est->Rinv[i * n + i + k];
         }
-        std = sqrt(s2 * duffid_la_pairwise_sum(sq, n, 1)) / est->scale[i];
-        eq->rse[i] = eq->theta[i] != 0.0 ? std / fabs(eq->theta[i]) : DINF;
+        std = R_SQRT(s2 * duffid_la_pairwise_sum(sq, n - i, 1)) / est->scale[i];
+        eq->rse[i] = eq->theta[i] != RC(0.0) ? std / R_FABS(eq->theta[i]) : R_INF;
+#if DUFFID_SINGLE
+        eq->rse[i] = hypot_of(eq->rse[i], ARITHMETIC_FACTOR * eq->rounding * cond);
+#endif
     }
-    return;
-singular:
-    for (i = 0; i < n; i++) {
-        eq->theta[i] = DNAN;
-        eq->rse[i] = DINF;
-        eq->share[i] = DNAN;
-    }
-    eq->rhs_share = DNAN;
-    eq->cond = DINF;
 }
 
 /* OnlineIdentifier._robust_step + _robust_solve; returns the window length L */
@@ -1402,47 +1968,62 @@ static long robust_step(duffid_estimator *est)
     full = L >= est->target;
     for (e = 0; e < est->n_eq; e++) {
         equation_t *eq = &est->eq[e];
-        const duffid_block *b = &est->model.blocks[e];
+        const block_t *b = &est->m.blocks[e];
         const int n = b->n_unknowns, p = n + 1, m = b->n_parts * est->n_rows;
-        assemble(b, est->E, est->n_rows, est->B);
+        assemble(est, b, est->E, est->n_rows, est->B);
+#if DUFFID_SINGLE
+        { /* the rows' relative rounding error: their size from the magnitudes over their norm */
+            duffid_real norm2 = RC(0.0), size2 = RC(0.0), ratio;
+            for (i = 0; i < m * p; i++) {
+                norm2 += est->B[i] * est->B[i];
+            }
+            assemble_size(est, b, est->n_rows, est->B_size);
+            for (i = 0; i < m * p; i++) {
+                size2 += est->B_size[i] * est->B_size[i];
+            }
+            ratio = norm2 > RC(0.0) ? R_EPS * R_SQRT((duffid_real)L * size2 / norm2) : R_INF;
+            eq->rounding = full ? (est->lam * eq->rows * eq->rounding + (duffid_real)m * ratio) /
+                                      (est->lam * eq->rows + (duffid_real)m)
+                                : ratio;
+        }
+#endif
         if (full) {
             duffid_la_qr_accumulate(eq->R, p, est->sqrt_lam, est->B, m);
-            eq->rows = est->lam * eq->rows + (double)m;
-            solve_factor(est, eq, n, eq->R, eq->rows, (double)L);
+            eq->rows = est->lam * eq->rows + (duffid_real)m;
+            solve_factor(est, eq, n, eq->R, eq->rows, (duffid_real)L);
         } else {
             for (i = 0; i < p * p; i++) {
-                est->W[i] = 0.0;
+                est->W[i] = RC(0.0);
             }
-            duffid_la_qr_accumulate(est->W, p, 1.0, est->B, m);
-            solve_factor(est, eq, n, est->W, (double)m, 1.0);
+            duffid_la_qr_accumulate(est->W, p, RC(1.0), est->B, m);
+            solve_factor(est, eq, n, est->W, (duffid_real)m, RC(1.0));
         }
     }
     return L;
 }
-
 /* ------------------------------------------------------------------ paper method */
 /* identification.Integrators.push: returns y (levels 0..depth, n_in each) */
-static const double *integrators_push(integrators_t *it, const double *u, double h, int adams)
+static const duffid_real *integrators_push(integrators_t *it, const duffid_real *u, duffid_real h, int adams)
 {
     const size_t n = (size_t)(it->depth + 1) * (size_t)it->n_in;
     const int m = it->n_in;
     int k, i;
-    memcpy(it->p2, it->p1, n * sizeof(double));
-    memcpy(it->p1, it->y, n * sizeof(double));
+    memcpy(it->p2, it->p1, n * sizeof(duffid_real));
+    memcpy(it->p1, it->y, n * sizeof(duffid_real));
     for (i = 0; i < m; i++) {
         it->y[i] = u[i];
     }
     for (k = 1; k <= it->depth; k++) {
-        double *y = it->y + k * m;
-        const double *y_lo = it->y + (k - 1) * m;
-        const double *p1 = it->p1 + k * m, *p1_lo = it->p1 + (k - 1) * m, *p2_lo = it->p2 + (k - 1) * m;
+        duffid_real *y = it->y + k * m;
+        const duffid_real *y_lo = it->y + (k - 1) * m;
+        const duffid_real *p1 = it->p1 + k * m, *p1_lo = it->p1 + (k - 1) * m, *p2_lo = it->p2 + (k - 1) * m;
         for (i = 0; i < m; i++) {
             if (it->count == 0) {
-                y[i] = 0.0;
+                y[i] = RC(0.0);
             } else if (it->count == 1 || !adams) {
-                y[i] = p1[i] + 0.5 * h * (y_lo[i] + p1_lo[i]);
+                y[i] = p1[i] + RC(0.5) * h * (y_lo[i] + p1_lo[i]);
             } else {
-                y[i] = p1[i] + h / 12.0 * (5.0 * y_lo[i] + 8.0 * p1_lo[i] - p2_lo[i]);
+                y[i] = p1[i] + h / RC(12.0) * (RC(5.0) * y_lo[i] + RC(8.0) * p1_lo[i] - p2_lo[i]);
             }
         }
     }
@@ -1452,59 +2033,63 @@ static const double *integrators_push(integrators_t *it, const double *u, double
     return it->y;
 }
 
-/* identification.equilibrated_condition */
-static double equilibrated_condition(duffid_estimator *est, const double *A, int n)
+/* identification.equilibrated_condition (the Jacobi iteration warm-started from the block's
+ * previous sample) */
+static duffid_real equilibrated_condition(duffid_estimator *est, equation_t *eq, const duffid_real *A, int n)
 {
-    double col[MAX_UNK], row[MAX_UNK], sq[MAX_UNK];
+    duffid_real hi, lo;
+    duffid_real col[MAX_UNK], row[MAX_UNK], sq[MAX_UNK];
     int i, j;
     for (j = 0; j < n; j++) {
-        double sum = 0.0;
+        duffid_real sum = RC(0.0);
         for (i = 0; i < n; i++) {
             sum += A[i * n + j] * A[i * n + j];
         }
-        col[j] = sqrt(sum);
+        col[j] = R_SQRT(sum);
     }
     for (i = 0; i < n; i++) {
         for (j = 0; j < n; j++) {
             sq[j] = A[i * n + j] * A[i * n + j];
         }
-        row[i] = sqrt(duffid_la_pairwise_sum(sq, n, 1));
+        row[i] = R_SQRT(duffid_la_pairwise_sum(sq, n, 1));
     }
     for (i = 0; i < n; i++) {
-        if (!(col[i] > 0.0 && row[i] > 0.0)) {
-            return DINF;
+        if (!(col[i] > RC(0.0) && row[i] > RC(0.0))) {
+            eq->warm = 0;
+            return R_INF;
         }
     }
     for (i = 0; i < n; i++) {
-        double rn;
+        duffid_real rn;
         for (j = 0; j < n; j++) {
             est->Aw[i * n + j] = A[i * n + j] / col[j];
             sq[j] = est->Aw[i * n + j] * est->Aw[i * n + j];
         }
-        rn = sqrt(duffid_la_pairwise_sum(sq, n, 1));
+        rn = R_SQRT(duffid_la_pairwise_sum(sq, n, 1));
         for (j = 0; j < n; j++) {
             est->Aw[i * n + j] /= rn;
         }
     }
-    duffid_la_jacobi_svd(n, est->Aw, est->sv, est->V);
-    if (est->sv[0] != est->sv[0]) {
-        return DNAN;
+    duffid_la_singular_range(n, est->Aw, eq->V, eq->warm, &hi, &lo);
+    eq->warm = hi == hi && lo > RC(0.0);
+    if (hi != hi) {
+        return R_NAN;
     }
-    if (!(est->sv[n - 1] > 0.0)) {
-        return DINF;
+    if (!(lo > RC(0.0))) {
+        return R_INF;
     }
-    return est->sv[0] / est->sv[n - 1];
+    return hi / lo;
 }
 
 /* OnlineIdentifier._paper_step; returns the window length (samples since the first) */
 static long paper_step(duffid_estimator *est)
 {
-    const double dt = est->cfg.dt;
-    const double tau = (double)est->n * dt;
-    const double tau2 = pow(tau, 2.0);
+    const duffid_real dt = est->cfg.dt;
+    const duffid_real tau = (duffid_real)est->n * dt;
+    const duffid_real tau2 = tau * tau;
     const int n_ch = est->n_ch, adams = est->cfg.quadrature == DUFFID_ADAMS3;
     const int fixed_sign = est->cfg.sign_in_numerator;
-    const double weight = exp(-est->cfg.gamma * tau);
+    const duffid_real weight = R_EXP(-est->cfg.gamma * tau);
     int e, c, p, u, i;
     for (c = 0; c < n_ch; c++) {
         est->u_in[c] = est->g[c];
@@ -1513,54 +2098,54 @@ static long paper_step(duffid_estimator *est)
     }
     for (e = 0; e < est->n_eq; e++) {
         equation_t *eq = &est->eq[e];
-        const duffid_block *b = &est->model.blocks[e];
+        const block_t *b = &est->m.blocks[e];
         const int n = b->n_unknowns, m = 3 * n_ch;
-        const double *y = integrators_push(&eq->reg, est->u_in, dt, adams);
-        double delta, deltas[MAX_UNK], in[MAX_UNK + 1];
-        const double *z;
+        const duffid_real *y = integrators_push(&eq->reg, est->u_in, dt, adams);
+        duffid_real delta, deltas[MAX_UNK], in[MAX_UNK + 1];
+        const duffid_real *z;
         /* E[p, order, channel] of eqs. (16)-(17); Y[k, j, c] = y[k * m + j * n_ch + c] */
         for (p = 0; p < n; p++) {
             for (c = 0; c < n_ch; c++) {
-                double *Ep = est->E + (size_t)p * N_ORD * MAX_CH;
-                Ep[2 * MAX_CH + c] = y[p * m + 2 * n_ch + c] - 4.0 * y[(p + 1) * m + n_ch + c] +
-                                     2.0 * y[(p + 2) * m + c];
-                Ep[1 * MAX_CH + c] = y[(p + 1) * m + 2 * n_ch + c] - 2.0 * y[(p + 2) * m + n_ch + c];
+                duffid_real *Ep = est->E + (size_t)p * N_ORD * (size_t)n_ch;
+                Ep[2 * n_ch + c] = y[p * m + 2 * n_ch + c] - RC(4.0) * y[(p + 1) * m + n_ch + c] +
+                                     RC(2.0) * y[(p + 2) * m + c];
+                Ep[1 * n_ch + c] = y[(p + 1) * m + 2 * n_ch + c] - RC(2.0) * y[(p + 2) * m + n_ch + c];
                 Ep[c] = y[(p + 2) * m + 2 * n_ch + c];
             }
         }
-        assemble(b, est->E, n, est->B); /* one part: the paper method refuses joint blocks */
+        assemble(est, b, est->E, n, est->B); /* one part: the paper method refuses joint blocks */
         for (p = 0; p < n; p++) {
             for (u = 0; u < n; u++) {
-                est->Ap[p * n + u] = est->B[p * (n + 1) + u];
+                est->Ap[p * n + u] = est->B[u * n + p];
             }
-            est->Dp[p] = est->B[p * (n + 1) + n];
+            est->Dp[p] = est->B[n * n + p];
         }
-        memcpy(est->tmp, est->Ap, (size_t)(n * n) * sizeof(double));
-        delta = duffid_la_det(n, est->tmp);
+        memcpy(est->W, est->Ap, (size_t)(n * n) * sizeof(duffid_real));
+        delta = duffid_la_det(n, est->W);
         for (i = 0; i < n; i++) {
-            memcpy(est->tmp, est->Ap, (size_t)(n * n) * sizeof(double));
+            memcpy(est->W, est->Ap, (size_t)(n * n) * sizeof(duffid_real));
             for (p = 0; p < n; p++) {
-                est->tmp[p * n + i] = est->Dp[p];
+                est->W[p * n + i] = est->Dp[p];
             }
-            deltas[i] = duffid_la_det(n, est->tmp);
+            deltas[i] = duffid_la_det(n, est->W);
         }
         for (i = 0; i < n; i++) {
-            double num = fixed_sign ? deltas[i] * sign_of(delta) : fabs(deltas[i]);
+            duffid_real num = fixed_sign ? deltas[i] * sign_of(delta) : R_FABS(deltas[i]);
             in[i] = weight * num;
         }
-        in[n] = weight * fabs(delta);
+        in[n] = weight * R_FABS(delta);
         z = integrators_push(&eq->det, in, dt, adams) + 2 * (n + 1);
-        if (z[n] > 0.0) { /* eq. (19): filtered |Delta_i| / |Delta|, signs of the current sample */
+        if (z[n] > RC(0.0)) { /* eq. (19): filtered |Delta_i| / |Delta|, signs of the current sample */
             for (i = 0; i < n; i++) {
-                double ratio = z[i] / z[n];
+                duffid_real ratio = z[i] / z[n];
                 eq->theta[i] = fixed_sign ? ratio : sign_of(deltas[i]) * sign_of(delta) * ratio;
             }
         } else {
             for (i = 0; i < n; i++) {
-                eq->theta[i] = DNAN;
+                eq->theta[i] = R_NAN;
             }
         }
-        eq->cond = equilibrated_condition(est, est->Ap, n);
+        eq->cond = equilibrated_condition(est, eq, est->Ap, n);
     }
     return (long)est->n;
 }
@@ -1572,15 +2157,15 @@ static long paper_step(duffid_estimator *est)
  * progresses). Relative errors of products add in quadrature. */
 static void combine(duffid_estimator *est)
 {
-    const duffid_model *m = &est->model;
+    const rt_model *m = &est->m;
     const int n = est->n_eq;
     int known[MAX_EQ];
-    double s_val[MAX_EQ], s_err[MAX_EQ];
+    duffid_real s_val[MAX_EQ], s_err[MAX_EQ];
     int i, progress = 1, n_canon = est->n_params;
     for (i = 0; i < n; i++) {
         known[i] = m->blocks[i].forced;
-        s_val[i] = 1.0;
-        s_err[i] = 0.0;
+        s_val[i] = RC(1.0);
+        s_err[i] = RC(0.0);
     }
     for (;;) {
         int missing = 0;
@@ -1597,17 +2182,17 @@ static void combine(duffid_estimator *est)
                 continue;
             }
             for (r = 0; r < m->blocks[i].n_rules; r++) {
-                const duffid_rule *rule = &m->blocks[i].rules[r];
-                const double ratio = est->eq[i].theta[rule->unknown];
+                const duffid_rule *rule = &m->rules[m->blocks[i].rule0 + r];
+                const duffid_real ratio = est->eq[i].theta[rule->unknown];
                 const int j = rule->other;
-                if (ratio == 0.0 || !known[j]) {
+                if (ratio == RC(0.0) || !known[j]) {
                     continue;
                 }
                 {
-                    double abs_val = s_val[j] * est->eq[j].theta[rule->other_unknown];
-                    double abs_err = hypot(s_err[j], est->eq[j].rse[rule->other_unknown]);
+                    duffid_real abs_val = s_val[j] * est->eq[j].theta[rule->other_unknown];
+                    duffid_real abs_err = hypot_of(s_err[j], est->eq[j].rse[rule->other_unknown]);
                     s_val[i] = abs_val / ratio;
-                    s_err[i] = hypot(abs_err, est->eq[i].rse[rule->unknown]);
+                    s_err[i] = hypot_of(abs_err, est->eq[i].rse[rule->unknown]);
                     known[i] = 1;
                     progress = 1;
                     break;
@@ -1617,7 +2202,7 @@ static void combine(duffid_estimator *est)
     }
     for (i = 0; i < n_canon; i++) {
         const duffid_parameter *q = &m->params[i];
-        double val = DNAN, err = DINF;
+        duffid_real val = R_NAN, err = R_INF;
         int k;
         if (q->scale_of >= 0) {
             if (known[q->scale_of]) {
@@ -1629,7 +2214,7 @@ static void combine(duffid_estimator *est)
                 const int j = q->sources[k].block, u = q->sources[k].unknown;
                 if (known[j]) {
                     val = s_val[j] * est->eq[j].theta[u];
-                    err = hypot(s_err[j], est->eq[j].rse[u]);
+                    err = hypot_of(s_err[j], est->eq[j].rse[u]);
                     break;
                 }
             }
@@ -1640,11 +2225,11 @@ static void combine(duffid_estimator *est)
     /* OnlineIdentifier._shares: the largest share over the blocks with the term */
     for (i = 0; i < n_canon; i++) {
         const duffid_parameter *q = &m->params[i];
-        double share = DNAN;
+        duffid_real share = R_NAN;
         int k;
         for (k = 0; k < q->n_shares; k++) {
             const int j = q->shares[k].block, u = q->shares[k].unknown;
-            double v = u >= 0 ? est->eq[j].share[u] : est->eq[j].rhs_share;
+            duffid_real v = u >= 0 ? est->eq[j].share[u] : est->eq[j].rhs_share;
             if (is_finite(v) && !(v <= share)) {
                 share = v;
             }
@@ -1653,9 +2238,9 @@ static void combine(duffid_estimator *est)
     }
 }
 
-static double combined_condition(const duffid_estimator *est)
+static duffid_real combined_condition(const duffid_estimator *est)
 {
-    double cond = est->eq[0].cond;
+    duffid_real cond = est->eq[0].cond;
     int e;
     for (e = 1; e < est->n_eq; e++) {
         cond = max_builtin(cond, est->eq[e].cond);
@@ -1667,22 +2252,22 @@ static double combined_condition(const duffid_estimator *est)
  * the eigenvalues of M^-1 K (np.linalg.solve, then eigvals) */
 static long auto_window(duffid_estimator *est, long current)
 {
-    const duffid_model *m = &est->model;
+    const rt_model *m = &est->m;
     const int n = est->n_dof;
-    double *M = est->lin, *K = est->lin + n * n;
-    double wr[DUFFID_MAX_DOF], wi[DUFFID_MAX_DOF], best = DINF, samples;
+    duffid_real *M = est->lin, *K = est->lin + n * n;
+    duffid_real wr[DUFFID_MAX_DOF], wi[DUFFID_MAX_DOF], best = R_INF, samples;
     int i;
-    if (!m->linear) {
+    if (!m->c.linear) {
         return est->capacity;
     }
-    memset(est->lin, 0, sizeof est->lin);
-    for (i = 0; i < m->n_mass; i++) {
+    memset(est->lin, 0, (size_t)(2 * n * n) * sizeof(duffid_real));
+    for (i = 0; i < m->c.n_mass; i++) {
         const duffid_linear *l = &m->mass[i];
-        M[l->row * n + l->col] += l->param >= 0 ? l->coef * est->canon[l->param] : l->coef;
+        M[l->row * n + l->col] += l->param >= 0 ? (duffid_real)l->coef * est->canon[l->param] : (duffid_real)l->coef;
     }
-    for (i = 0; i < m->n_stiffness; i++) {
+    for (i = 0; i < m->c.n_stiffness; i++) {
         const duffid_linear *l = &m->stiffness[i];
-        K[l->row * n + l->col] += l->param >= 0 ? l->coef * est->canon[l->param] : l->coef;
+        K[l->row * n + l->col] += l->param >= 0 ? (duffid_real)l->coef * est->canon[l->param] : (duffid_real)l->coef;
     }
     for (i = 0; i < 2 * n * n; i++) {
         if (!is_finite(est->lin[i])) {
@@ -1696,33 +2281,33 @@ static long auto_window(duffid_estimator *est, long current)
         return est->capacity;
     }
     for (i = 0; i < n; i++) {
-        double omega = sqrt(fabs(wr[i]));
-        if (is_finite(omega) && omega > 0.0 && omega < best) {
+        duffid_real omega = R_SQRT(R_FABS(wr[i]));
+        if (is_finite(omega) && omega > RC(0.0) && omega < best) {
             best = omega;
         }
     }
     if (!is_finite(best)) {
         return est->capacity;
     }
-    samples = round_half_even(est->cfg.window_periods * 2.0 * PI / best / est->cfg.dt);
-    if (samples < (double)current) {
-        samples = (double)current;
+    samples = round_half_even(est->cfg.window_periods * RC(2.0) * PI / best / est->dt);
+    if (samples < (duffid_real)current) {
+        samples = (duffid_real)current;
     }
-    if (!(samples <= (double)est->capacity)) {
-        samples = (double)est->capacity;
+    if (!(samples <= (duffid_real)est->capacity)) {
+        samples = (duffid_real)est->capacity;
     }
     return (long)samples;
 }
 
 /* ------------------------------------------------------------------ publication */
-static int window_ok(const duffid_estimator *est, double cond, long L)
+static int window_ok(const duffid_estimator *est, duffid_real cond, long L)
 {
-    return cond <= est->cfg.max_condition && (double)L * est->cfg.dt >= est->cfg.min_time - 1e-12 &&
+    return cond <= est->max_condition && (duffid_real)L * est->dt >= est->min_time - RC(1e-12) &&
            est->n >= MIN_SAMPLES;
 }
 
 /* identification._next_status */
-static int next_status(int status, int64_t settled, int64_t unsettled, int64_t settle, int good, double share)
+static int next_status(int status, int64_t settled, int64_t unsettled, int64_t settle, int good, duffid_real share)
 {
     if (settled >= settle) {
         return DUFFID_STATUS_PUBLISHED;
@@ -1730,7 +2315,7 @@ static int next_status(int status, int64_t settled, int64_t unsettled, int64_t s
     if (status == DUFFID_STATUS_PUBLISHED) {
         return unsettled >= settle ? DUFFID_STATUS_LOST : DUFFID_STATUS_PUBLISHED;
     }
-    if (good && share < DUFFID_MIN_SHARE) {
+    if (good && share < RC(DUFFID_MIN_SHARE)) {
         return DUFFID_STATUS_NOT_EXCITED;
     }
     return status == DUFFID_STATUS_LOST ? DUFFID_STATUS_LOST : DUFFID_STATUS_UNCERTAIN;
@@ -1742,7 +2327,7 @@ static int window_known(const duffid_estimator *est)
 {
     int i;
     for (i = 0; i < est->n_params; i++) {
-        int needed = est->model.params[i].period;
+        int needed = est->m.params[i].period;
         if (!(est->steady[i] >= est->settle_count || (est->status[i] == DUFFID_STATUS_NOT_EXCITED && !needed))) {
             return 0;
         }
@@ -1758,77 +2343,78 @@ static void count_up(int64_t *counter, int64_t limit)
 }
 
 /* the model's is_physical: the sign its term needs (canonical index i) */
-static int is_physical(const duffid_estimator *est, int i, double v)
+static int is_physical(const duffid_estimator *est, int i, duffid_real v)
 {
-    const int allowed = est->model.params[i].physical;
-    if (v > 0.0) {
+    const int allowed = est->m.params[i].physical;
+    if (v > RC(0.0)) {
         return (allowed & DUFFID_ALLOW_POSITIVE) != 0;
     }
-    if (v < 0.0) {
+    if (v < RC(0.0)) {
         return (allowed & DUFFID_ALLOW_NEGATIVE) != 0;
     }
-    if (v == 0.0) {
+    if (v == RC(0.0)) {
         return (allowed & DUFFID_ALLOW_ZERO) != 0;
     }
     return allowed == ANY_SIGN; /* NaN: only a parameter without a rule is "physical" */
 }
 
 /* the public value of canonical value v (models' from_canonical) */
-static double public_value(const duffid_estimator *est, int i, double v)
+static duffid_real public_value(const duffid_estimator *est, int i, duffid_real v)
 {
-    if (!est->model.publics[i].reciprocal) {
+    if (!est->m.publics[i].reciprocal) {
         return v;
     }
-    return v != 0.0 ? 1.0 / v : DINF;
+    return v != RC(0.0) ? RC(1.0) / v : R_INF;
 }
 
 static void publish(duffid_estimator *est, long window, duffid_output *out)
 {
     const int np = est->n_params;
-    double cond, worst = 0.0;
+    duffid_real cond, worst = RC(0.0);
     int i, ok = 1, good;
     combine(est);
     cond = combined_condition(est);
     good = window_ok(est, cond, window);
     if (est->cfg.method == DUFFID_PAPER) {
         for (i = 0; i < np; i++) {
-            double v = est->canon[i];
-            est->held[i] = public_value(est, i, est->canon[est->model.publics[i].canonical]);
+            duffid_real v = est->canon[i];
+            est->held[i] = public_value(est, i, est->canon[est->m.publics[i].canonical]);
             ok &= is_finite(v) && is_physical(est, i, v);
         }
         ok = ok && good;
-        worst = DNAN;
+        worst = R_NAN;
         for (i = 0; i < np; i++) {
             est->status[i] = ok ? DUFFID_STATUS_PUBLISHED : DUFFID_STATUS_UNCERTAIN;
         }
     } else {
-        double trusted[DUFFID_MAX_PARAMS];
+        duffid_real trusted[DUFFID_MAX_PARAMS];
         const int full = window >= est->target;
-        const double tol = 0.5 * est->cfg.max_uncertainty;
+        const duffid_real tol = RC(0.5) * est->max_uncertainty;
         for (i = 0; i < np; i++) { /* canonical order */
-            double v = est->canon[i];
-            double relative = (is_finite(v) && v != 0.0) ? est->canon_rse[i] : DINF;
+            duffid_real v = est->canon[i];
+            duffid_real relative = (is_finite(v) && v != RC(0.0)) ? est->canon_rse[i] : R_INF;
             int small, large;
-            if (est->nominal[i] > 0.0 && is_finite(relative)) { /* the user's prior size */
-                relative = relative * fabs(v) / (fabs(v) > est->nominal[i] ? fabs(v) : est->nominal[i]);
+            if (est->nominal[i] > RC(0.0) && is_finite(relative)) { /* the user's prior size */
+                relative = relative * R_FABS(v) / (R_FABS(v) > est->nominal[i] ? R_FABS(v) : est->nominal[i]);
             }
             worst = max_builtin(worst, relative);
             {
                 const int physical = is_physical(est, i, v);
-                const int excited = est->canon_share[i] >= DUFFID_MIN_SHARE || est->nominal[i] > 0.0;
-                small = good && excited && physical && relative <= est->cfg.max_uncertainty;
-                large = !(good && physical && relative <= DUFFID_LOSS_FACTOR * est->cfg.max_uncertainty);
+                const int excited = est->canon_share[i] >= RC(DUFFID_MIN_SHARE) || est->nominal[i] > RC(0.0);
+                small = good && excited && physical && relative <= est->max_uncertainty;
+                large = !(good && physical && relative <= RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty);
             }
             if (small) {
                 count_up(&est->steady[i], est->settle_count);
             } else {
                 est->steady[i] = 0;
             }
-            if (!(is_finite(v) && fabs(v - est->anchor[i]) <= tol * fabs(est->anchor[i]))) {
+            if (!(is_finite(v) && R_FABS(v - est->anchor[i]) <= tol * R_FABS(est->anchor[i]))) {
                 est->anchor[i] = v;
                 est->anchored[i] = est->n;
             }
-            if (small && (full || (double)(est->n - est->anchored[i]) >= DUFFID_GROWTH_STEADY * (double)window)) {
+            /* n - anchored >= GROWTH_STEADY (1/4) x window, in integers */
+            if (small && (full || 4 * (est->n - est->anchored[i]) >= (int64_t)window)) {
                 count_up(&est->settled[i], est->settle_count);
             } else {
                 est->settled[i] = 0;
@@ -1840,13 +2426,13 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
             }
             est->status[i] = next_status(est->status[i], est->settled[i], est->unsettled[i], est->settle_count,
                                          good, est->canon_share[i]);
-            trusted[i] = est->settled[i] >= est->settle_count ? v : DNAN;
+            trusted[i] = est->settled[i] >= est->settle_count ? v : R_NAN;
         }
         for (i = 0; i < np; i++) {
-            int c = est->model.publics[i].canonical;
-            double v = public_value(est, i, trusted[c]);
+            int c = est->m.publics[i].canonical;
+            duffid_real v = public_value(est, i, trusted[c]);
             if (est->status[c] != DUFFID_STATUS_PUBLISHED) {
-                est->held[i] = DNAN;
+                est->held[i] = R_NAN;
             } else if (is_finite(v)) {
                 est->held[i] = v;
             }
@@ -1854,23 +2440,20 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
         }
     }
     if (out != NULL) {
-        out->t = (double)est->n * est->cfg.dt;
-        for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
-            out->parameters[i] = i < np ? est->held[i] : DNAN;
-            out->status[i] = i < np ? est->status[est->cfg.method == DUFFID_PAPER ? i : est->model.publics[i].canonical]
-                                    : DUFFID_STATUS_UNCERTAIN;
+        out->t = (duffid_real)est->n * est->dt;
+        for (i = 0; i < np; i++) { /* the entries after np keep reset's NaN and UNCERTAIN */
+            out->parameters[i] = est->held[i];
+            out->status[i] = est->status[est->cfg.method == DUFFID_PAPER ? i : est->m.publics[i].canonical];
         }
         out->n_parameters = np;
         out->identified = ok;
         out->condition = cond;
         out->uncertainty = worst;
-        out->window = (double)window * est->cfg.dt;
-        for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
-            double v = DNAN;
-            if (i < np) {
-                v = est->cfg.method == DUFFID_PAPER ? est->held[i] : (good ? public_value(est, i, est->canon[est->model.publics[i].canonical]) : DNAN);
-            }
-            out->current[i] = v;
+        out->window = (duffid_real)window * est->dt;
+        for (i = 0; i < np; i++) {
+            out->current[i] = est->cfg.method == DUFFID_PAPER
+                                  ? est->held[i]
+                                  : (good ? public_value(est, i, est->canon[est->m.publics[i].canonical]) : R_NAN);
         }
     }
     if (est->cfg.method == DUFFID_ROBUST && est->auto_window && !est->window_fixed && window_known(est)) {
@@ -1880,41 +2463,41 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
 }
 
 /* ------------------------------------------------------------------ outliers */
-static void guard_threshold(const duffid_estimator *est, double *threshold)
+static void guard_threshold(const duffid_estimator *est, duffid_real *threshold)
 {
     int j;
     for (j = 0; j < est->n_dof; j++) {
-        double step = is_finite(est->g_step[j]) ? est->g_step[j] : 0.0;
-        double scale = 1.2533141373155003 * est->g_mean[j];
-        double range = DUFFID_OUTLIER_RANGE * (est->g_hi[j] - est->g_lo[j]);
+        duffid_real step = is_finite(est->g_step[j]) ? est->g_step[j] : RC(0.0);
+        duffid_real scale = RC(1.2533141373155003) * est->g_mean[j];
+        duffid_real range = RC(DUFFID_OUTLIER_RANGE) * (est->g_hi[j] - est->g_lo[j]);
         scale = step > scale ? step : scale;
         scale = range > scale ? range : scale;
-        threshold[j] = DUFFID_OUTLIER_SIGMAS * scale;
+        threshold[j] = RC(DUFFID_OUTLIER_SIGMAS) * scale;
     }
 }
 
-static double guard_prediction(const duffid_estimator *est, int j)
+static duffid_real guard_prediction(const duffid_estimator *est, int j)
 {
     const int n = est->n_dof;
-    return 3.0 * est->gh[j] - 3.0 * est->gh[n + j] + est->gh[2 * n + j];
+    return RC(3.0) * est->gh[j] - RC(3.0) * est->gh[n + j] + est->gh[2 * n + j];
 }
 
 /* _OutlierGuard._accept (threshold NULL: no clipping) */
-static void guard_accept(duffid_estimator *est, const double *x, const double *threshold)
+static void guard_accept(duffid_estimator *est, const duffid_real *x, const duffid_real *threshold)
 {
     const int n = est->n_dof;
     int j;
     for (j = 0; j < n; j++) {
         if (est->g_count >= 3) {
-            double r = fabs(x[j] - guard_prediction(est, j));
+            duffid_real r = R_FABS(x[j] - guard_prediction(est, j));
             if (threshold != NULL && threshold[j] < r) {
                 r = threshold[j];
             }
-            est->g_mean[j] = est->g_count == 3 ? r : est->g_mean[j] + (r - est->g_mean[j]) / DUFFID_OUTLIER_MEMORY;
+            est->g_mean[j] = est->g_count == 3 ? r : est->g_mean[j] + (r - est->g_mean[j]) / RC(DUFFID_OUTLIER_MEMORY);
         }
         if (est->g_count >= 1) {
-            double d = fabs(x[j] - est->gh[j]);
-            if (d > 0.0 && d < est->g_step[j]) {
+            duffid_real d = R_FABS(x[j] - est->gh[j]);
+            if (d > RC(0.0) && d < est->g_step[j]) {
                 est->g_step[j] = d;
             }
         }
@@ -1933,7 +2516,7 @@ static void guard_accept(duffid_estimator *est, const double *x, const double *t
 
 /* ------------------------------------------------------------------ update */
 /* OnlineIdentifier._process: one sample into the estimator, its output into est->last */
-static void process(duffid_estimator *est, const double *x, const double *f)
+static void process(duffid_estimator *est, const duffid_real *x, const duffid_real *f)
 {
     long window;
     est->n++;
@@ -1949,7 +2532,7 @@ static void report(const duffid_estimator *est, duffid_output *out)
         return;
     }
     *out = est->last;
-    out->t = (double)est->received * est->cfg.dt;
+    out->t = (duffid_real)est->received * est->dt;
     out->outliers = est->outliers;
     out->outlier_t = est->outlier_t;
     out->outlier_column = est->outlier_column;
@@ -1957,9 +2540,9 @@ static void report(const duffid_estimator *est, duffid_output *out)
     out->outlier_replaced_by = est->outlier_replaced_by;
 }
 
-int duffid_update(duffid_estimator *est, const double *x, const double *f, duffid_output *out)
+int duffid_update(duffid_estimator *est, const duffid_real *x, const duffid_real *f, duffid_output *out)
 {
-    double threshold[DUFFID_MAX_DOF];
+    duffid_real threshold[DUFFID_MAX_DOF];
     int i, j, suspect = 0;
     if (est == NULL || x == NULL || f == NULL) {
         return DUFFID_ERR_ARGUMENT;
@@ -1979,11 +2562,11 @@ int duffid_update(duffid_estimator *est, const double *x, const double *f, duffi
         const int n = est->n_dof;
         est->pending = 0;
         for (j = 0; j < n; j++) {
-            double ahead = 6.0 * est->gh[j] - 8.0 * est->gh[n + j] + 3.0 * est->gh[2 * n + j];
-            if (est->p_suspect[j] && fabs(x[j] - ahead) <= est->p_threshold[j]) {
-                double value = (3.0 * est->gh[j] - est->gh[n + j] + x[j]) / 3.0;
+            duffid_real ahead = RC(6.0) * est->gh[j] - RC(8.0) * est->gh[n + j] + RC(3.0) * est->gh[2 * n + j];
+            if (est->p_suspect[j] && R_FABS(x[j] - ahead) <= est->p_threshold[j]) {
+                duffid_real value = (RC(3.0) * est->gh[j] - est->gh[n + j] + x[j]) / RC(3.0);
                 est->outliers++;
-                est->outlier_t = (double)est->p_k * est->cfg.dt;
+                est->outlier_t = (duffid_real)est->p_k * est->cfg.dt;
                 est->outlier_column = j;
                 est->outlier_value = est->p_x[j];
                 est->outlier_replaced_by = value;
@@ -1996,7 +2579,7 @@ int duffid_update(duffid_estimator *est, const double *x, const double *f, duffi
     if (est->g_count >= MIN_SAMPLES) {
         guard_threshold(est, threshold);
         for (j = 0; j < est->n_dof; j++) {
-            est->p_suspect[j] = fabs(x[j] - guard_prediction(est, j)) > threshold[j];
+            est->p_suspect[j] = R_FABS(x[j] - guard_prediction(est, j)) > threshold[j];
             suspect |= est->p_suspect[j];
         }
         if (suspect) { /* held back one sample */
@@ -2042,7 +2625,7 @@ int duffid_flush(duffid_estimator *est, duffid_output *out)
     return 1;
 }
 
-int duffid_run(duffid_estimator *est, long n, const double *x, const double *f, duffid_output *out,
+int duffid_run(duffid_estimator *est, long n, const duffid_real *x, const duffid_real *f, duffid_output *out,
                long *failed)
 {
     long k;
@@ -2082,7 +2665,7 @@ const char *duffid_parameter_name(const duffid_estimator *est, int i)
     if (est == NULL || i < 0 || i >= est->n_params) {
         return NULL;
     }
-    return est->model.publics[i].name;
+    return est->m.publics[i].name;
 }
 
 long duffid_capacity(const duffid_estimator *est)

@@ -8,13 +8,16 @@
  * Python class (to rounding; see tests/test_estimator_c.py).
  *
  * Design rules:
- *   - double precision, libc + libm only, no global or static mutable state: any number
- *     of estimators can run at once (one per duffid_estimator);
- *   - all memory is sized from the configuration and handed over once, either by the
- *     caller (duffid_memory_size + duffid_init, for targets without a heap) or by one
- *     malloc (duffid_create / duffid_destroy); duffid_update never allocates;
- *   - no variable-length arrays: the small dense algebra works on fixed maxima
- *     (DUFFID_MAX_*), the ring buffer of samples is the only configuration-sized array.
+ *   - one real type, duffid_real (duffid_model.h): double, or float when every file is
+ *     compiled with -DDUFFID_REAL=float; libc + libm only, no global or static mutable
+ *     state: any number of estimators can run at once (one per duffid_estimator);
+ *   - all memory is sized from the configuration and the model (its channels, unknowns,
+ *     parameters, the window and the rows) and handed over once, either by the caller
+ *     (duffid_memory_size + duffid_init, for targets without a heap) or by one malloc
+ *     (duffid_create / duffid_destroy); duffid_update never allocates;
+ *   - fixed work per sample: O(unknowns^2) for the least squares, O(degree x channels) for the
+ *     sliding moments, no SVD, no power function and no 64-bit division per sample;
+ *   - no variable-length arrays; small stack arrays are bounded by the maxima (DUFFID_MAX_*).
  *
  * Typical use:
  *     duffid_config cfg;
@@ -109,11 +112,11 @@ typedef struct duffid_config {
     int model;              /* DUFFID_DUFFING1, DUFFID_DUFFING2 or DUFFID_GENERATED */
     int method;             /* DUFFID_ROBUST or DUFFID_PAPER */
     int offset;             /* 1: an unknown constant force per DOF (c1, c2) */
-    double dt;              /* sampling period [s], > 0 */
+    duffid_real dt;              /* sampling period [s], > 0 */
     /* Optional prior sizes in public order (the option "nominal" in Python), 0 = none
      * (default: every scale comes from the data). A parameter with a prior is trustworthy
      * when its standard error is below max_uncertainty x max(|estimate|, |nominal|). */
-    double nominal[DUFFID_MAX_PARAMS];
+    duffid_real nominal[DUFFID_MAX_PARAMS];
     /* The options (duffid_options.h, generated from duffid.identification.options.OPTIONS:
      * names, defaults, ranges and meanings in one place). */
 #define DUFFID_DECLARE_OPTION(kind, name, default_value, minimum, maximum, methods, valid) \
@@ -124,34 +127,36 @@ typedef struct duffid_config {
 
 /* Result of one update. */
 typedef struct duffid_output {
-    double t;                              /* time of the sample, n * dt [s] */
-    double parameters[DUFFID_MAX_PARAMS];  /* public order; NaN unless published */
+    duffid_real t;                              /* time of the sample, n * dt [s] */
+    duffid_real parameters[DUFFID_MAX_PARAMS];  /* public order; NaN unless published */
     int n_parameters;
     int identified;                        /* 1 when every parameter is published */
-    double condition;                      /* largest condition number over the equations */
-    double uncertainty;                    /* largest relative standard error (robust), NaN (paper) */
-    double window;                         /* window length [s] */
-    double current[DUFFID_MAX_PARAMS];     /* public order: the solution at this sample, trusted
+    duffid_real condition;                      /* largest condition number over the equations */
+    duffid_real uncertainty;                    /* largest relative standard error (robust), NaN (paper) */
+    duffid_real window;                         /* window length [s] */
+    duffid_real current[DUFFID_MAX_PARAMS];     /* public order: the solution at this sample, trusted
                                             * or not (robust: NaN while the window is not
                                             * usable; paper: as parameters). An input to the
                                             * checks of duffid.identification.trust, never a published value. */
     int status[DUFFID_MAX_PARAMS];         /* public order: DUFFID_STATUS_* (robust; paper:
                                             * PUBLISHED while identified, else UNCERTAIN) */
     long outliers;                         /* isolated displacement outliers excluded so far */
-    double outlier_t;                      /* the latest: time [s], displacement index, */
+    duffid_real outlier_t;                      /* the latest: time [s], displacement index, */
     int outlier_column;                    /* value measured and value used (NaN before any) */
-    double outlier_value, outlier_replaced_by;
+    duffid_real outlier_value, outlier_replaced_by;
 } duffid_output;
 
 typedef struct duffid_estimator duffid_estimator;
 
 /* Defaults for a model and method. Returns DUFFID_ERR_ARGUMENT for an unknown model. */
-int duffid_default_config(duffid_config *cfg, int model, int method, double dt);
+int duffid_default_config(duffid_config *cfg, int model, int method, duffid_real dt);
 
 /* Validate a configuration; on error writes a message (if msg != NULL). */
 int duffid_check_config(const duffid_config *cfg, char *msg, size_t msg_size);
 
-/* Bytes of memory an estimator with this configuration needs (0: invalid configuration). */
+/* Bytes of memory an estimator with this configuration needs (0: invalid configuration): the
+ * estimator and its model's tables, the ring buffer of the window ((window / dt + 2) x channels
+ * reals, robust method) and its workspace, all sized to the model. */
 size_t duffid_memory_size(const duffid_config *cfg);
 
 /* Build an estimator in caller-provided memory of at least duffid_memory_size(cfg)
@@ -190,12 +195,12 @@ int duffid_flush(duffid_estimator *est, duffid_output *out);
 
 /* Consume one sample: displacements x[n_dof] and forces f[n_forces]. out may be NULL.
  * A non-finite sample returns DUFFID_ERR_SAMPLE and leaves the state unchanged. */
-int duffid_update(duffid_estimator *est, const double *x, const double *f, duffid_output *out);
+int duffid_update(duffid_estimator *est, const duffid_real *x, const duffid_real *f, duffid_output *out);
 
 /* Consume n samples: x[n * n_dof] and f[n * n_forces], row by row; out[n] receives every
  * output (out may be NULL). Stops at the first non-finite sample with DUFFID_ERR_SAMPLE,
  * its index in *failed (if failed != NULL), the state as after the sample before it. */
-int duffid_run(duffid_estimator *est, long n, const double *x, const double *f, duffid_output *out,
+int duffid_run(duffid_estimator *est, long n, const duffid_real *x, const duffid_real *f, duffid_output *out,
                long *failed);
 
 /* Introspection. */

@@ -5,22 +5,20 @@
  */
 #include "duffid_linalg.h"
 
-#include <float.h>
-#include <math.h>
 
-double duffid_la_pairwise_sum(const double *a, int n, int stride)
+duffid_real duffid_la_pairwise_sum(const duffid_real *a, int n, int stride)
 {
     int i;
-    double res;
+    duffid_real res;
     if (n < 8) {
-        res = 0.0;
+        res = RC(0.0);
         for (i = 0; i < n; i++) {
             res += a[i * stride];
         }
         return res;
     }
     if (n <= 128) {
-        double r[8];
+        duffid_real r[8];
         int j;
         for (j = 0; j < 8; j++) {
             r[j] = a[j * stride];
@@ -44,178 +42,203 @@ double duffid_la_pairwise_sum(const double *a, int n, int stride)
     }
 }
 
-void duffid_la_qr_accumulate(double *R, int p, double s, double *B, int m)
+void duffid_la_qr_accumulate(duffid_real *R, int p, duffid_real s, duffid_real *B, int m)
 {
     int i, j, k;
-    for (i = 0; i < p * p; i++) {
-        R[i] *= s;
+    if (s != RC(1.0)) {
+        for (i = 0; i < p * p; i++) {
+            R[i] *= s;
+        }
     }
     for (j = 0; j < p; j++) {
-        double alpha = R[j * p + j];
-        double xnorm2 = 0.0;
-        double xnorm, beta, tau, scal;
+        duffid_real *bj = B + j * m;
+        duffid_real alpha = R[j * p + j], xnorm2 = RC(0.0), beta, tau, scal;
         for (i = 0; i < m; i++) {
-            xnorm2 += B[i * p + j] * B[i * p + j];
+            xnorm2 += bj[i] * bj[i];
         }
-        if (xnorm2 == 0.0) {
+        if (xnorm2 == RC(0.0)) {
             continue; /* H = I (LAPACK's dlarfg with tau = 0) */
         }
-        xnorm = sqrt(xnorm2);
-        beta = -copysign(hypot(alpha, xnorm), alpha);
+        beta = -R_COPYSIGN(R_SQRT(alpha * alpha + xnorm2), alpha);
         tau = (beta - alpha) / beta;
-        scal = 1.0 / (alpha - beta);
+        scal = RC(1.0) / (alpha - beta);
         for (i = 0; i < m; i++) {
-            B[i * p + j] *= scal; /* Householder vector v = (1, B[:, j]) */
+            bj[i] *= scal; /* Householder vector v = (1, B[:, j]) */
         }
         R[j * p + j] = beta;
         for (k = j + 1; k < p; k++) {
-            double w = R[j * p + k];
+            duffid_real *bk = B + k * m;
+            duffid_real w = RC(0.0);
             for (i = 0; i < m; i++) {
-                w += B[i * p + j] * B[i * p + k];
+                w += bj[i] * bk[i];
             }
-            w *= tau;
+            w = (w + R[j * p + k]) * tau;
             R[j * p + k] -= w;
             for (i = 0; i < m; i++) {
-                B[i * p + k] -= w * B[i * p + j];
+                bk[i] -= w * bj[i];
             }
-        }
-        for (i = 0; i < m; i++) {
-            B[i * p + j] = 0.0;
         }
     }
 }
 
-static double column_norm(int n, const double *a, int col)
+int duffid_la_singular_range(int n, const duffid_real *a, duffid_real *v, int warm, duffid_real *largest,
+                             duffid_real *smallest)
 {
-    double big = 0.0, sum = 0.0;
-    int i;
-    for (i = 0; i < n; i++) {
-        double v = fabs(a[i * n + col]);
-        if (v > big) {
-            big = v;
+    const int max_sweeps = warm ? 12 : 40;
+    const duffid_real exact2 = RC(16.0) * R_EPS * R_EPS, quadratic = R_SQRT(R_EPS);
+    duffid_real col[DUFFID_LA_MAX * DUFFID_LA_MAX], norm[DUFFID_LA_MAX];
+    int sweep, i, j, k, p, q, converged = 0;
+    /* the columns of a V (warm: nearly orthogonal when a is near the matrix V came from),
+     * stored column after column; v is column-major too */
+    if (!warm) {
+        for (i = 0; i < n * n; i++) {
+            v[i] = RC(0.0);
         }
-    }
-    if (big == 0.0 || !(big <= DBL_MAX)) {
-        return big;
-    }
-    for (i = 0; i < n; i++) {
-        double v = a[i * n + col] / big;
-        sum += v * v;
-    }
-    return big * sqrt(sum);
-}
-
-int duffid_la_jacobi_svd(int n, double *a, double *sv, double *v)
-{
-    const int max_sweeps = 80;
-    int sweep, i, j, p, q, converged = 0;
-
-    for (i = 0; i < n; i++) {
-        for (j = 0; j < n; j++) {
-            v[i * n + j] = (i == j) ? 1.0 : 0.0;
-        }
-    }
-    for (sweep = 1; sweep <= max_sweeps; sweep++) {
-        int rotated = 0;
-        for (p = 0; p < n - 1; p++) {
-            for (q = p + 1; q < n; q++) {
-                double alpha = 0.0, beta = 0.0, gamma = 0.0, zeta, t, c, s;
-                for (i = 0; i < n; i++) {
-                    double ap = a[i * n + p], aq = a[i * n + q];
-                    alpha += ap * ap;
-                    beta += aq * aq;
-                    gamma += ap * aq;
-                }
-                if (gamma == 0.0 || !(fabs(gamma) > DBL_EPSILON * sqrt(alpha) * sqrt(beta))) {
-                    continue;
-                }
-                rotated = 1;
-                zeta = (beta - alpha) / (2.0 * gamma);
-                if (fabs(zeta) > 1e150) {
-                    t = 0.5 / zeta;
-                } else {
-                    t = copysign(1.0, zeta) / (fabs(zeta) + sqrt(1.0 + zeta * zeta));
-                }
-                c = 1.0 / sqrt(1.0 + t * t);
-                s = c * t;
-                for (i = 0; i < n; i++) {
-                    double ap = a[i * n + p], aq = a[i * n + q];
-                    a[i * n + p] = c * ap - s * aq;
-                    a[i * n + q] = s * ap + c * aq;
-                }
-                for (i = 0; i < n; i++) {
-                    double vp = v[i * n + p], vq = v[i * n + q];
-                    v[i * n + p] = c * vp - s * vq;
-                    v[i * n + q] = s * vp + c * vq;
-                }
-            }
-        }
-        if (!rotated) {
-            converged = 1;
-            break;
+        for (i = 0; i < n; i++) {
+            v[i * n + i] = RC(1.0);
         }
     }
     for (j = 0; j < n; j++) {
-        sv[j] = column_norm(n, a, j);
-        if (sv[j] > 0.0) {
-            for (i = 0; i < n; i++) {
-                a[i * n + j] /= sv[j];
+        duffid_real *cj = col + j * n, sum = RC(0.0);
+        const duffid_real *vj = v + j * n;
+        for (i = 0; i < n; i++) {
+            duffid_real s = RC(0.0);
+            for (k = 0; k < n; k++) {
+                s += a[i * n + k] * vj[k];
             }
+            cj[i] = s;
+            sum += s * s;
         }
+        norm[j] = sum;
     }
-    /* sort descending (selection sort; NaN last), permuting U and V alike */
-    for (j = 0; j < n - 1; j++) {
-        int best = j;
-        for (p = j + 1; p < n; p++) {
-            if (sv[p] > sv[best] || (sv[best] != sv[best] && sv[p] == sv[p])) {
-                best = p;
+    for (sweep = 1; sweep <= max_sweeps && !converged; sweep++) {
+        duffid_real largest_move = RC(0.0);
+        for (p = 0; p < n - 1; p++) {
+            duffid_real *cp = col + p * n, *vp = v + p * n;
+            for (q = p + 1; q < n; q++) {
+                duffid_real *cq = col + q * n, *vq = v + q * n;
+                duffid_real gamma = RC(0.0), zeta, t, c, s, move, np = RC(0.0), nq = RC(0.0);
+                if (!(norm[p] > RC(0.0) && norm[q] > RC(0.0))) {
+                    continue;
+                }
+                for (i = 0; i < n; i++) {
+                    gamma += cp[i] * cq[i];
+                }
+                if (!(gamma * gamma > exact2 * norm[p] * norm[q])) {
+                    continue; /* orthogonal to rounding (or NaN: left alone) */
+                }
+                zeta = (norm[q] - norm[p]) / (RC(2.0) * gamma);
+                if (R_FABS(zeta) > R_ZETA_LIMIT) {
+                    t = RC(0.5) / zeta;
+                } else {
+                    t = R_COPYSIGN(RC(1.0), zeta) / (R_FABS(zeta) + R_SQRT(RC(1.0) + zeta * zeta));
+                }
+                /* the rotation moves column p by |t| |a_q| and column q by |t| |a_p|; move is
+                 * the larger of the two relative to the column's own norm, squared. Below eps
+                 * it changes the norms by less than eps (tracked: t gamma) and rotating the
+                 * columns adds nothing */
+                move = t * t * (norm[q] > norm[p] ? norm[q] / norm[p] : norm[p] / norm[q]);
+                if (!(move > R_EPS)) {
+                    norm[p] -= t * gamma;
+                    norm[q] += t * gamma;
+                    continue;
+                }
+                largest_move = move > largest_move ? move : largest_move;
+                c = RC(1.0) / R_SQRT(RC(1.0) + t * t);
+                s = c * t;
+                for (i = 0; i < n; i++) { /* norms from the columns: the update formula cancels */
+                    const duffid_real xp = cp[i], xq = cq[i];
+                    cp[i] = c * xp - s * xq;
+                    cq[i] = s * xp + c * xq;
+                    np += cp[i] * cp[i];
+                    nq += cq[i] * cq[i];
+                }
+                norm[p] = np;
+                norm[q] = nq;
+                if (!(move > quadratic)) {
+                    continue; /* V is a starting point: a rotation by less than eps^(1/4) can wait */
+                }
+                for (i = 0; i < n; i++) {
+                    const duffid_real xp = vp[i], xq = vq[i];
+                    vp[i] = c * xp - s * xq;
+                    vq[i] = s * xp + c * xq;
+                }
             }
         }
-        if (best != j) {
-            double tmp = sv[j];
-            sv[j] = sv[best];
-            sv[best] = tmp;
-            for (i = 0; i < n; i++) {
-                tmp = a[i * n + j];
-                a[i * n + j] = a[i * n + best];
-                a[i * n + best] = tmp;
-                tmp = v[i * n + j];
-                v[i * n + j] = v[i * n + best];
-                v[i * n + best] = tmp;
-            }
-        }
+        /* quadratic convergence: after a sweep whose rotations all moved the columns by less
+         * than eps^(1/4), the next sweep's would move them by less than eps^(1/2) (move below
+         * eps): only tracked updates, which change the norms below eps */
+        converged = !(largest_move > quadratic);
     }
-    return converged ? sweep : -1;
+    {
+        duffid_real hi = RC(0.0), lo = R_INF;
+        for (j = 0; j < n; j++) {
+            duffid_real s = norm[j] > RC(0.0) ? R_SQRT(norm[j]) : (norm[j] == norm[j] ? RC(0.0) : norm[j]);
+            if (s != s) {
+                hi = lo = s;
+                break;
+            }
+            hi = s > hi ? s : hi;
+            lo = s < lo ? s : lo;
+        }
+        *largest = hi;
+        *smallest = lo;
+    }
+    return converged ? sweep - 1 : -1;
 }
 
-double duffid_la_det(int n, double *a)
+int duffid_la_upper_inverse(int n, const duffid_real *r, int ld, duffid_real *inv)
 {
     int i, j, k;
-    double sign = 1.0, logdet = 0.0;
+    for (i = 0; i < n; i++) {
+        if (r[i * ld + i] == RC(0.0)) {
+            return i + 1;
+        }
+    }
+    for (j = n - 1; j >= 0; j--) {
+        inv[j * n + j] = RC(1.0) / r[j * ld + j];
+        for (i = j - 1; i >= 0; i--) {
+            duffid_real sum = RC(0.0);
+            for (k = i + 1; k <= j; k++) {
+                sum += r[i * ld + k] * inv[k * n + j];
+            }
+            inv[i * n + j] = -sum / r[i * ld + i];
+        }
+        for (i = j + 1; i < n; i++) {
+            inv[i * n + j] = RC(0.0);
+        }
+    }
+    return 0;
+}
+
+duffid_real duffid_la_det(int n, duffid_real *a)
+{
+    int i, j, k;
+    duffid_real sign = RC(1.0), logdet = RC(0.0);
     for (k = 0; k < n; k++) {
         int piv = k;
-        double big = fabs(a[k * n + k]);
-        double inv;
+        duffid_real big = R_FABS(a[k * n + k]);
+        duffid_real inv;
         for (i = k + 1; i < n; i++) {
-            if (fabs(a[i * n + k]) > big) {
-                big = fabs(a[i * n + k]);
+            if (R_FABS(a[i * n + k]) > big) {
+                big = R_FABS(a[i * n + k]);
                 piv = i;
             }
         }
-        if (a[piv * n + k] == 0.0) {
-            return 0.0; /* singular: numpy reports sign 0, det 0 */
+        if (a[piv * n + k] == RC(0.0)) {
+            return RC(0.0); /* singular: numpy reports sign 0, det 0 */
         }
         if (piv != k) {
             for (j = 0; j < n; j++) {
-                double tmp = a[k * n + j];
+                duffid_real tmp = a[k * n + j];
                 a[k * n + j] = a[piv * n + j];
                 a[piv * n + j] = tmp;
             }
             sign = -sign;
         }
-        inv = 1.0 / a[k * n + k];
+        inv = RC(1.0) / a[k * n + k];
         for (i = k + 1; i < n; i++) {
-            double l = a[i * n + k] * inv;
+            duffid_real l = a[i * n + k] * inv;
             a[i * n + k] = l;
             for (j = k + 1; j < n; j++) {
                 a[i * n + j] -= l * a[k * n + j];
@@ -223,44 +246,44 @@ double duffid_la_det(int n, double *a)
         }
     }
     for (k = 0; k < n; k++) {
-        double d = a[k * n + k];
-        if (d < 0.0) {
+        duffid_real d = a[k * n + k];
+        if (d < RC(0.0)) {
             sign = -sign;
         }
-        logdet += log(fabs(d));
+        logdet += R_LOG(R_FABS(d));
     }
-    return sign * exp(logdet);
+    return sign * R_EXP(logdet);
 }
 
-int duffid_la_solve(int n, double *a, double *b, int nrhs)
+int duffid_la_solve(int n, duffid_real *a, duffid_real *b, int nrhs)
 {
     int i, j, k;
     for (k = 0; k < n; k++) { /* LU with partial pivoting (the first largest |a_ik|, as dgetrf) */
         int piv = k;
-        double big = fabs(a[k * n + k]);
+        duffid_real big = R_FABS(a[k * n + k]);
         for (i = k + 1; i < n; i++) {
-            if (fabs(a[i * n + k]) > big) {
-                big = fabs(a[i * n + k]);
+            if (R_FABS(a[i * n + k]) > big) {
+                big = R_FABS(a[i * n + k]);
                 piv = i;
             }
         }
-        if (a[piv * n + k] == 0.0) {
+        if (a[piv * n + k] == RC(0.0)) {
             return k + 1; /* exactly singular */
         }
         if (piv != k) {
             for (j = 0; j < n; j++) {
-                double t = a[k * n + j];
+                duffid_real t = a[k * n + j];
                 a[k * n + j] = a[piv * n + j];
                 a[piv * n + j] = t;
             }
             for (j = 0; j < nrhs; j++) {
-                double t = b[k * nrhs + j];
+                duffid_real t = b[k * nrhs + j];
                 b[k * nrhs + j] = b[piv * nrhs + j];
                 b[piv * nrhs + j] = t;
             }
         }
         for (i = k + 1; i < n; i++) {
-            double l = a[i * n + k] / a[k * n + k];
+            duffid_real l = a[i * n + k] / a[k * n + k];
             a[i * n + k] = l;
             for (j = k + 1; j < n; j++) {
                 a[i * n + j] -= l * a[k * n + j];
@@ -272,7 +295,7 @@ int duffid_la_solve(int n, double *a, double *b, int nrhs)
     }
     for (j = 0; j < nrhs; j++) { /* back substitution */
         for (i = n - 1; i >= 0; i--) {
-            double s = b[i * nrhs + j];
+            duffid_real s = b[i * nrhs + j];
             for (k = i + 1; k < n; k++) {
                 s -= a[i * n + k] * b[k * nrhs + j];
             }
@@ -287,14 +310,14 @@ int duffid_la_solve(int n, double *a, double *b, int nrhs)
 
 /* Reduction to upper Hessenberg form by stabilised elementary similarity transformations
  * (the eigenvalues are those of a); the part below the subdiagonal is zeroed. */
-static void hessenberg(int n, double *a)
+static void hessenberg(int n, duffid_real *a)
 {
     int m, i, j;
     for (m = 2; m < n; m++) {
-        double x = 0.0, y;
+        duffid_real x = RC(0.0), y;
         i = m;
         for (j = m; j <= n; j++) {
-            if (fabs(H(j, m - 1)) > fabs(x)) {
+            if (R_FABS(H(j, m - 1)) > R_FABS(x)) {
                 x = H(j, m - 1);
                 i = j;
             }
@@ -311,10 +334,10 @@ static void hessenberg(int n, double *a)
                 H(j, m) = y;
             }
         }
-        if (x != 0.0) {
+        if (x != RC(0.0)) {
             for (i = m + 1; i <= n; i++) {
                 y = H(i, m - 1);
-                if (y != 0.0) {
+                if (y != RC(0.0)) {
                     y /= x;
                     H(i, m - 1) = y;
                     for (j = m; j <= n; j++) {
@@ -329,59 +352,59 @@ static void hessenberg(int n, double *a)
     }
     for (i = 3; i <= n; i++) {
         for (j = 1; j < i - 1; j++) {
-            H(i, j) = 0.0;
+            H(i, j) = RC(0.0);
         }
     }
 }
 
-int duffid_la_eigenvalues(int n, double *a, double *wr, double *wi)
+int duffid_la_eigenvalues(int n, duffid_real *a, duffid_real *wr, duffid_real *wi)
 {
     int nn, m, l, k, j, its, i, mmin;
-    double z = 0.0, y, x, w, v, u, t, s, r = 0.0, q = 0.0, p = 0.0, anorm = 0.0;
+    duffid_real z = RC(0.0), y, x, w, v, u, t, s, r = RC(0.0), q = RC(0.0), p = RC(0.0), anorm = RC(0.0);
     hessenberg(n, a);
     for (i = 1; i <= n; i++) {
         for (j = (i - 1 > 1 ? i - 1 : 1); j <= n; j++) {
-            anorm += fabs(H(i, j));
+            anorm += R_FABS(H(i, j));
         }
     }
-    if (!(anorm <= DBL_MAX)) {
+    if (!(anorm <= R_MAX)) {
         return -1;
     }
     nn = n;
-    t = 0.0;
-    while (nn >= 1) { /* shifted QR iterations on the Hessenberg matrix (Francis double shift) */
+    t = RC(0.0);
+    while (nn >= 1) { /* shifted QR iterations on the Hessenberg matrix (Francis duffid_real shift) */
         its = 0;
         do {
             for (l = nn; l >= 2; l--) {
-                s = fabs(H(l - 1, l - 1)) + fabs(H(l, l));
-                if (s == 0.0) {
+                s = R_FABS(H(l - 1, l - 1)) + R_FABS(H(l, l));
+                if (s == RC(0.0)) {
                     s = anorm;
                 }
-                if (fabs(H(l, l - 1)) + s == s) {
-                    H(l, l - 1) = 0.0;
+                if (R_FABS(H(l, l - 1)) + s == s) {
+                    H(l, l - 1) = RC(0.0);
                     break;
                 }
             }
             x = H(nn, nn);
             if (l == nn) { /* one root found */
                 wr[nn - 1] = x + t;
-                wi[nn - 1] = 0.0;
+                wi[nn - 1] = RC(0.0);
                 nn--;
             } else {
                 y = H(nn - 1, nn - 1);
                 w = H(nn, nn - 1) * H(nn - 1, nn);
                 if (l == nn - 1) { /* two roots found */
-                    p = 0.5 * (y - x);
+                    p = RC(0.5) * (y - x);
                     q = p * p + w;
-                    z = sqrt(fabs(q));
+                    z = R_SQRT(R_FABS(q));
                     x += t;
-                    if (q >= 0.0) {
-                        z = p + copysign(z, p);
+                    if (q >= RC(0.0)) {
+                        z = p + R_COPYSIGN(z, p);
                         wr[nn - 2] = wr[nn - 1] = x + z;
-                        if (z != 0.0) {
+                        if (z != RC(0.0)) {
                             wr[nn - 1] = x - w / z;
                         }
-                        wi[nn - 2] = wi[nn - 1] = 0.0;
+                        wi[nn - 2] = wi[nn - 1] = RC(0.0);
                     } else {
                         wr[nn - 2] = wr[nn - 1] = x + p;
                         wi[nn - 2] = -z;
@@ -397,9 +420,9 @@ int duffid_la_eigenvalues(int n, double *a, double *wr, double *wi)
                         for (i = 1; i <= nn; i++) {
                             H(i, i) -= x;
                         }
-                        s = fabs(H(nn, nn - 1)) + fabs(H(nn - 1, nn - 2));
-                        y = x = 0.75 * s;
-                        w = -0.4375 * s * s;
+                        s = R_FABS(H(nn, nn - 1)) + R_FABS(H(nn - 1, nn - 2));
+                        y = x = RC(0.75) * s;
+                        w = -RC(0.4375) * s * s;
                     }
                     ++its;
                     for (m = nn - 2; m >= l; m--) {
@@ -409,41 +432,41 @@ int duffid_la_eigenvalues(int n, double *a, double *wr, double *wi)
                         p = (r * s - w) / H(m + 1, m) + H(m, m + 1);
                         q = H(m + 1, m + 1) - z - r - s;
                         r = H(m + 2, m + 1);
-                        s = fabs(p) + fabs(q) + fabs(r);
+                        s = R_FABS(p) + R_FABS(q) + R_FABS(r);
                         p /= s;
                         q /= s;
                         r /= s;
                         if (m == l) {
                             break;
                         }
-                        u = fabs(H(m, m - 1)) * (fabs(q) + fabs(r));
-                        v = fabs(p) * (fabs(H(m - 1, m - 1)) + fabs(z) + fabs(H(m + 1, m + 1)));
+                        u = R_FABS(H(m, m - 1)) * (R_FABS(q) + R_FABS(r));
+                        v = R_FABS(p) * (R_FABS(H(m - 1, m - 1)) + R_FABS(z) + R_FABS(H(m + 1, m + 1)));
                         if (u + v == v) {
                             break;
                         }
                     }
                     for (i = m + 2; i <= nn; i++) {
-                        H(i, i - 2) = 0.0;
+                        H(i, i - 2) = RC(0.0);
                         if (i != m + 2) {
-                            H(i, i - 3) = 0.0;
+                            H(i, i - 3) = RC(0.0);
                         }
                     }
                     for (k = m; k <= nn - 1; k++) {
                         if (k != m) {
                             p = H(k, k - 1);
                             q = H(k + 1, k - 1);
-                            r = 0.0;
+                            r = RC(0.0);
                             if (k != nn - 1) {
                                 r = H(k + 2, k - 1);
                             }
-                            if ((x = fabs(p) + fabs(q) + fabs(r)) != 0.0) {
+                            if ((x = R_FABS(p) + R_FABS(q) + R_FABS(r)) != RC(0.0)) {
                                 p /= x;
                                 q /= x;
                                 r /= x;
                             }
                         }
-                        s = copysign(sqrt(p * p + q * q + r * r), p);
-                        if (s != 0.0) {
+                        s = R_COPYSIGN(R_SQRT(p * p + q * q + r * r), p);
+                        if (s != RC(0.0)) {
                             if (k == m) {
                                 if (l != m) {
                                     H(k, k - 1) = -H(k, k - 1);

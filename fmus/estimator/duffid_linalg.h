@@ -7,34 +7,78 @@
 #ifndef DUFFID_LINALG_H
 #define DUFFID_LINALG_H
 
+#include <float.h>
+#include <math.h>
+
+#include "duffid_model.h" /* duffid_real, DUFFID_SINGLE */
+
 #define DUFFID_LA_MAX 17
+
+/* The real type's constants and math functions: RC(x) is the literal x in duffid_real (no
+ * duffid_real arithmetic in a float build), R_SQRT and friends call the float or duffid_real function. */
+#define RC(x) ((duffid_real)(x))
+#if DUFFID_SINGLE
+#define R_FN(name) name##f
+#define R_EPS FLT_EPSILON
+#define R_MAX FLT_MAX
+#define R_ZETA_LIMIT RC(1e18)
+#else
+#define R_FN(name) name
+#define R_EPS DBL_EPSILON
+#define R_MAX DBL_MAX
+#define R_ZETA_LIMIT RC(1e150)
+#endif
+#define R_INF ((duffid_real)INFINITY)
+#define R_NAN ((duffid_real)NAN)
+#define R_SQRT(x) R_FN(sqrt)(x)
+#define R_FABS(x) R_FN(fabs)(x)
+#define R_COPYSIGN(x, y) R_FN(copysign)(x, y)
+#define R_HYPOT(x, y) R_FN(hypot)(x, y)
+#define R_LOG(x) R_FN(log)(x)
+#define R_EXP(x) R_FN(exp)(x)
+#define R_POW(x, y) R_FN(pow)(x, y)
+#define R_FLOOR(x) R_FN(floor)(x)
+#define R_FMOD(x, y) R_FN(fmod)(x, y)
 
 /* Sum of n values a[0], a[stride], ... in numpy's pairwise order (np.add.reduce over a
  * contiguous axis), so that reductions round like the Python reference. */
-double duffid_la_pairwise_sum(const double *a, int n, int stride);
+duffid_real duffid_la_pairwise_sum(const duffid_real *a, int n, int stride);
 
 /* Triangular factor update by Householder reflections: the p x p upper triangular R
- * becomes the R factor of [s R; B] (B: m x p new rows, destroyed). With R = 0 this is
- * the QR factorisation of B. Diagonal signs follow LAPACK (beta = -sign(alpha) norm). */
-void duffid_la_qr_accumulate(double *R, int p, double s, double *B, int m);
+ * becomes the R factor of [s R; B] (B: m x p new rows stored column after column,
+ * B[j * m + i]; destroyed). With R = 0 this is the QR factorisation of B. Diagonal signs
+ * follow LAPACK (beta = -sign(alpha) norm). */
+void duffid_la_qr_accumulate(duffid_real *R, int p, duffid_real s, duffid_real *B, int m);
 
-/* One-sided (Hestenes) Jacobi SVD of the n x n matrix a = U diag(sv) V^T.
- * On return a holds U (columns of unit length where sv > 0), sv the singular values in
- * descending order and v the n x n matrix V. Returns the number of sweeps, or -1 if
- * the iteration did not converge (the result is then approximate). */
-int duffid_la_jacobi_svd(int n, double *a, double *sv, double *v);
+/* The largest and smallest singular values of the n x n matrix a (row-major) by one-sided
+ * (Hestenes) Jacobi, to rounding relative to each singular value. warm != 0: v holds the
+ * right singular vectors of a nearby matrix (the previous sample's; column-major) and the
+ * iteration starts from a v, whose columns are then nearly orthogonal, so one or two sweeps
+ * suffice; warm == 0: v is set to the identity. v is updated to this matrix's right singular
+ * vectors (to eps^(1/4): enough to start the next one). A rotation that moves no column by
+ * more than sqrt(eps) of its norm only updates the tracked norms; the iteration stops after a
+ * sweep whose rotations all moved the columns by less than eps^(1/4) (quadratic convergence:
+ * the next would be such tracked updates), and those rotations leave V as it was.
+ * Returns the sweeps, or -1 if the bound on sweeps was reached (the values are then
+ * approximate). NaN in, NaN out. */
+int duffid_la_singular_range(int n, const duffid_real *a, duffid_real *v, int warm, duffid_real *largest,
+                             duffid_real *smallest);
+
+/* inv = r^-1 for the n x n upper-triangular r (row-major, leading dimension ld); inv is
+ * n x n, upper triangular. Returns 0, or k > 0 when the k-th diagonal entry is 0. */
+int duffid_la_upper_inverse(int n, const duffid_real *r, int ld, duffid_real *inv);
 
 /* Determinant by LU with partial pivoting, returned as numpy's det does:
  * sign * exp(sum log |u_ii|) (0 for an exactly singular matrix). a is destroyed. */
-double duffid_la_det(int n, double *a);
+duffid_real duffid_la_det(int n, duffid_real *a);
 
 /* Solve a X = b for the n x nrhs matrix b (overwritten by X) by LU with partial pivoting
  * (np.linalg.solve); a is destroyed. Returns 0, or k > 0 when the k-th pivot is exactly 0. */
-int duffid_la_solve(int n, double *a, double *b, int nrhs);
+int duffid_la_solve(int n, duffid_real *a, duffid_real *b, int nrhs);
 
 /* Eigenvalues wr + i wi of the general n x n matrix a (np.linalg.eigvals to rounding):
  * reduction to Hessenberg form, then shifted QR iterations. a is destroyed. Returns 0, or
  * -1 if a holds a non-finite value or the iteration did not converge. */
-int duffid_la_eigenvalues(int n, double *a, double *wr, double *wi);
+int duffid_la_eigenvalues(int n, duffid_real *a, duffid_real *wr, duffid_real *wi);
 
 #endif /* DUFFID_LINALG_H */

@@ -23,6 +23,27 @@
 
 #include "duffid_build.h" /* may define DUFFID_GENERATED_MODEL (an FMU's sources) */
 
+/* The real type of the core and of its API: double by default; compiling every file of the
+ * core with -DDUFFID_REAL=float builds it in single precision (microcontrollers with a
+ * single-precision FPU, such as the Cortex-M4F). A description's coefficients and the
+ * generated channel function stay double (they are data and CasADi code); the engine
+ * converts them once at init and per sample respectively. */
+#ifndef DUFFID_REAL
+#define DUFFID_REAL double
+#endif
+typedef DUFFID_REAL duffid_real;
+#define DUFFID_REAL_KIND_float 1
+#define DUFFID_REAL_KIND_double 2
+#define DUFFID_CAT_(a, b) a##b
+#define DUFFID_CAT(a, b) DUFFID_CAT_(a, b)
+#if DUFFID_CAT(DUFFID_REAL_KIND_, DUFFID_REAL) == 1
+#define DUFFID_SINGLE 1 /* the core computes in float */
+#elif DUFFID_CAT(DUFFID_REAL_KIND_, DUFFID_REAL) == 2
+#define DUFFID_SINGLE 0
+#else
+#error "DUFFID_REAL must be float or double"
+#endif
+
 #ifdef __cplusplus
 extern "C" {
 #endif

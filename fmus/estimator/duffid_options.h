@@ -3,7 +3,7 @@
  * rewrites it; tests/test_options.py checks it is current.
  *
  * X(kind, name, default, minimum, maximum, methods, valid values)
- *   kind     REAL (a double >= minimum; 0 means unset where the valid values say so)
+ *   kind     REAL (a duffid_real >= minimum; 0 means unset where the valid values say so)
  *            or CODE (an int in 0 .. maximum; maximum -1: any int >= 0)
  *   methods  DUFFID_FOR_ROBUST | DUFFID_FOR_PAPER: the methods that read it
  */
@@ -12,7 +12,7 @@
 
 #define DUFFID_FOR_ROBUST 1
 #define DUFFID_FOR_PAPER 2
-#define DUFFID_CTYPE_REAL double
+#define DUFFID_CTYPE_REAL duffid_real /* duffid_model.h: double, or float with -DDUFFID_REAL=float */
 #define DUFFID_CTYPE_CODE int
 
 /* Options that are estimator FMU parameters, in value-reference order (after `method`).

@@ -54,6 +54,7 @@ __all__ = [
     "source_dir",
     "SOURCES",
     "CFLAGS",
+    "PRECISIONS",
 ]
 
 #: C sources of the core, relative to :func:`source_dir`.
@@ -94,44 +95,68 @@ _METHODS = {"robust": 0, "paper": 1}
 _STATUS = {0: "ok", -1: "invalid argument", -2: "invalid configuration", -3: "sample not finite"}
 
 
-class CConfig(ctypes.Structure):
-    """The C core's ``duffid_config`` (duffid_estimator.h), field for field."""
-
-    _fields_ = [
-        ("model", ctypes.c_int),
-        ("method", ctypes.c_int),
-        ("offset", ctypes.c_int),
-        ("dt", ctypes.c_double),
-        ("nominal", ctypes.c_double * _MAX_PARAMS),
-        *ctypes_fields(),  # the options, from the schema that generates the C header
-    ]
+#: The core's real types (duffid_model.h's ``duffid_real``): ``double``, or ``float`` for a core
+#: built with ``-DDUFFID_REAL=float`` (the single-precision build of microcontrollers).
+PRECISIONS = {"double": (ctypes.c_double, "f8"), "float": (ctypes.c_float, "f4")}
 
 
-class _Output(ctypes.Structure):
-    _fields_ = [
-        ("t", ctypes.c_double),
-        ("parameters", ctypes.c_double * _MAX_PARAMS),
-        ("n_parameters", ctypes.c_int),
-        ("identified", ctypes.c_int),
-        ("condition", ctypes.c_double),
-        ("uncertainty", ctypes.c_double),
-        ("window", ctypes.c_double),
-        ("current", ctypes.c_double * _MAX_PARAMS),
-        ("status", ctypes.c_int * _MAX_PARAMS),
-        ("outliers", ctypes.c_long),
-        ("outlier_t", ctypes.c_double),
-        ("outlier_column", ctypes.c_int),
-        ("outlier_value", ctypes.c_double),
-        ("outlier_replaced_by", ctypes.c_double),
-    ]
+def _config_type(real: Any) -> type[ctypes.Structure]:
+    class Config(ctypes.Structure):
+        """The C core's ``duffid_config`` (duffid_estimator.h), field for field."""
+
+        _fields_ = [
+            ("model", ctypes.c_int),
+            ("method", ctypes.c_int),
+            ("offset", ctypes.c_int),
+            ("dt", real),
+            ("nominal", real * _MAX_PARAMS),
+            *ctypes_fields(real),  # the options, from the schema that generates the C header
+        ]
+    return Config
 
 
-_OUTPUT_DTYPE = np.dtype([("t", "f8"), ("parameters", "f8", (_MAX_PARAMS,)), ("n_parameters", "i4"),
-                          ("identified", "i4"), ("condition", "f8"), ("uncertainty", "f8"), ("window", "f8"),
-                          ("current", "f8", (_MAX_PARAMS,)), ("status", "i4", (_MAX_PARAMS,)),
-                          ("outliers", "i8"), ("outlier_t", "f8"), ("outlier_column", "i4"), ("outlier_value", "f8"),
-                          ("outlier_replaced_by", "f8")],
-                         align=True)
+def _output_type(real: Any) -> type[ctypes.Structure]:
+    class Output(ctypes.Structure):
+        _fields_ = [
+            ("t", real),
+            ("parameters", real * _MAX_PARAMS),
+            ("n_parameters", ctypes.c_int),
+            ("identified", ctypes.c_int),
+            ("condition", real),
+            ("uncertainty", real),
+            ("window", real),
+            ("current", real * _MAX_PARAMS),
+            ("status", ctypes.c_int * _MAX_PARAMS),
+            ("outliers", ctypes.c_long),
+            ("outlier_t", real),
+            ("outlier_column", ctypes.c_int),
+            ("outlier_value", real),
+            ("outlier_replaced_by", real),
+        ]
+    return Output
+
+
+def _output_dtype(code: str) -> np.dtype:
+    return np.dtype([("t", code), ("parameters", code, (_MAX_PARAMS,)), ("n_parameters", "i4"),
+                     ("identified", "i4"), ("condition", code), ("uncertainty", code), ("window", code),
+                     ("current", code, (_MAX_PARAMS,)), ("status", "i4", (_MAX_PARAMS,)),
+                     ("outliers", "i8"), ("outlier_t", code), ("outlier_column", "i4"), ("outlier_value", code),
+                     ("outlier_replaced_by", code)],
+                    align=True)
+
+
+#: The structures of each precision: (real ctype, config, output, output dtype).
+_TYPES = {name: (real, _config_type(real), _output_type(real), _output_dtype(code))
+          for name, (real, code) in PRECISIONS.items()}
+#: The C core's ``duffid_config`` of the (default) double build.
+CConfig = _TYPES["double"][1]
+#: The flag of the single-precision build.
+_FLOAT_FLAG = "-DDUFFID_REAL=float"
+
+
+def _check_precision(precision: str) -> None:
+    if precision not in PRECISIONS:
+        raise InputError(f"precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
 
 
 # ---------------------------------------------------------------------- building
@@ -144,7 +169,7 @@ def source_dir() -> Path:
 
 
 def build_library(build_dir: str | os.PathLike[str] | None = None, *, compiler: str | None = None,
-                  force: bool = False) -> Path:
+                  force: bool = False, precision: str = "double") -> Path:
     """Compile the C core into a shared library (cached by source and flag hash).
 
     Parameters
@@ -156,6 +181,8 @@ def build_library(build_dir: str | os.PathLike[str] | None = None, *, compiler: 
         C compiler command; default :func:`duffid.cbuild.find_compiler`'s.
     force : bool
         Rebuild even if a library with the same hash exists.
+    precision : {"double", "float"}
+        The core's real type (``float``: compiled with ``-DDUFFID_REAL=float``).
 
     Returns
     -------
@@ -174,26 +201,32 @@ def build_library(build_dir: str | os.PathLike[str] | None = None, *, compiler: 
     if missing:
         raise AssetError(f"C sources of the estimator core not found in {src}: {missing} "
                          "(set DUFFID_C_SOURCES to the fmus/estimator folder)")
+    _check_precision(precision)
     if build_dir is None:
         build_dir = default_build_dir(fmu_sources("estimator"), "estimator")
-    return cached_library("libduffid_estimator", src, SOURCES, HEADERS, flags=LIBRARY_FLAGS, build_dir=build_dir,
+    single = precision == "float"
+    return cached_library("libduffid_estimator" + ("_float" if single else ""), src, SOURCES, HEADERS,
+                          flags=(*LIBRARY_FLAGS, _FLOAT_FLAG) if single else LIBRARY_FLAGS, build_dir=build_dir,
                           compiler=compiler, force=force)
 
 
 _LIBRARIES: dict[str, ctypes.CDLL] = {}
 
 
-def load_library(path: str | os.PathLike[str] | None = None) -> ctypes.CDLL:
-    """Load (building if needed) the shared library and declare its functions."""
-    path = str(path if path is not None else build_library())
+def load_library(path: str | os.PathLike[str] | None = None, precision: str = "double") -> ctypes.CDLL:
+    """Load (building if needed) the shared library of the core of ``precision`` and declare
+    its functions."""
+    _check_precision(precision)
+    path = str(path if path is not None else build_library(precision=precision))
     lib = _LIBRARIES.get(path)
     if lib is not None:
         return lib
     lib = ctypes.CDLL(path)
-    cfg_p, out_p = ctypes.POINTER(CConfig), ctypes.POINTER(_Output)
-    est_p, dbl_p = ctypes.c_void_p, ctypes.POINTER(ctypes.c_double)
+    real, config, output, _ = _TYPES[precision]
+    cfg_p, out_p = ctypes.POINTER(config), ctypes.POINTER(output)
+    est_p, dbl_p = ctypes.c_void_p, ctypes.POINTER(real)
     signatures = {
-        "duffid_default_config": (ctypes.c_int, [cfg_p, ctypes.c_int, ctypes.c_int, ctypes.c_double]),
+        "duffid_default_config": (ctypes.c_int, [cfg_p, ctypes.c_int, ctypes.c_int, real]),
         "duffid_check_config": (ctypes.c_int, [cfg_p, ctypes.c_char_p, ctypes.c_size_t]),
         "duffid_memory_size": (ctypes.c_size_t, [cfg_p]),
         "duffid_create": (ctypes.c_int, [ctypes.POINTER(est_p), cfg_p, ctypes.c_char_p, ctypes.c_size_t]),
@@ -212,8 +245,9 @@ def load_library(path: str | os.PathLike[str] | None = None) -> ctypes.CDLL:
         fn = getattr(lib, name)
         fn.restype = restype
         fn.argtypes = argtypes
-    if lib.duffid_config_size() != ctypes.sizeof(CConfig) or lib.duffid_output_size() != ctypes.sizeof(_Output):
-        raise RuntimeError(f"{path}: the C structures do not match this binding (rebuild the library)")
+    if lib.duffid_config_size() != ctypes.sizeof(config) or lib.duffid_output_size() != ctypes.sizeof(output):
+        raise RuntimeError(f"{path}: the C structures do not match this binding of the {precision} core "
+                           "(rebuild the library)")
     _LIBRARIES[path] = lib
     return lib
 
@@ -327,7 +361,7 @@ void duffid_generated_channels(const double *x, const double *f, double t, const
 
 
 def build_model_library(model: Any, build_dir: str | os.PathLike[str] | None = None, *,
-                        compiler: str | None = None, force: bool = False) -> Path:
+                        compiler: str | None = None, force: bool = False, precision: str = "double") -> Path:
     """Compile the core with the generated code of ``model`` into a shared library of its own
     (cached by the hash of the sources, the model's included; see :func:`build_library`).
 
@@ -338,6 +372,7 @@ def build_model_library(model: Any, build_dir: str | os.PathLike[str] | None = N
     CompilerNotFoundError, BuildError
         As :func:`build_library`.
     """
+    _check_precision(precision)
     text = model_source(model)
     src = source_dir()
     if build_dir is None:
@@ -351,9 +386,10 @@ def build_model_library(model: Any, build_dir: str | os.PathLike[str] | None = N
         with os.fdopen(fd, "w") as out:
             out.write(text)
         os.replace(tmp, path)
-    return cached_library(f"libduffid_model_{digest}", src, SOURCES, HEADERS,
-                          flags=(*LIBRARY_FLAGS, GENERATED_MODEL_FLAG), build_dir=build_dir, compiler=compiler,
-                          force=force, extra_sources=[path])
+    single = precision == "float"
+    return cached_library(f"libduffid_model_{digest}" + ("_float" if single else ""), src, SOURCES, HEADERS,
+                          flags=(*LIBRARY_FLAGS, GENERATED_MODEL_FLAG, *((_FLOAT_FLAG,) if single else ())),
+                          build_dir=build_dir, compiler=compiler, force=force, extra_sources=[path])
 
 
 # ---------------------------------------------------------------------- identifier
@@ -392,6 +428,10 @@ class CIdentifier(Identifier):
     generated : bool, optional (keyword)
         Run Duffing1/Duffing2 on their generated description too (the generic path the
         other models take; equal to the core's own description to rounding).
+    precision : {"double", "float"}, optional (keyword)
+        The core's real type: ``float`` runs the single-precision build of microcontrollers
+        (``-DDUFFID_REAL=float``; robust method only), whose answers are those of the double
+        build within their stated uncertainty.
 
     Raises
     ------
@@ -402,16 +442,20 @@ class CIdentifier(Identifier):
     """
 
     def __init__(self, model: Any, dt: float, method: str = "robust", *,
-                 library: str | os.PathLike[str] | None = None, generated: bool = False, **options: Any) -> None:
+                 library: str | os.PathLike[str] | None = None, generated: bool = False, precision: str = "double",
+                 **options: Any) -> None:
         if method not in _METHODS:
             raise InputError(f"unknown method {method!r}; the C core supports {', '.join(_METHODS)}")
+        _check_precision(precision)
         super().__init__(_resolve_model(model), dt, method, check_options(method, options))
         builtin = _builtin(self.model) and not generated
         self.generated = not builtin
+        self.precision = precision
         if library is None and not builtin:
-            library = build_model_library(self.model)
-        self._lib = load_library(library)
-        cfg = CConfig()
+            library = build_model_library(self.model, precision=precision)
+        self._lib = load_library(library, precision)
+        self._real, config, self._output_type, self._dtype = _TYPES[precision]
+        cfg = config()
         code = _MODELS[self.model.name] if builtin else _GENERATED
         if self._lib.duffid_default_config(ctypes.byref(cfg), code, _METHODS[method], self.dt) != 0:
             raise InputError(f"{library}: the library has no model {self.model.name} (DUFFID_GENERATED needs the "
@@ -433,9 +477,9 @@ class CIdentifier(Identifier):
         self._names = tuple(self._lib.duffid_parameter_name(handle, i).decode()
                             for i in range(self._lib.duffid_n_parameters(handle)))
         self.capacity = int(self._lib.duffid_capacity(handle)) if method == "robust" else None
-        self._x = (ctypes.c_double * self.model.n_dof)()
-        self._f = (ctypes.c_double * self.model.n_forces)()
-        self._out = _Output()
+        self._x = (self._real * self.model.n_dof)()
+        self._f = (self._real * self.model.n_forces)()
+        self._out = self._output_type()
         self.n = -1
 
     def __del__(self) -> None:
@@ -478,7 +522,8 @@ class CIdentifier(Identifier):
             self._f[i] = v
         rc = self._lib.duffid_update(self._live(), self._x, self._f, ctypes.byref(self._out))
         if rc == -3:
-            raise InputError(f"{self.model.name}: sample {self.n + 1} is not finite (x={xa}, f={fa})")
+            raise InputError(f"{self.model.name}: sample {self.n + 1} is not finite"
+                             f"{' in ' + self.precision if self.precision == 'float' else ''} (x={xa}, f={fa})")
         if rc != 0:
             raise RuntimeError(f"C estimator core: {_STATUS.get(rc, rc)}")
         self.n += 1
@@ -504,15 +549,16 @@ class CIdentifier(Identifier):
         ``current`` and ``status`` (codes: indices into
         :data:`~duffid.identification.engine.STATUSES`; see :class:`~duffid.identification.engine.Estimate`).
         """
-        xa = np.ascontiguousarray(np.asarray(x, dtype=float).reshape(len(x), -1))
-        fa = np.ascontiguousarray(np.asarray(f, dtype=float).reshape(len(f), -1))
+        dtype = np.float32 if self.precision == "float" else float
+        xa = np.ascontiguousarray(np.asarray(x, dtype=dtype).reshape(len(x), -1))
+        fa = np.ascontiguousarray(np.asarray(f, dtype=dtype).reshape(len(f), -1))
         if xa.shape[1] != self.model.n_dof or fa.shape[1] != self.model.n_forces or len(xa) != len(fa):
             raise InputError(f"{self.model.name}: run needs x of shape (n, {self.model.n_dof}) and f of shape "
                              f"(n, {self.model.n_forces}), got {xa.shape} and {fa.shape}")
         n = len(xa)
-        out = (_Output * n)()
+        out = (self._output_type * n)()
         failed = ctypes.c_long(-1)
-        dbl_p = ctypes.POINTER(ctypes.c_double)
+        dbl_p = ctypes.POINTER(self._real)
         rc = self._lib.duffid_run(self._live(), n, xa.ctypes.data_as(dbl_p), fa.ctypes.data_as(dbl_p),
                                   out, ctypes.byref(failed))
         if rc == -3:
@@ -522,7 +568,7 @@ class CIdentifier(Identifier):
         if rc != 0:
             raise RuntimeError(f"C estimator core: {_STATUS.get(rc, rc)}")
         self.n += n
-        return np.frombuffer(memoryview(out).cast("B"), dtype=_OUTPUT_DTYPE) if n else np.zeros(0, _OUTPUT_DTYPE)
+        return np.frombuffer(memoryview(out).cast("B"), dtype=self._dtype) if n else np.zeros(0, self._dtype)
 
     def identify_record(self, record: Record) -> Identification:
         """Run the identifier over a record in one call (like ``OnlineIdentifier.identify_record``)."""
@@ -531,7 +577,7 @@ class CIdentifier(Identifier):
         rows = self.run(record.x, record.f)
         if len(rows) and self._lib.duffid_flush(self._live(), ctypes.byref(self._out)):
             rows = rows.copy()
-            rows[-1] = np.frombuffer(memoryview(self._out).cast("B"), dtype=_OUTPUT_DTYPE)[0]
+            rows[-1] = np.frombuffer(memoryview(self._out).cast("B"), dtype=self._dtype)[0]
         found = np.flatnonzero(np.diff(rows["outliers"], prepend=0) > 0)
         history = {name: rows["parameters"][:, i].copy() for i, name in enumerate(self._names)}
         flags = rows["identified"].astype(bool)

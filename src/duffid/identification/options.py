@@ -278,9 +278,10 @@ def c_options() -> list[Option]:
     return [o for o in OPTIONS if o.kind != "prior"]
 
 
-def ctypes_fields() -> list[tuple[str, Any]]:
-    """The ctypes fields of the options in ``duffid_config`` (after its fixed head)."""
-    return [(o.name, ctypes.c_double if o.c_kind == "REAL" else ctypes.c_int) for o in c_options()]
+def ctypes_fields(real: Any = ctypes.c_double) -> list[tuple[str, Any]]:
+    """The ctypes fields of the options in ``duffid_config`` (after its fixed head); ``real`` is
+    the core's real type (``ctypes.c_float`` for a core built with ``-DDUFFID_REAL=float``)."""
+    return [(o.name, real if o.c_kind == "REAL" else ctypes.c_int) for o in c_options()]
 
 
 def _c_literal(value: float | int, kind: str) -> str:
@@ -299,7 +300,7 @@ def c_header() -> str:
         " * rewrites it; tests/test_options.py checks it is current.",
         " *",
         " * X(kind, name, default, minimum, maximum, methods, valid values)",
-        " *   kind     REAL (a double >= minimum; 0 means unset where the valid values say so)",
+        " *   kind     REAL (a duffid_real >= minimum; 0 means unset where the valid values say so)",
         " *            or CODE (an int in 0 .. maximum; maximum -1: any int >= 0)",
         " *   methods  DUFFID_FOR_ROBUST | DUFFID_FOR_PAPER: the methods that read it",
         " */",
@@ -308,7 +309,7 @@ def c_header() -> str:
         "",
         "#define DUFFID_FOR_ROBUST 1",
         "#define DUFFID_FOR_PAPER 2",
-        "#define DUFFID_CTYPE_REAL double",
+        "#define DUFFID_CTYPE_REAL duffid_real /* duffid_model.h: double, or float with -DDUFFID_REAL=float */",
         "#define DUFFID_CTYPE_CODE int",
         "",
     ]
