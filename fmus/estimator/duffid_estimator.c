@@ -76,8 +76,10 @@
  * sum of moments that cancel (the kernel's alternating coefficients): its rounding error is
  * about eps sqrt(L) times the sum of the magnitudes of its terms (L samples in the moments'
  * sums), and an unknown's relative error about the condition number times the rows' relative
- * error; this factor, calibrated on benchmarks/trust.py's records (tests/test_float_core.py),
- * scales that estimate. */
+ * error; this factor scales that estimate. Calibrated on benchmarks/trust.py's records
+ * (benchmarks/embedded.py's accuracy table, tests/test_float_core.py): at 1/16 a value the
+ * float build published was 1.02 of its stated uncertainty away from the double build's; at
+ * 1/4 the largest is 0.21 of it. */
 #define ARITHMETIC_FACTOR RC(0.25)
 #else
 #define COND_SINGULAR RC(1e14)
@@ -198,7 +200,7 @@ struct duffid_estimator {
     long leave_i;                           /* cache key of leave_phi (-1: empty) */
     duffid_real *leave_phi;                 /* the basis at the offset where samples leave */
     duffid_real *E;                         /* [r][order][channel] */
-    duffid_real *E_size, *B_size;           /* float: E and B from the magnitudes of the terms */
+    duffid_real rounding;                   /* float: the rows' relative rounding error at this sample */
 
     /* workspace of one update (no allocation, no large stack frames) */
     duffid_real *g, *B, *W, *U, *Rinv, *scale, *u_in, *Ap, *Dp, *Aw, *lin;
@@ -928,9 +930,7 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
         CARVE(&c, est->corr_w, MAX_CORR * (D + 1));
         CARVE(&c, est->leave_phi, D + 1);
         CARVE(&c, est->E, s->n_rows * N_ORD * n_ch);
-        CARVE(&c, est->E_size, DUFFID_SINGLE ? s->n_rows * N_ORD * n_ch : 0);
         CARVE(&c, est->B, rows_max * p_max);
-        CARVE(&c, est->B_size, DUFFID_SINGLE ? rows_max * p_max : 0);
         CARVE(&c, est->W, p_max * p_max);
     } else {
         CARVE(&c, est->E, (n_max + 2) * N_ORD * n_ch);
@@ -1793,30 +1793,43 @@ static void kernel_entries(duffid_estimator *est, long L)
         }
         est->poly_L = L;
     }
+#if DUFFID_SINGLE
+    duffid_real norm2 = RC(0.0), size2 = RC(0.0);
+#endif
     for (u = 0; u < est->n_jobs; u++) {
         const int *job = est->job + 5 * u, count = job[2], entry = job[3];
         const duffid_real *poly = est->poly + job[0], *m = est->mom + job[1];
+        const duffid_real scale = est->entry_scale[entry / n_ch];
         duffid_real sum = RC(0.0);
+#if DUFFID_SINGLE
+        duffid_real size = RC(0.0); /* the sum of the terms' magnitudes: how much they cancel */
+        for (k = 0; k < count; k++) {
+            const duffid_real term = poly[k] * m[k];
+            sum += term;
+            size += R_FABS(term);
+        }
+        if (job[4] >= 0) { /* the raw term of a row with a = 1 */
+            const duffid_real term = est->raw_pow[job[4]] * est->g[entry % n_ch];
+            sum += term;
+            size += R_FABS(term);
+        }
+        norm2 += sum * sum * scale * scale;
+        size2 += size * size * scale * scale;
+#else
         for (k = 0; k < count; k++) {
             sum += poly[k] * m[k];
         }
         if (job[4] >= 0) { /* the raw term of a row with a = 1 */
             sum += est->raw_pow[job[4]] * est->g[entry % n_ch];
         }
-        est->E[entry] = sum * est->entry_scale[entry / n_ch];
-#if DUFFID_SINGLE
-        {
-            duffid_real size = RC(0.0);
-            for (k = 0; k < count; k++) {
-                size += R_FABS(poly[k] * m[k]);
-            }
-            if (job[4] >= 0) {
-                size += R_FABS(est->raw_pow[job[4]] * est->g[entry % n_ch]);
-            }
-            est->E_size[entry] = size * R_FABS(est->entry_scale[entry / n_ch]);
-        }
 #endif
+        est->E[entry] = sum * scale;
     }
+#if DUFFID_SINGLE
+    /* the entries' relative rounding error: eps sqrt(L) (the moments' sums) times how much
+     * their terms cancel */
+    est->rounding = norm2 > RC(0.0) ? R_EPS * R_SQRT((duffid_real)L * size2 / norm2) : R_INF;
+#endif
 }
 
 /* rows of [A D] of one block (identification._Assembly) into B, column after column
@@ -1838,25 +1851,6 @@ static void assemble(const duffid_estimator *est, const block_t *b, const duffid
         }
     }
 }
-
-#if DUFFID_SINGLE
-/* the magnitudes of the rows of B (assemble on E_size: every term counted positive), into out */
-static void assemble_size(const duffid_estimator *est, const block_t *b, int n_rows, duffid_real *out)
-{
-    const int p = b->n_unknowns + 1, n_ch = est->n_ch, m = b->n_parts * n_rows;
-    int r, k;
-    memset(out, 0, (size_t)(m * p) * sizeof(duffid_real));
-    for (k = 0; k < b->n_terms; k++) {
-        const term_t *t = &est->m.terms[b->term0 + k];
-        const int col = t->unknown >= 0 ? t->unknown : b->n_unknowns;
-        duffid_real *o = out + col * m + t->part * n_rows;
-        const duffid_real *in = est->E_size + t->order * n_ch + t->channel;
-        for (r = 0; r < n_rows; r++) {
-            o[r] += R_FABS(t->coef) * in[r * N_ORD * n_ch];
-        }
-    }
-}
-#endif
 
 /* ------------------------------------------------------------------ least squares */
 static void singular(equation_t *eq, int n)
@@ -1971,21 +1965,10 @@ static long robust_step(duffid_estimator *est)
         const block_t *b = &est->m.blocks[e];
         const int n = b->n_unknowns, p = n + 1, m = b->n_parts * est->n_rows;
         assemble(est, b, est->E, est->n_rows, est->B);
-#if DUFFID_SINGLE
-        { /* the rows' relative rounding error: their size from the magnitudes over their norm */
-            duffid_real norm2 = RC(0.0), size2 = RC(0.0), ratio;
-            for (i = 0; i < m * p; i++) {
-                norm2 += est->B[i] * est->B[i];
-            }
-            assemble_size(est, b, est->n_rows, est->B_size);
-            for (i = 0; i < m * p; i++) {
-                size2 += est->B_size[i] * est->B_size[i];
-            }
-            ratio = norm2 > RC(0.0) ? R_EPS * R_SQRT((duffid_real)L * size2 / norm2) : R_INF;
-            eq->rounding = full ? (est->lam * eq->rows * eq->rounding + (duffid_real)m * ratio) /
-                                      (est->lam * eq->rows + (duffid_real)m)
-                                : ratio;
-        }
+#if DUFFID_SINGLE /* the rounding of the rows the solution rests on: their average */
+        eq->rounding = full ? (est->lam * eq->rows * eq->rounding + (duffid_real)m * est->rounding) /
+                                  (est->lam * eq->rows + (duffid_real)m)
+                            : est->rounding;
 #endif
         if (full) {
             duffid_la_qr_accumulate(eq->R, p, est->sqrt_lam, est->B, m);
