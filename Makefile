@@ -37,7 +37,8 @@ bench: $(STAMP)
 
 # the C core on a Cortex-M4F under QEMU (instructions per update, flash, RAM, ARM = x86) and its
 # x86 time per sample against a QR-RLS floor (needs gcc-arm-none-eabi, libnewlib-arm-none-eabi,
-# qemu-system-arm)
+# qemu-system-arm); then the float build against the double build on benchmarks/trust.py's
+# records (host compiler only; the simulated records are cached in build/trust_records)
 embedded: $(STAMP)
 	$(BIN)/python benchmarks/embedded.py
 

@@ -3,13 +3,13 @@ update, flash, RAM, and an x86 per-sample time against a QR-RLS floor.
 
 Run: python benchmarks/embedded.py [--quick] [--samples N] [--models duffing1,duffing2]
          [--method robust|paper] [--precisions double,float] [--repeats 5] [--no-timing]
-         [--core DIR] [--build DIR]
+         [--no-accuracy | --accuracy-only] [--no-record-cache] [--core DIR] [--build DIR]
 
 Two simulated records (generated here with duffid's simulator, written as a C header into the
 build directory, never committed): a hardening 1-DOF plant (m 1.2 kg, b 3 N s/m, k 4500 N/m,
 kp 4e7 N/m^3) and a 2-DOF chain, both under a band-limited random multisine force, 1 kHz,
-60 dB displacement noise. For each model and each precision the core supports (double;
-float with -DDUFFID_REAL=float once the core has that switch: detected by compiling a probe)
+60 dB displacement noise. For each model and each precision the core supports (double, and
+float with -DDUFFID_REAL=float, detected by compiling a probe)
 the test program tests/embedded/embedded_test.c is built twice from the same source:
 
 - bare metal for QEMU's mps2-an386 (Cortex-M4F, arm-none-eabi-gcc -mcpu=cortex-m4
@@ -21,8 +21,10 @@ the test program tests/embedded/embedded_test.c is built twice from the same sou
 Per build it prints: the ARM/x86 agreement (statuses and identified flags at every sample
 must be identical; values are compared bit for bit and within TOLERANCE_ULPS, see there), the
 instructions per update (mean over the steady state, i.e. after the first full window, and
-over all samples; the worst and its sample), flash of the core (text + rodata + data of its
-object files), RAM (duffid_memory_size, stack high-water mark from a painted stack), a check
+over all samples; the worst and its sample), flash of the core (text + rodata + data): as
+linked into the test program (its input sections that --gc-sections kept, from the linker
+map: what a firmware carries), the libm/libc/libgcc members it pulls in, and its object files
+before linking; RAM (duffid_memory_size, stack high-water mark from a painted stack), a check
 list (heap calls, soft-double helpers, 64-bit division helpers, libm sqrt inside updates) and
 the top functions by instructions inside updates (a translated block counts for the function
 it starts in; calls are executions of a block at a function's entry).
@@ -31,6 +33,24 @@ x86 section: ns per sample of duffid_update (native build, median of --repeats r
 against a floor measured in the same run: square-root RLS by Givens rotations of a 5x5
 triangular factor (4 unknowns + right-hand side), 8 rows per sample, one back substitution
 per sample (tests/embedded/qr_rls_floor.c), in double and float; the ratio duffid/floor.
+
+Float against double (issue 28; needs only the host's C compiler): every record of
+benchmarks/trust.py through CIdentifier(precision="double") and (precision="float"), robust
+method, default options. Wherever the float build publishes a parameter and both builds
+estimate over the same window (|window_float - window_double| < dt/2; after the automatic
+window is fixed at different samples they estimate over different windows, a statistical, not
+an arithmetic, difference) it must satisfy |v_float - current_double| <= uncertainty_float
+|v_float| (current_double: the double build's solution at that sample, published or not;
+uncertainty_float: the float build's stated uncertainty). Per record: parameter-samples
+published by each build and compared, the largest ratio, the violations (ratio > 1), the
+largest error of a float-published value against the truth; then the violations in all (the
+exit status is 1 if any), the largest ratio and the share of the double build's published
+parameter-samples the float build publishes too. Each record runs a second time with the
+window fixed at the double build's automatic one, so that both builds estimate over the same
+windows at every sample and every value the float build publishes is compared. The simulated
+records are cached in
+build/trust_records (keyed by the hash of trust.py, duffid's sources and the numerical
+libraries' versions; simulating all of them takes about 3 minutes, the comparison seconds).
 
 Needs the Debian packages gcc-arm-none-eabi, libnewlib-arm-none-eabi and qemu-system-arm.
 """
@@ -491,6 +511,75 @@ def object_sizes(objects: list[Path]) -> dict[str, int]:
     return sizes
 
 
+#: An input section in the memory map of a linker map file: its name (on the line before when
+#: it is long), address, size and file ("archive(member)" for a library member).
+_MAP_SECTION = re.compile(r"^ (\.\S+)?\s+0x([0-9a-f]+)\s+0x([0-9a-f]+)\s+(\S.*)$")
+_MAP_NAME = re.compile(r"^ (\.\S+)$")
+
+
+def linked_sizes(map_file: Path, objects: list[Path]) -> tuple[dict[str, int], dict[str, int]]:
+    """Bytes of text, rodata, data and bss as linked.
+
+    Parameters
+    ----------
+    map_file : Path
+        The linker's map file (-Wl,-Map) of the program.
+    objects : list of Path
+        The core's object files, as they were given to the linker.
+
+    Returns
+    -------
+    core, library : dict
+        ``{"text", "rodata", "data", "bss"}`` bytes of the core's and of the library code
+        linked for the core.
+
+    Notes
+    -----
+    The core's: its objects' input sections that --gc-sections kept, read from the linker map
+    file (what a firmware linking the core carries). The library's: the input sections of the
+    libm, libc and libgcc members the core pulled in (the map's "Archive member included to
+    satisfy reference by" list: members the core's objects referenced, and the members those
+    referenced in turn; a member the program would need anyway counts for the core when the
+    core's objects, linked first, referenced it first).
+    """
+    lines = map_file.read_text().splitlines()
+    core = {str(o) for o in objects} | {str(o.resolve()) for o in objects}
+    try:
+        start = lines.index("Linker script and memory map")
+    except ValueError:
+        raise RuntimeError(f"{map_file}: no memory map") from None
+    pulled: set[str] = set()
+    member = None
+    for line in lines[:start]:
+        if line and not line[0].isspace():
+            member = line.strip() if "(" in line else None
+        elif member is not None and line.strip():
+            referrer = line.strip().rsplit(" (", 1)[0]
+            if referrer in core or referrer in pulled:
+                pulled.add(member)
+            member = None
+    sizes = {"text": 0, "rodata": 0, "data": 0, "bss": 0}
+    library = dict(sizes)
+    name = None
+    for line in lines[start:]:
+        named = _MAP_NAME.match(line)
+        if named:
+            name = named.group(1)
+            continue
+        match = _MAP_SECTION.match(line)
+        section, name = (match.group(1) or name) if match else None, None
+        if match is None or section is None:
+            continue
+        size, where = int(match.group(3), 16), match.group(4).strip()
+        target = sizes if where in core else library if where in pulled else None
+        if target is None:
+            continue
+        for key in target:
+            if section == f".{key}" or section.startswith(f".{key}."):
+                target[key] += size
+    return sizes, library
+
+
 # ----------------------------------------------------------------------------------- timing
 
 def time_runs(commands: dict[str, list[str]], repeats: int) -> dict[str, list[float]]:
@@ -515,9 +604,11 @@ class Result:
     x86: Output
     profile: Profile
     comparison: Comparison
-    sizes: dict[str, int]
+    sizes: dict[str, int]           # the core's object files
     dt: float
     seconds: float
+    linked: dict[str, int] = field(default_factory=dict)    # the core as linked into the program
+    library: dict[str, int] = field(default_factory=dict)   # library members linked for the core
 
 
 def refused(result: "Result") -> bool:
@@ -578,8 +669,9 @@ def run(models: list[str], method: str = "robust", samples: int | None = None,
             seconds = time.perf_counter() - start
             progress(f"running {model} {method} {real} natively")
             x86 = run_host(build)
+            linked, library = linked_sizes(build.elf.with_suffix(".map"), build.core_objects)
             results.append(Result(build, arm, x86, profile, compare(arm, x86, real), object_sizes(build.core_objects),
-                                  record.dt, seconds))
+                                  record.dt, seconds, linked, library))
     return results, {"records": records, "build_dir": build_dir, "supported": supported}, notes
 
 
@@ -618,6 +710,261 @@ def host_timing(models: list[str], method: str, supported: list[str], build_dir:
 
 def _spread(values: list[float]) -> str:
     return f"{statistics.median(values):.0f} ({min(values):.0f}-{max(values):.0f})"
+
+
+# ------------------------------------------------------------------ float against double
+
+#: Simulated records of benchmarks/trust.py, cached by the hash of everything that makes them
+#: (see trust_record): the simulations take minutes, the two builds' runs seconds.
+RECORD_CACHE = ROOT / "build" / "trust_records"
+
+
+def trust_module():
+    """benchmarks/trust.py (the battery of realistic records), imported from this folder."""
+    folder = str(Path(__file__).resolve().parent)
+    if folder not in sys.path:
+        sys.path.insert(0, folder)
+    import trust
+    return trust
+
+
+def _record_key(case) -> str:
+    """Hash of the case, trust.py, duffid's sources and the numerical libraries' versions."""
+    import hashlib
+
+    import duffid
+    import scipy
+
+    trust = trust_module()
+    digest = hashlib.sha256(repr(case).encode())
+    digest.update(Path(trust.__file__).read_bytes())
+    for source in sorted(Path(duffid.__file__).resolve().parent.rglob("*.py")):
+        digest.update(source.read_bytes())
+    digest.update(f"{np.__version__} {scipy.__version__} {sys.version}".encode())
+    return digest.hexdigest()[:24]
+
+
+def trust_record(case, cache: Path | None = RECORD_CACHE
+                 ) -> tuple[np.ndarray, np.ndarray, float, dict[str, float], object]:
+    """The record of a benchmarks/trust.py case, with its truth and the model to identify.
+
+    Parameters
+    ----------
+    case : trust.Case
+        One of ``trust.CASES``.
+    cache : Path or None
+        Directory of simulated records: read from it when the same sources made the record
+        before, written to it otherwise; None: always simulate, write nothing.
+
+    Returns
+    -------
+    x, f : ndarray
+        Displacements (samples, n_dof) and forces (samples, n_forces), as ``trust.make_record``
+        gives them (noise, offsets and other modifications included).
+    dt : float
+        Sampling period [s].
+    truth : dict
+        The plant's true parameters.
+    model
+        The model trust.py identifies the record with (``trust.CLASSES``: the class's default
+        instance, whose values are not used).
+    """
+    import json
+
+    trust = trust_module()
+    plant = trust.PLANTS[case.plant][0]
+    model = trust.CLASSES[type(plant)]
+    path = None if cache is None else cache / f"{_record_key(case)}.npz"
+    if path is not None and path.exists():
+        with np.load(path) as data:
+            return data["x"], data["f"], float(data["dt"]), json.loads(str(data["truth"])), model
+    record, plant, truth = trust.make_record(case)
+    x, f = np.asarray(record.x, dtype=float), np.asarray(record.f, dtype=float)
+    dt = float(record.t[1] - record.t[0])
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        partial = path.with_suffix(f".{os.getpid()}.npz")
+        np.savez(partial, x=x, f=f, dt=dt, truth=json.dumps(truth))
+        os.replace(partial, path)
+    return x, f, dt, truth, model
+
+
+def _simulate_case(name: str, cache: Path | None) -> str:
+    """Fill the record cache for the case ``name`` (a worker of accuracy's process pool)."""
+    case = next(c for c in trust_module().CASES if c.name == name)
+    trust_record(case, cache)
+    return name
+
+
+def run_precisions(model, dt: float, x: np.ndarray, f: np.ndarray,
+                   **options: Any) -> tuple[tuple[str, ...], dict[str, np.ndarray]]:
+    """(parameter names, {precision: outputs of CIdentifier.run}) of the double and the float
+    build (x86, ctypes, the robust method with its default options or ``options``)."""
+    from duffid.identification.c_core import CIdentifier
+
+    outputs = {}
+    for precision in ("double", "float"):
+        with CIdentifier(model, dt, precision=precision, **options) as ident:
+            outputs[precision] = ident.run(x, f)
+            names = ident.parameter_names
+    return names, outputs
+
+
+@dataclass
+class Accuracy:
+    """The float build against the double build over one record (counts of parameter-samples:
+    one parameter at one sample)."""
+    record: str
+    names: tuple[str, ...]
+    samples: int
+    published_double: int
+    published_float: int
+    published_both: int         # published by both builds at that sample, whatever the windows
+    compared: int               # published by the float build, both builds over the same window
+    max_ratio: float            # largest |v_float - current_double| / (uncertainty_float |v_float|); NaN: none
+    violations: int             # compared parameter-samples with that ratio above 1
+    max_truth_error: float      # largest |v_float - truth| / |truth| of a float-published value; NaN: none
+    worst: tuple[int, str] = (-1, "")   # (sample, parameter) of max_ratio
+
+
+def float_accuracy(name: str, names: tuple[str, ...], outputs: dict[str, np.ndarray], dt: float,
+                   truth: dict[str, float]) -> Accuracy:
+    """Issue 28's requirement on one record: every value the float build publishes is within
+    its stated uncertainty of the double build's.
+
+    Parameters
+    ----------
+    name : str
+        The record's name (for the report).
+    names : tuple of str
+        The parameters, in the outputs' order.
+    outputs : dict
+        ``{"double": rows, "float": rows}``: the structured arrays of ``CIdentifier.run`` of
+        both builds over the same record (see :func:`run_precisions`).
+    dt : float
+        Sampling period [s].
+    truth : dict
+        True parameters (for the error of the float build's published values).
+
+    Returns
+    -------
+    Accuracy
+
+    Notes
+    -----
+    Compared: every sample where the float build publishes a parameter and both builds
+    estimate over the same window (|window_float - window_double| < dt/2; once the automatic
+    window is fixed at different samples they estimate over different windows, a statistical,
+    not an arithmetic, difference). The ratio is |v_float - current_double| / (uncertainty_float
+    |v_float|) with current_double the double build's solution at that sample (published or
+    not) and uncertainty_float the float build's stated uncertainty (its largest relative
+    standard error); a ratio above 1 is a violation.
+    """
+    from duffid.identification.engine import STATUSES
+
+    published = STATUSES.index("published")
+    d, fl = outputs["double"], outputs["float"]
+    k = len(names)
+    pub_d = d["status"][:, :k] == published
+    pub_f = fl["status"][:, :k] == published
+    same = np.abs(fl["window"].astype(float) - d["window"].astype(float)) < dt / 2
+    compared = pub_f & same[:, None]
+    v = fl["parameters"][:, :k].astype(float)
+    with np.errstate(all="ignore"):
+        ratio = np.abs(v - d["current"][:, :k].astype(float)) / (fl["uncertainty"].astype(float)[:, None] * np.abs(v))
+        true = np.array([truth[n] for n in names], dtype=float)
+        error = np.abs(v - true) / np.abs(true)
+    # A NaN ratio where the float build publishes (a NaN/inf value or uncertainty) is a violation.
+    ratio = np.where(compared & ~np.isfinite(ratio), np.inf, ratio)
+    worst = (-1, "")
+    max_ratio = math.nan
+    if compared.any():
+        i, j = np.unravel_index(np.argmax(np.where(compared, ratio, -1.0)), ratio.shape)
+        worst, max_ratio = (int(i), names[j]), float(ratio[i, j])
+    return Accuracy(name, tuple(names), len(d), int(pub_d.sum()), int(pub_f.sum()), int((pub_d & pub_f).sum()),
+                    int(compared.sum()), max_ratio, int((ratio[compared] > 1).sum()),
+                    float(np.max(error[pub_f])) if pub_f.any() else math.nan, worst)
+
+
+def accuracy(names: list[str] | None = None, cache: Path | None = RECORD_CACHE, progress=print,
+             workers: int | None = None) -> list[Accuracy]:
+    """The float build against the double build on the records of benchmarks/trust.py.
+
+    Parameters
+    ----------
+    names : list of str, optional
+        The records (``trust.CASES`` names); default all.
+    cache : Path or None
+        Directory of simulated records (see :func:`trust_record`); the records not in it are
+        simulated first, in ``workers`` processes (default: one per CPU). None: simulate each
+        record in this process, cache nothing.
+    progress : callable
+        Called with a line of progress.
+    workers : int, optional
+        Processes that simulate the missing records.
+
+    Returns
+    -------
+    list of Accuracy
+        One per record, in ``trust.CASES`` order.
+    """
+    from concurrent.futures import ProcessPoolExecutor
+
+    trust = trust_module()
+    cases = [c for c in trust.CASES if names is None or c.name in names]
+    if names is not None and len(cases) != len(set(names)):
+        raise ValueError(f"unknown records: {sorted(set(names) - {c.name for c in cases})}")
+    missing = [c.name for c in cases if cache is None or not (cache / f"{_record_key(c)}.npz").exists()]
+    if missing and cache is not None:
+        workers = min(len(missing), workers or os.cpu_count() or 1)
+        progress(f"simulating {len(missing)} records of benchmarks/trust.py ({workers} processes; "
+                 f"cached in {cache})")
+        if workers > 1:
+            with ProcessPoolExecutor(workers) as pool:
+                list(pool.map(_simulate_case, missing, [cache] * len(missing)))
+        else:
+            for name in missing:
+                _simulate_case(name, cache)
+    rows = []
+    for case in cases:
+        x, f, dt, truth, model = trust_record(case, cache)
+        names_, outputs = run_precisions(model, dt, x, f)
+        rows.append(float_accuracy(case.name, names_, outputs, dt, truth))
+        # the same with the window fixed at the double build's automatic one: both builds then
+        # estimate over the same windows at every sample, so every value the float build
+        # publishes is compared
+        window = float(outputs["double"]["window"][-1])
+        if window > 0:
+            names_, outputs = run_precisions(model, dt, x, f, window=window)
+            rows.append(float_accuracy(f"{case.name} (window {window:.4g} s)", names_, outputs, dt, truth))
+    return rows
+
+
+def accuracy_report(rows: list[Accuracy]) -> str:
+    """The table and the summary of the float-against-double section."""
+    def number(v: float, fmt: str) -> str:
+        return "-" if math.isnan(v) else format(v, fmt)
+
+    table = _table(
+        ["record", "parameters", "published: double", "float", "compared: float, same window", "largest ratio",
+         "ratio > 1", "float error vs truth, largest"],
+        [[r.record, ",".join(r.names), _fmt(r.published_double), _fmt(r.published_float), _fmt(r.compared),
+          number(r.max_ratio, ".3g"), str(r.violations), number(100 * r.max_truth_error, ".3g") + (" %" if
+          not math.isnan(r.max_truth_error) else "")] for r in rows])
+    violations = sum(r.violations for r in rows)
+    ratios = [r.max_ratio for r in rows if not math.isnan(r.max_ratio)]
+    worst = max(rows, key=lambda r: -1.0 if math.isnan(r.max_ratio) else r.max_ratio)
+    double = sum(r.published_double for r in rows)
+    both = sum(r.published_both for r in rows)
+    summary = [
+        f"violations in all (ratio > 1, must be 0): {violations} of {_fmt(sum(r.compared for r in rows))} "
+        f"compared parameter-samples",
+        "largest ratio: " + (f"{max(ratios):.3g} ({worst.record}, {worst.worst[1]} at sample {worst.worst[0]})"
+                             if ratios else "- (nothing compared)"),
+        f"the float build also publishes {100 * both / max(double, 1):.1f} % of the double build's published "
+        f"parameter-samples ({_fmt(both)} of {_fmt(double)})",
+    ]
+    return "\n".join([table, *summary])
 
 
 # ----------------------------------------------------------------------------------- output
@@ -668,10 +1015,13 @@ def report(result: Result, top: int = 10) -> str:
                   _fmt(statistics.mean(steady_part)) if steady_part else "n/a (the window grows to the end)"],
                  ["instructions per update, worst", f"{_fmt(updates[worst])} (sample {worst})"],
                  ["updates counted / markers out of order", f"{len(updates)} / {prof.unmatched}"]]
-    s = result.sizes
-    flash = s["text"] + s["rodata"] + s["data"]
-    rows += [["flash of the core (text + rodata + data of its objects)",
-              f"{flash:,} B (text {s['text']:,}, rodata {s['rodata']:,}, data {s['data']:,}, bss {s['bss']:,})"],
+    def flash(s: dict[str, int]) -> str:
+        total = s["text"] + s["rodata"] + s["data"]
+        return f"{total:,} B (text {s['text']:,}, rodata {s['rodata']:,}, data {s['data']:,}, bss {s['bss']:,})"
+
+    rows += [["flash of the core as linked (its sections kept by --gc-sections)", flash(result.linked)],
+             ["  + library code linked for the core (libm, libc, libgcc)", flash(result.library)],
+             ["flash of the core's object files (before linking)", flash(result.sizes)],
              ["RAM per estimator (duffid_memory_size, ARM / x86-64)", f"{arm.memory_size:,} B / {x86.memory_size:,} B"],
              ["stack high-water mark (updates and printing, below main)", f"{arm.stack_used:,} B"]]
     lines.append(_table(["cost on the Cortex-M4F", "value"], rows))
@@ -722,33 +1072,14 @@ def report(result: Result, top: int = 10) -> str:
     return "\n\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="short records (300 samples, 1-DOF and 2-DOF)")
-    parser.add_argument("--samples", type=int, default=None, help="samples per record (default 3 s = 3001)")
-    parser.add_argument("--models", default="duffing1,duffing2", help="duffing1,duffing2")
-    parser.add_argument("--method", default="robust", choices=sorted(METHODS))
-    parser.add_argument("--precisions", default="double,float", help="double,float")
-    parser.add_argument("--repeats", type=int, default=5, help="x86 timing runs (median, min-max)")
-    parser.add_argument("--top", type=int, default=10, help="functions listed per build")
-    parser.add_argument("--no-timing", action="store_true", help="skip the x86 timing section")
-    parser.add_argument("--core", type=Path, default=CORE,
-                        help="directory of the core's sources (default fmus/estimator, or $DUFFID_EMBEDDED_CORE)")
-    parser.add_argument("--build", type=Path, default=None, help="build directory (default: a temporary one)")
-    args = parser.parse_args(argv)
-    samples = args.samples if args.samples is not None else (300 if args.quick else None)
-    models = [m.strip() for m in args.models.split(",") if m.strip()]
-    for m in models:
-        if m not in MODELS:
-            parser.error(f"unknown model {m!r}")
-    precisions = [p.strip() for p in args.precisions.split(",") if p.strip()]
+def embedded_section(args, models: list[str], precisions: list[str], samples: int | None) -> int:
+    """The Cortex-M4F section (and the x86 timing): prints its tables; 1 when a build fails."""
     temporary = args.build is None
     build_dir = Path(tempfile.mkdtemp(prefix="duffid_embedded_")) if temporary else args.build
     try:
         try:
             results, info, notes = run(models, args.method, samples, precisions, build_dir,
-                                         core=args.core.resolve())
+                                       core=args.core.resolve())
         except Unavailable as exc:
             print(f"embedded benchmark not run: {exc}")
             return 0
@@ -781,6 +1112,59 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if temporary:
             shutil.rmtree(build_dir, ignore_errors=True)
+
+
+def accuracy_section(cache: Path | None) -> int:
+    """The float build against the double build on benchmarks/trust.py's records: prints the
+    table and the summary; 1 when a value the float build publishes is off (a violation)."""
+    start = time.perf_counter()
+    rows = accuracy(cache=cache)
+    print()
+    print("float build against double build (x86, ctypes, robust method, default options) on the "
+          "records of benchmarks/trust.py")
+    print("counts are parameter-samples (one parameter at one sample); compared: published by the float "
+          "build while both builds estimate over the same window (|window difference| < dt/2); ratio: "
+          "|v_float - current_double| / (uncertainty_float |v_float|), must be <= 1; error vs truth: "
+          "largest |v_float - true| / |true| of a value the float build published")
+    print(accuracy_report(rows))
+    print(f"({time.perf_counter() - start:.0f} s)")
+    return 1 if any(r.violations for r in rows) else 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="short records (300 samples, 1-DOF and 2-DOF)")
+    parser.add_argument("--samples", type=int, default=None, help="samples per record (default 3 s = 3001)")
+    parser.add_argument("--models", default="duffing1,duffing2", help="duffing1,duffing2")
+    parser.add_argument("--method", default="robust", choices=sorted(METHODS))
+    parser.add_argument("--precisions", default="double,float", help="double,float")
+    parser.add_argument("--repeats", type=int, default=5, help="x86 timing runs (median, min-max)")
+    parser.add_argument("--top", type=int, default=10, help="functions listed per build")
+    parser.add_argument("--no-timing", action="store_true", help="skip the x86 timing section")
+    accuracy_flags = parser.add_mutually_exclusive_group()
+    accuracy_flags.add_argument("--no-accuracy", action="store_true",
+                                help="skip the float-against-double section (benchmarks/trust.py's records)")
+    accuracy_flags.add_argument("--accuracy-only", action="store_true",
+                                help="run only the float-against-double section")
+    parser.add_argument("--no-record-cache", action="store_true",
+                        help=f"simulate trust.py's records again (default: cached in {RECORD_CACHE})")
+    parser.add_argument("--core", type=Path, default=CORE,
+                        help="directory of the core's sources (default fmus/estimator, or $DUFFID_EMBEDDED_CORE)")
+    parser.add_argument("--build", type=Path, default=None, help="build directory (default: a temporary one)")
+    args = parser.parse_args(argv)
+    samples = args.samples if args.samples is not None else (300 if args.quick else None)
+    models = [m.strip() for m in args.models.split(",") if m.strip()]
+    for m in models:
+        if m not in MODELS:
+            parser.error(f"unknown model {m!r}")
+    precisions = [p.strip() for p in args.precisions.split(",") if p.strip()]
+    failed = 0
+    if not args.accuracy_only:
+        failed |= embedded_section(args, models, precisions, samples)
+    if not args.no_accuracy:
+        failed |= accuracy_section(None if args.no_record_cache else RECORD_CACHE)
+    return failed
 
 
 if __name__ == "__main__":

@@ -179,6 +179,31 @@ def test_identify_record_matches_identify(case_a):
     assert result.options == expected.options
 
 
+def _memory_size(precision, model, method="robust", dt=1e-3, library=None, **fields):
+    import ctypes
+
+    from duffid.identification.c_core import config_type, load_library
+    lib = load_library(library, precision)
+    config = config_type(precision)()
+    assert lib.duffid_default_config(ctypes.byref(config), model, {"robust": 0, "paper": 1}[method], dt) == 0
+    for name, value in fields.items():
+        setattr(config, name, value)
+    return lib.duffid_memory_size(ctypes.byref(config))
+
+
+def test_memory_is_sized_to_the_model_and_the_window():
+    """One block sized from the model's own counts and the window, not the core's maxima:
+    the 1-DOF robust estimator with a 1 s window at 1 kHz fits 32 KB in float (issue 28), a
+    longer window adds its ring buffer (3 channels x 4 bytes a sample), the 2-DOF model more."""
+    one = _memory_size("float", 1)
+    assert one <= 32 * 1024
+    assert _memory_size("float", 1, max_window=2.0) - one == pytest.approx(1000 * 3 * 4, abs=64)
+    assert _memory_size("double", 1, max_window=2.0) - _memory_size("double", 1) == pytest.approx(
+        1000 * 3 * 8, abs=64)
+    assert one < _memory_size("float", 2) < 2 * one + 4096
+    assert _memory_size("double", 1, "paper") < 16 * 1024  # no ring buffer
+
+
 def test_interface_reset_and_errors(case_a):
     ident = CIdentifier("duffing1", case_a.dt)
     assert ident.parameter_names == ("m", "b", "k", "kp")

@@ -1984,6 +1984,7 @@ static long robust_step(duffid_estimator *est)
     }
     return L;
 }
+#if !DUFFID_SINGLE /* the paper method needs double precision (duffid_check_config) */
 /* ------------------------------------------------------------------ paper method */
 /* identification.Integrators.push: returns y (levels 0..depth, n_in each) */
 static const duffid_real *integrators_push(integrators_t *it, const duffid_real *u, duffid_real h, int adams)
@@ -2132,6 +2133,8 @@ static long paper_step(duffid_estimator *est)
     }
     return (long)est->n;
 }
+
+#endif
 
 /* ------------------------------------------------------------------ combination */
 /* Chain/EquationModel.combine_solutions into est->canon / est->canon_rse (canonical order):
@@ -2504,7 +2507,11 @@ static void process(duffid_estimator *est, const duffid_real *x, const duffid_re
     long window;
     est->n++;
     evaluate_channels(est, x, f);
+#if DUFFID_SINGLE
+    window = robust_step(est);
+#else
     window = est->cfg.method == DUFFID_ROBUST ? robust_step(est) : paper_step(est);
+#endif
     publish(est, window, &est->last);
 }
 

@@ -211,6 +211,7 @@ int duffid_la_upper_inverse(int n, const duffid_real *r, int ld, duffid_real *in
     return 0;
 }
 
+#if !DUFFID_SINGLE /* the paper method's determinants (double precision only) */
 duffid_real duffid_la_det(int n, duffid_real *a)
 {
     int i, j, k;
@@ -254,6 +255,7 @@ duffid_real duffid_la_det(int n, duffid_real *a)
     }
     return sign * R_EXP(logdet);
 }
+#endif
 
 int duffid_la_solve(int n, duffid_real *a, duffid_real *b, int nrhs)
 {

@@ -70,7 +70,7 @@ int duffid_la_upper_inverse(int n, const duffid_real *r, int ld, duffid_real *in
 
 /* Determinant by LU with partial pivoting, returned as numpy's det does:
  * sign * exp(sum log |u_ii|) (0 for an exactly singular matrix). a is destroyed. */
-duffid_real duffid_la_det(int n, duffid_real *a);
+duffid_real duffid_la_det(int n, duffid_real *a); /* not in a float build */
 
 /* Solve a X = b for the n x nrhs matrix b (overwritten by X) by LU with partial pivoting
  * (np.linalg.solve); a is destroyed. Returns 0, or k > 0 when the k-th pivot is exactly 0. */

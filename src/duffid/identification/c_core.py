@@ -55,6 +55,7 @@ __all__ = [
     "SOURCES",
     "CFLAGS",
     "PRECISIONS",
+    "config_type",
 ]
 
 #: C sources of the core, relative to :func:`source_dir`.
@@ -157,6 +158,12 @@ _FLOAT_FLAG = "-DDUFFID_REAL=float"
 def _check_precision(precision: str) -> None:
     if precision not in PRECISIONS:
         raise InputError(f"precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
+
+
+def config_type(precision: str = "double") -> type[ctypes.Structure]:
+    """The ctypes ``duffid_config`` of the core of ``precision`` (:data:`CConfig` for double)."""
+    _check_precision(precision)
+    return _TYPES[precision][1]
 
 
 # ---------------------------------------------------------------------- building
