@@ -351,7 +351,7 @@ def is_discrete(case: Case, name: str) -> bool:
 
 
 def rounding_tolerance(host: Host, case: Case, work_dir: Path, reference: Mapping[str, np.ndarray],
-                       window: int = FINAL_SAMPLES) -> dict[str, np.ndarray]:
+                       window: int = FINAL_SAMPLES, rows: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Relative tolerance of each Real output at each row, from the computation's own conditioning.
 
     The case is rerun by ``host`` :data:`rounding.TRIALS` times with every Real input sample
@@ -359,7 +359,8 @@ def rounding_tolerance(host: Host, case: Case, work_dir: Path, reference: Mappin
     largest relative change (0 where equal or NaN in both, infinite where a 0 becomes nonzero),
     then its largest value over ``window`` rows either side (the sensitivity varies slowly in
     time; a few trials can miss it at one row), and the tolerance :func:`rounding.tolerance`
-    of that (:data:`rounding.SAFETY` times it, at least :data:`rounding.FLOOR`).
+    of that (:data:`rounding.SAFETY` times it, at least :data:`rounding.FLOOR`). ``rows`` (a
+    boolean mask) keeps the spread of those rows only (the others' outputs are not compared).
     """
     spread = {name: np.zeros(len(values)) for name, values in reference.items()
               if name != "time" and not is_discrete(case, name)}
@@ -373,6 +374,8 @@ def rounding_tolerance(host: Host, case: Case, work_dir: Path, reference: Mappin
                 spread[name] = np.fmax(largest, change)
     out = {}
     for name, values in spread.items():
+        if rows is not None:
+            values = np.where(rows, values, 0.0)
         padded = np.pad(values, window, mode="edge")
         out[name] = tolerance(np.lib.stride_tricks.sliding_window_view(padded, 2 * window + 1).max(axis=1))
     return out
