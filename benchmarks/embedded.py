@@ -13,7 +13,7 @@ float with -DDUFFID_REAL=float, detected by compiling a probe)
 the test program tests/embedded/embedded_test.c is built twice from the same source:
 
 - bare metal for QEMU's mps2-an386 (Cortex-M4F, arm-none-eabi-gcc -mcpu=cortex-m4
-  -mfpu=fpv4-sp-d16 -mfloat-abi=hard -O2 -ffp-contract=off), run under qemu-system-arm
+  -mfpu=fpv4-sp-d16 -mfloat-abi=hard -O2 -fno-math-errno -ffp-contract=off), run under qemu-system-arm
   with the TCG plugin tests/embedded/insn_plugin.c (instructions per update, and per block
   inside updates: the functions where the time goes);
 - natively (gcc -O2 -ffp-contract=off).
