@@ -152,7 +152,7 @@ struct duffid_estimator {
     duffid_real *nominal;                  /* canonical order, |prior size| (0: none) */
     long capacity;
     int auto_window;
-    int n_rows, degree, p_max, n_max, rows_max;
+    int n_rows, degree;
     duffid_real lam, sqrt_lam, inv_cap;
     int64_t settle_count;
     int row_a[DUFFID_MAX_ROWS], row_b[DUFFID_MAX_ROWS], raw_b[DUFFID_MAX_ROWS];
@@ -863,9 +863,6 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
         rows_max = s->parts[e] * s->n_rows > rows_max ? s->parts[e] * s->n_rows : rows_max;
     }
     p_max = n_max + 1;
-    est->n_max = n_max;
-    est->p_max = p_max;
-    est->rows_max = rows_max;
     /* structure */
     CARVE(&c, est->m.blocks, n_blk);
     CARVE(&c, est->m.terms, s->m.c.n_terms);
@@ -1206,7 +1203,7 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     STATE_SAME(capacity) STATE_SAME(auto_window) STATE_SAME(n_rows) STATE_SAME(degree) STATE_SAME(lam)
     STATE_SAME(sqrt_lam) STATE_SAME(inv_cap) STATE_SAME(row_a) STATE_SAME(row_b) STATE_SAME(raw_b)
     STATE_SAME(norm) STATE_SAME(norm_power) STATE_SAME(d_scale) STATE_SAME(k_first) STATE_SAME(k_count)
-    STATE_SAME(k_at) STATE_SAME(n_coef) STATE_SAME(n_used) STATE_SAME(used_order) STATE_SAME(used_channel) STATE_SAME(n_jobs) STATE_SAME(p_max) STATE_SAME(n_max) STATE_SAME(rows_max)
+    STATE_SAME(k_at) STATE_SAME(n_coef) STATE_SAME(n_used) STATE_SAME(used_order) STATE_SAME(used_channel) STATE_SAME(n_jobs)
     STATE_SAME(structure_bytes)
     if (memcmp((const char *)est + ALIGN_UP(sizeof *est), dynamic_base(fresh), fresh->structure_bytes) != 0) {
         bad = "structure (the model's tables)";
