@@ -60,11 +60,9 @@
 #define BUILTIN_LINEAR 8
 #define BUILTIN_PARAMS 10
 
-/* A solution whose column-equilibrated condition number exceeds this is singular to the
- * arithmetic (identification.solve_factor's 1e14 in double). In single precision the limit
- * follows the precision: beyond 0.01 / eps, rounding alone moves a solution by 1 %. */
+/* duffid_la_solve_factor's limit (duffid_linalg.h) */
+#define COND_SINGULAR DUFFID_LA_COND_SINGULAR
 #if DUFFID_SINGLE
-#define COND_SINGULAR (RC(0.01) / R_EPS)
 /* Shadow accumulators of the sliding moments, started a window / SHADOWS apart: the main one is
  * replaced when a shadow holds exactly the window, so no accumulator lives longer than
  * (1 + 1/SHADOWS) windows, and the rounding errors of its first samples, which the shift
@@ -82,7 +80,6 @@
  * 1/4 the largest is 0.21 of it. */
 #define ARITHMETIC_FACTOR RC(0.25)
 #else
-#define COND_SINGULAR RC(1e14)
 #define SHADOWS 1 /* regressors.SlidingMoments' one shadow */
 #endif
 
@@ -225,21 +222,7 @@ struct duffid_estimator {
 };
 
 /* ------------------------------------------------------------------ helpers */
-static void set_msg(char *msg, size_t size, const char *fmt, ...)
-{
-    va_list ap;
-    if (msg == NULL || size == 0) {
-        return;
-    }
-    va_start(ap, fmt);
-#ifdef DUFFID_NO_STDIO /* targets without vsnprintf: the message template only */
-    strncpy(msg, fmt, size - 1);
-    msg[size - 1] = '\0';
-#else
-    vsnprintf(msg, size, fmt, ap);
-#endif
-    va_end(ap);
-}
+#define set_msg duffid_la_message
 
 static int is_finite(duffid_real v)
 {
@@ -274,30 +257,6 @@ static duffid_real max_builtin(duffid_real current, duffid_real candidate) /* Py
 }
 
 /* hypot(a, b) (math.hypot), exact where one side is 0 (a forced block's scale error) */
-static duffid_real hypot_of(duffid_real a, duffid_real b)
-{
-    if (a == RC(0.0)) {
-        return R_FABS(b);
-    }
-    if (b == RC(0.0)) {
-        return R_FABS(a);
-    }
-#if DUFFID_SINGLE /* hypotf is a libm call; this is the FPU's square root */
-    {
-        duffid_real x = R_FABS(a), y = R_FABS(b), r;
-        if (x < y) {
-            r = x;
-            x = y;
-            y = r;
-        }
-        r = y / x;
-        return x * R_SQRT(RC(1.0) + r * r);
-    }
-#else
-    return R_HYPOT(a, b);
-#endif
-}
-
 /* v^power for a small integer power (a channel's), by multiplication */
 static duffid_real int_power(duffid_real v, int power)
 {
@@ -1870,45 +1829,12 @@ static void solve_factor(duffid_estimator *est, equation_t *eq, int n, const duf
                          duffid_real overlap)
 {
     const int p = n + 1;
-    duffid_real cond, dof, s2, hi, lo;
-    int i, j, k;
-    for (j = 0; j < n; j++) { /* column norms: np.linalg.norm(R, axis=0), rows in order */
-        duffid_real sum = RC(0.0);
-        for (i = 0; i <= j; i++) {
-            sum += Raug[i * p + j] * Raug[i * p + j];
-        }
-        est->scale[j] = R_SQRT(sum);
-    }
-    for (j = 0; j < n; j++) {
-        if (!(est->scale[j] > RC(0.0))) {
-            singular(eq, n);
-            return;
-        }
-    }
-    for (i = 0; i < n; i++) {
-        for (j = 0; j < n; j++) {
-            est->U[i * n + j] = j >= i ? Raug[i * p + j] / est->scale[j] : RC(0.0);
-        }
-    }
-    if (duffid_la_upper_inverse(n, est->U, n, est->Rinv) != 0) {
+    int i, k;
+    if (duffid_la_solve_factor(n, Raug, rows, overlap, COND_SINGULAR, est->scale, est->U, est->Rinv, eq->V,
+                               &eq->warm, eq->theta, eq->rse, &eq->cond) != 0) {
         singular(eq, n);
         return;
     }
-    duffid_la_singular_range(n, est->U, eq->V, eq->warm, &hi, &lo);
-    cond = lo > RC(0.0) ? hi / lo : R_INF;
-    if (!is_finite(cond) || cond > COND_SINGULAR) {
-        singular(eq, n);
-        return;
-    }
-    eq->warm = 1;
-    for (i = 0; i < n; i++) { /* theta = R^-1 d / scale: the triangular inverse is R^-1 */
-        duffid_real sum = RC(0.0);
-        for (k = i; k < n; k++) {
-            sum += est->Rinv[i * n + k] * Raug[k * p + n];
-        }
-        eq->theta[i] = sum / est->scale[i];
-    }
-    eq->cond = cond;
     { /* shares of the terms |theta_i| ||A_i|| and of ||D|| in the force balance */
         duffid_real sq[MAX_AUG], rhs, balance;
         for (k = 0; k < p; k++) {
@@ -1926,25 +1852,11 @@ static void solve_factor(duffid_estimator *est, equation_t *eq, int n, const duf
         }
         eq->rhs_share = balance > RC(0.0) ? rhs / balance : R_NAN;
     }
-    dof = rows - (duffid_real)n;
-    if (dof <= RC(0.0)) {
-        for (i = 0; i < n; i++) {
-            eq->rse[i] = R_INF;
-        }
-        return;
-    }
-    s2 = Raug[n * p + n] * Raug[n * p + n] / dof * overlap;
-    for (i = 0; i < n; i++) {
-        duffid_real sq[MAX_UNK], std;
-        for (k = 0; k < n - i; k++) {
-            sq[k] = est->Rinv[i * n + i + k] * est->Rinv[i * n + i + k];
-        }
-        std = R_SQRT(s2 * duffid_la_pairwise_sum(sq, n - i, 1)) / est->scale[i];
-        eq->rse[i] = eq->theta[i] != RC(0.0) ? std / R_FABS(eq->theta[i]) : R_INF;
 #if DUFFID_SINGLE
-        eq->rse[i] = hypot_of(eq->rse[i], ARITHMETIC_FACTOR * eq->rounding * cond);
-#endif
+    for (i = 0; i < n; i++) {
+        eq->rse[i] = duffid_la_hypot(eq->rse[i], ARITHMETIC_FACTOR * eq->rounding * eq->cond);
     }
+#endif
 }
 
 /* OnlineIdentifier._robust_step + _robust_solve; returns the window length L */
@@ -2173,9 +2085,9 @@ static void combine(duffid_estimator *est)
                 }
                 {
                     duffid_real abs_val = s_val[j] * est->eq[j].theta[rule->other_unknown];
-                    duffid_real abs_err = hypot_of(s_err[j], est->eq[j].rse[rule->other_unknown]);
+                    duffid_real abs_err = duffid_la_hypot(s_err[j], est->eq[j].rse[rule->other_unknown]);
                     s_val[i] = abs_val / ratio;
-                    s_err[i] = hypot_of(abs_err, est->eq[i].rse[rule->unknown]);
+                    s_err[i] = duffid_la_hypot(abs_err, est->eq[i].rse[rule->unknown]);
                     known[i] = 1;
                     progress = 1;
                     break;
@@ -2197,7 +2109,7 @@ static void combine(duffid_estimator *est)
                 const int j = q->sources[k].block, u = q->sources[k].unknown;
                 if (known[j]) {
                     val = s_val[j] * est->eq[j].theta[u];
-                    err = hypot_of(s_err[j], est->eq[j].rse[u]);
+                    err = duffid_la_hypot(s_err[j], est->eq[j].rse[u]);
                     break;
                 }
             }

@@ -5,6 +5,12 @@
  */
 #include "duffid_linalg.h"
 
+#include <stdarg.h>
+#ifndef DUFFID_NO_STDIO
+#include <stdio.h>
+#endif
+#include <string.h>
+
 
 duffid_real duffid_la_pairwise_sum(const duffid_real *a, int n, int stride)
 {
@@ -510,3 +516,106 @@ int duffid_la_eigenvalues(int n, duffid_real *a, duffid_real *wr, duffid_real *w
     return 0;
 }
 #undef H
+
+duffid_real duffid_la_hypot(duffid_real a, duffid_real b)
+{
+    if (a == RC(0.0)) {
+        return R_FABS(b);
+    }
+    if (b == RC(0.0)) {
+        return R_FABS(a);
+    }
+#if DUFFID_SINGLE
+    {
+        duffid_real x = R_FABS(a), y = R_FABS(b), r;
+        if (x < y) {
+            r = x;
+            x = y;
+            y = r;
+        }
+        r = y / x;
+        return x * R_SQRT(RC(1.0) + r * r);
+    }
+#else
+    return R_HYPOT(a, b);
+#endif
+}
+
+int duffid_la_solve_factor(int n, const duffid_real *Raug, duffid_real rows, duffid_real overlap,
+                           duffid_real cond_limit, duffid_real *scale, duffid_real *U, duffid_real *Rinv,
+                           duffid_real *v, int *warm, duffid_real *theta, duffid_real *rse, duffid_real *cond)
+{
+    const int p = n + 1;
+    duffid_real c, dof, s2, hi, lo;
+    int i, j, k;
+    for (j = 0; j < n; j++) { /* column norms: np.linalg.norm(R, axis=0), rows in order */
+        duffid_real sum = RC(0.0);
+        for (i = 0; i <= j; i++) {
+            sum += Raug[i * p + j] * Raug[i * p + j];
+        }
+        scale[j] = R_SQRT(sum);
+    }
+    for (j = 0; j < n; j++) {
+        if (!(scale[j] > RC(0.0))) {
+            *warm = 0;
+            return 1;
+        }
+    }
+    for (i = 0; i < n; i++) {
+        for (j = 0; j < n; j++) {
+            U[i * n + j] = j >= i ? Raug[i * p + j] / scale[j] : RC(0.0);
+        }
+    }
+    if (duffid_la_upper_inverse(n, U, n, Rinv) != 0) {
+        *warm = 0;
+        return 1;
+    }
+    duffid_la_singular_range(n, U, v, *warm, &hi, &lo);
+    c = lo > RC(0.0) ? hi / lo : R_INF;
+    if (!(c <= cond_limit)) { /* also NaN */
+        *warm = 0;
+        return 1;
+    }
+    *warm = 1;
+    *cond = c;
+    for (i = 0; i < n; i++) { /* theta = R^-1 d / scale: the triangular inverse is R^-1 */
+        duffid_real sum = RC(0.0);
+        for (k = i; k < n; k++) {
+            sum += Rinv[i * n + k] * Raug[k * p + n];
+        }
+        theta[i] = sum / scale[i];
+    }
+    dof = rows - (duffid_real)n;
+    if (dof <= RC(0.0)) {
+        for (i = 0; i < n; i++) {
+            rse[i] = R_INF;
+        }
+        return 0;
+    }
+    s2 = Raug[n * p + n] * Raug[n * p + n] / dof * overlap;
+    for (i = 0; i < n; i++) {
+        duffid_real sq[DUFFID_LA_MAX], std;
+        for (k = 0; k < n - i; k++) {
+            sq[k] = Rinv[i * n + i + k] * Rinv[i * n + i + k];
+        }
+        std = R_SQRT(s2 * duffid_la_pairwise_sum(sq, n - i, 1)) / scale[i];
+        rse[i] = theta[i] != RC(0.0) ? std / R_FABS(theta[i]) : R_INF;
+    }
+    return 0;
+}
+
+void duffid_la_message(char *msg, size_t size, const char *fmt, ...)
+{
+    va_list ap;
+    if (msg == NULL || size == 0) {
+        return;
+    }
+    va_start(ap, fmt);
+#ifdef DUFFID_NO_STDIO /* targets without vsnprintf: the message template only */
+    strncpy(msg, fmt, size - 1);
+    msg[size - 1] = '\0';
+#else
+    vsnprintf(msg, size, fmt, ap);
+#endif
+    va_end(ap);
+}

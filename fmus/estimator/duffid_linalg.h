@@ -9,6 +9,7 @@
 
 #include <float.h>
 #include <math.h>
+#include <stddef.h>
 
 #include "duffid_model.h" /* duffid_real, DUFFID_SINGLE */
 
@@ -67,6 +68,34 @@ int duffid_la_singular_range(int n, const duffid_real *a, duffid_real *v, int wa
 /* inv = r^-1 for the n x n upper-triangular r (row-major, leading dimension ld); inv is
  * n x n, upper triangular. Returns 0, or k > 0 when the k-th diagonal entry is 0. */
 int duffid_la_upper_inverse(int n, const duffid_real *r, int ld, duffid_real *inv);
+
+/* printf-style message into msg[size] (nothing when msg is NULL or size 0); with
+ * -DDUFFID_NO_STDIO (targets without vsnprintf) the template only. */
+void duffid_la_message(char *msg, size_t size, const char *fmt, ...);
+
+/* sqrt(a^2 + b^2) without overflow: libm's hypot in double, the FPU's square root in float
+ * (hypotf is a libm call on a microcontroller). */
+duffid_real duffid_la_hypot(duffid_real a, duffid_real b);
+
+/* A solution whose column-equilibrated condition number exceeds this is singular to the
+ * arithmetic (identification.solve_factor's 1e14 in double). In single precision the limit
+ * follows the precision: beyond 0.01 / eps, rounding alone moves a solution by 1 %. */
+#if DUFFID_SINGLE
+#define DUFFID_LA_COND_SINGULAR (RC(0.01) / R_EPS)
+#else
+#define DUFFID_LA_COND_SINGULAR RC(1e14)
+#endif
+
+/* identification.solve_factor on the (n + 1) x (n + 1) upper-triangular factor Raug of
+ * [A D] (row-major): the condition number of the column-equilibrated factor (*cond, by the
+ * Jacobi iteration warm-started from v when *warm), the unknowns theta and their relative
+ * standard errors rse (s^2 = Raug[n][n]^2 / (rows - n) x overlap; infinite when rows <= n).
+ * Workspace: scale[n] (the column norms, kept for the caller), U and Rinv (n x n).
+ * Returns 0, or 1 when the factor is singular (a zero column, a zero pivot, a non-finite
+ * condition or one above cond_limit): theta, rse and *cond are then unset and *warm = 0. */
+int duffid_la_solve_factor(int n, const duffid_real *Raug, duffid_real rows, duffid_real overlap,
+                           duffid_real cond_limit, duffid_real *scale, duffid_real *U, duffid_real *Rinv,
+                           duffid_real *v, int *warm, duffid_real *theta, duffid_real *rse, duffid_real *cond);
 
 /* Determinant by LU with partial pivoting, returned as numpy's det does:
  * sign * exp(sum log |u_ii|) (0 for an exactly singular matrix). a is destroyed. */
