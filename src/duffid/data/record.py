@@ -2,11 +2,14 @@
 
 A :class:`Record` holds evenly sampled time ``t``, forces (inputs) ``f`` and
 displacements (outputs) ``x``.  It validates its data on construction and
-reads and writes two file formats:
+reads and writes:
 
 * CSV with a header line, ``t,f,x`` for one degree of freedom or
   ``t,f1..f<nf>,x1..x<nx>`` otherwise (see :meth:`Record.read_csv`);
-* MATLAB ``.mat`` files up to version 7 (see :meth:`Record.read_mat`).
+* MATLAB ``.mat`` files, v5 to v7.3 (see :meth:`Record.read_mat`);
+* every format of :mod:`duffid.data.formats` (TDMS, UFF 58/58b, HDF5, WAV, and the
+  above) by :meth:`Record.read`, and SDyPy SEP-005 channels
+  (:meth:`Record.from_sep005`, :meth:`Record.to_sep005`).
 
 duffid never silently drops, clips, interpolates or resamples data: every
 problem in a file is reported as a :class:`RecordError` whose message names
@@ -28,6 +31,11 @@ import scipy.io
 from scipy.io.matlab import MatReadError
 
 from ..errors import InputError, OptionError, RecordError
+from .channels import Channel, assemble, check_roles, select
+from .formats import detect_format, read_arrays
+from .readers.matlab import is_v73
+from .readers.matlab import open_channels as open_mat_channels
+from .units import ROLE_QUANTITIES, lookup
 
 __all__ = ["Record", "RecordError"]
 
@@ -39,6 +47,8 @@ _NUMBERED_RE = re.compile(r"([fx])([1-9][0-9]*)", re.ASCII)
 _MATLAB_NAME_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,62}", re.ASCII)
 _CSV_LAYOUTS = "t,f,x (one DOF) or t,f1..f<nf>,x1..x<nx> with nf <= nx"
 _MAT_HEADER_KEYS = ("__header__", "__version__", "__globals__")
+#: Samples per chunk of the sampling checks.
+_CHUNK = 1 << 20
 
 
 
@@ -108,11 +118,17 @@ def _check_samples(
             f"{source}, {where(i)}{tplace}: time {float(t[i])!r} does not increase "
             f"(previous {float(t[i - 1])!r})"
         )
-    dt = float(np.median(steps))
-    bad = np.flatnonzero(np.abs(steps - dt) > sampling_rtol * dt)
+    dt = float(np.median(steps, overwrite_input=True))  # sorts steps in place: no copy of a long record
+    del steps
+    for lo in range(0, n - 1, _CHUNK):  # chunks: a long record's check needs no record-sized temporaries
+        steps = np.diff(t[lo:lo + _CHUNK + 1])
+        bad = np.flatnonzero(np.abs(steps - dt) > sampling_rtol * dt)
+        if bad.size:
+            break
     if bad.size:
         i = int(bad[0]) + 1
         step_s, dt_s = _fmt_pair(float(steps[i - 1]), dt)
+        i += lo
         raise RecordError(
             f"{source}, {where(i)}{tplace}: uneven sampling, step {step_s} differs "
             f"from dt {dt_s} by more than the tolerance (rtol {sampling_rtol:g}); "
@@ -142,6 +158,8 @@ def _numeric_array(value: Any, name: str, source: str) -> np.ndarray:
         raise RecordError(
             f"{source}: {name} must be a real numeric array, got dtype {arr.dtype}"
         )
+    if arr is value and arr.dtype == np.float64 and arr.flags.owndata and not arr.flags.writeable:
+        return arr  # already immutable and owned (what the file readers hand over): no copy
     return np.array(arr, dtype=np.float64, copy=True)
 
 
@@ -492,6 +510,127 @@ class Record:
             return record if not scale else record.scaled(scale)
         return _parse_logger_lines(lines, source, rtol, columns, delimiter, scale or {}, fs, decimal)
 
+    # ------------------------------------------------------------ every format
+    @classmethod
+    def read(
+        cls, path: str | os.PathLike[str], *, format: str | None = None,
+        columns: Mapping[str, str | int] | None = None, scale: Mapping[str, float] | None = None,
+        fs: float | None = None, sampling_rtol: float = 1e-6, delimiter: str = ",", decimal: str = ".",
+    ) -> Record:
+        """Read a record from a file in any format duffid reads: CSV, MATLAB (v5 and v7.3), TDMS,
+        UFF 58/58b, HDF5 or WAV.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file.
+        format : str, optional
+            ``csv``, ``mat``, ``tdms``, ``uff``, ``hdf5`` or ``wav``
+            (:data:`duffid.data.formats.FORMATS`); default: from the extension.
+        columns : mapping, optional
+            Role (``t``, ``f``, ``x``, or ``f1``.., ``x1``..) -> channel: ``group/channel`` in
+            TDMS, a dataset path in HDF5, a variable in MATLAB (``x(:,2)`` for a matrix's
+            column), a data set's ID line in UFF, a header name in CSV, or any channel's 1-based
+            number (a WAV channel). Default: a file with one force and one displacement channel
+            (by unit, else name) is read as such; CSV files as :meth:`read_csv` says.
+        scale : mapping, optional
+            Role (or ``f``, ``x``, ``t`` for all of them) -> factor into SI. It replaces the
+            factor of the channel's unit; required for integer PCM WAV channels (the SI value
+            at full scale), for sensor voltages (1 / sensitivity) and units duffid does not know.
+        fs : float, optional
+            Sampling rate [Hz] of channels without one (MATLAB, CSV without a time column).
+        sampling_rtol : float, optional
+            Allowed relative deviation of every time step from the median step.
+        delimiter, decimal : str, optional
+            CSV only: see :meth:`read_csv`.
+
+        Returns
+        -------
+        Record
+            In SI units, with ``source`` set to ``str(path)``.
+
+        Raises
+        ------
+        RecordError
+            A channel that is not there (listing those found, with their units), a unit that is
+            unknown or of the wrong quantity, channels of different rates, start times or lengths
+            (naming both), a velocity or acceleration channel (not identifiable yet), or data that
+            fail the checks of :class:`Record`.
+        MissingDependencyError
+            The format's library is missing (``pip install 'duffid[files]'``).
+        """
+        rtol = _check_rtol(sampling_rtol)
+        source = os.fspath(path)
+        if detect_format(source, format) == "csv":
+            return cls.read_csv(path, sampling_rtol=rtol, columns=columns, delimiter=delimiter, scale=scale,
+                                fs=fs, decimal=decimal)
+        t, f, x = read_arrays(path, format=format, columns=columns, scale=scale, fs=fs)
+        return cls(t, f, x, source=source, sampling_rtol=rtol)
+
+    @classmethod
+    def from_sep005(
+        cls, channels: Sequence[Mapping[str, Any]], *, columns: Mapping[str, str | int] | None = None,
+        scale: Mapping[str, float] | None = None, sampling_rtol: float = 1e-6, source: str = "SEP-005 channels",
+    ) -> Record:
+        """A record from SDyPy SEP-005 channels (the ecosystem's in-memory time series).
+
+        Parameters
+        ----------
+        channels : sequence of mapping
+            One dict per channel: ``data`` (1-D), ``name``, ``unit_str`` and ``fs`` [Hz] or
+            ``time`` [s] (an evenly sampled vector; its first value is the start time).
+        columns : mapping, optional
+            Role -> channel name or 1-based number, as for :meth:`read`; default: one force and
+            one displacement channel recognised by unit or name.
+        scale : mapping, optional
+            Role -> factor into SI, as for :meth:`read`.
+        sampling_rtol : float, optional
+            Allowed relative deviation of every time step from the median step.
+        source : str, optional
+            Where the channels came from, for messages.
+
+        Returns
+        -------
+        Record
+            In SI units.
+
+        Raises
+        ------
+        RecordError
+            A channel without ``data``, ``name`` or a time base, an unevenly sampled ``time``,
+            or the problems :meth:`read` reports.
+        """
+        rtol = _check_rtol(sampling_rtol)
+        t, f, x = assemble(select(_sep005_channels(channels, source, rtol), columns, source), source, scale=scale)
+        return cls(t, f, x, source=source, sampling_rtol=rtol)
+
+    def to_sep005(self, units: Mapping[str, str] | None = None) -> list[dict[str, Any]]:
+        """The record as SDyPy SEP-005 channels: one dict per force and displacement column.
+
+        Parameters
+        ----------
+        units : mapping, optional
+            ``{"f": ..., "x": ...}``: the units of the forces and displacements (default N and
+            m; a circuit's record is in V and C).
+
+        Returns
+        -------
+        list of dict
+            ``name`` (the CSV column name), ``data`` (a copy), ``unit_str``, and ``fs`` [Hz]
+            when the record starts at t = 0, else ``time`` (a copy of ``t``).
+        """
+        units = {"f": "N", "x": "m", **(units or {})}
+        out: list[dict[str, Any]] = []
+        for k, name in enumerate(self.column_names[1:]):
+            data = self.f[:, k] if k < self.n_forces else self.x[:, k - self.n_forces]
+            entry: dict[str, Any] = {"name": name, "data": data.copy(), "unit_str": units[name[0]]}
+            if self.t[0] == 0.0:
+                entry["fs"] = self.fs
+            else:
+                entry["time"] = self.t.copy()
+            out.append(entry)
+        return out
+
     # --------------------------------------------------------------------- MAT
     def to_mat(
         self,
@@ -556,7 +695,7 @@ class Record:
         fs: float | None = None,
         sampling_rtol: float = 1e-6,
     ) -> Record:
-        """Read a record from a MATLAB ``.mat`` file (version 4 to 7).
+        """Read a record from a MATLAB ``.mat`` file (version 4 to 7, and 7.3 through h5py).
 
         Parameters
         ----------
@@ -582,7 +721,7 @@ class Record:
         Raises
         ------
         RecordError
-            If the file cannot be read (MATLAB v7.3/HDF5 files included), a
+            If the file cannot be read, a
             variable is missing (the message lists those present), not real
             numeric, has the wrong shape, lengths differ, neither or both of
             `t` and `fs` are given, or the data fail the :class:`Record`
@@ -604,6 +743,8 @@ class Record:
                 f"{source}: no time given; pass t='<time variable>' or the "
                 "sampling rate fs"
             )
+        if is_v73(source):
+            return cls._read_mat_v73(source, x, f, t, fs, rtol)
         contents = _load_mat(source)
         present = sorted(k for k in contents if k not in _MAT_HEADER_KEYS)
         wanted = [] if t is None else [t]
@@ -715,6 +856,28 @@ class Record:
             t_desc=None if t is None else f"variable '{t}'",
         )
         return cls(t_vec, f_mat, x_mat, source=source, sampling_rtol=rtol)
+
+
+    @classmethod
+    def _read_mat_v73(cls, source: str, x: str | Sequence[str], f: str | Sequence[str], t: str | None,
+                      fs: float | None, rtol: float) -> Record:
+        """:meth:`read_mat` of a MATLAB v7.3 (HDF5) file, through h5py: a matrix's columns are its
+        channels ``name(:,k)``."""
+        with open_mat_channels(source) as channels:
+            names = [c.name for c in channels]
+
+            def roles(spec: str | Sequence[str], fam: str) -> dict[str, str]:
+                listed: list[str] = []
+                for name in [spec] if isinstance(spec, str) else list(spec):
+                    parts = [n for n in names if n.startswith(f"{name}(:,")]
+                    listed += parts if name not in names and parts else [name]
+                if len(listed) == 1:
+                    return {fam: listed[0]}
+                return {f"{fam}{j + 1}": n for j, n in enumerate(listed)}
+
+            columns = {**({"t": t} if t is not None else {}), **roles(f, "f"), **roles(x, "x")}
+            arrays = assemble(select(channels, columns, source), source, fs=fs)
+        return cls(*arrays, source=source, sampling_rtol=rtol)
 
 
 # ---------------------------------------------------------------------- helpers
@@ -920,6 +1083,44 @@ def _parse_csv_lines(lines: list[str], source: str, rtol: float) -> Record:
     return Record(t, f, x, source=source, sampling_rtol=rtol)
 
 
+def _sep005_channels(channels: Sequence[Mapping[str, Any]], source: str, rtol: float) -> list[Channel]:
+    """:class:`Channel` descriptions of SEP-005 channel dicts (checked: data, name, time base)."""
+    if isinstance(channels, Mapping) or not isinstance(channels, Sequence):
+        raise RecordError(f"{source}: SEP-005 data are a list of channel dicts, got {type(channels).__name__}")
+    out = []
+    for k, entry in enumerate(channels):
+        place = f"{source}, channel {k + 1}"
+        if not isinstance(entry, Mapping) or "data" not in entry or not entry.get("name"):
+            raise RecordError(f"{place}: a SEP-005 channel is a dict with 'data', 'name', 'unit_str' and 'fs' "
+                              f"or 'time', got {entry!r:.80}")
+        name = str(entry["name"])
+        data = _numeric_array(entry["data"], f"channel {name!r} data", source)
+        if data.ndim != 1:
+            raise RecordError(f"{source}, channel {name!r}: data must be 1-D, got shape {data.shape}")
+        if "fs" in entry:
+            try:
+                rate = float(entry["fs"])
+            except (TypeError, ValueError):
+                rate = math.nan
+            if not (math.isfinite(rate) and rate > 0):
+                raise RecordError(f"{source}, channel {name!r}: fs must be a positive number of Hz, got "
+                                  f"{entry['fs']!r}")
+            start = 0.0
+        elif "time" in entry:
+            time = _numeric_array(entry["time"], f"channel {name!r} time", source)
+            if time.shape != data.shape:
+                raise RecordError(f"{source}, channel {name!r}: time has {time.size} values, data {data.size}")
+            dt = _check_samples(time, [(f"channel {name!r} time", time)], source=source, sampling_rtol=rtol,
+                                where=lambda i: f"sample index {i}", t_desc=f"channel {name!r} time")
+            rate, start = 1.0 / dt, float(time[0])
+        else:
+            raise RecordError(f"{source}, channel {name!r}: neither 'fs' nor 'time' is given")
+        unit = entry.get("unit_str")
+        out.append(Channel(name, str(unit) if unit is not None else None, int(data.size), rate, start,
+                           read=lambda data=data: data))
+    return out
+
+
 def _load_mat(source: str) -> dict[str, Any]:
     """Load a .mat file with scipy, converting every failure to RecordError."""
     try:
@@ -939,35 +1140,6 @@ def _load_mat(source: str) -> dict[str, Any]:
 # ------------------------------------------------------------------------- logger files
 #: SI units of each role; a units row naming another unit needs a scale factor.
 SI_UNITS = {"t": ("s",), "f": ("N", "V"), "x": ("m", "C")}
-_ROLE_RE = re.compile(r"([tfx])([1-9][0-9]*)?", re.ASCII)
-#: Factors into SI of the non-SI units a units row commonly names (suggested, never applied).
-_UNIT_FACTORS = {"ms": 1e-3, "us": 1e-6, "µs": 1e-6, "mm": 1e-3, "cm": 1e-2, "um": 1e-6, "µm": 1e-6,
-                 "nm": 1e-9, "kN": 1e3, "mN": 1e-3, "mV": 1e-3, "kV": 1e3, "mC": 1e-3, "uC": 1e-6,
-                 "µC": 1e-6, "nC": 1e-9}
-
-
-def _check_roles(columns: Mapping[str, str | int], source: str) -> tuple[str | None, list[str], list[str]]:
-    """Validate the role names; return the time role and the force and displacement roles in order."""
-    for role in columns:
-        match = _ROLE_RE.fullmatch(str(role))
-        if match is None or (match.group(1) == "t" and match.group(2)):
-            raise RecordError(f"{source}: unknown role {role!r} (roles: t, f, x, or f1.., x1..)")
-    families = {}
-    for fam in ("f", "x"):
-        plain = fam in columns
-        numbered = sorted(int(r[1:]) for r in columns if r[0] == fam and len(r) > 1)
-        if plain and numbered:
-            raise RecordError(f"{source}: give either {fam} or {fam}1, {fam}2, ... for the columns, not both")
-        if numbered and numbered != list(range(1, len(numbered) + 1)):
-            raise RecordError(f"{source}: the {fam} columns must be numbered {fam}1..{fam}{len(numbered)} "
-                              f"without gaps, got {', '.join(f'{fam}{j}' for j in numbered)}")
-        families[fam] = [fam] if plain else [f"{fam}{j}" for j in numbered]
-        if not families[fam]:
-            raise RecordError(f"{source}: no column given for {fam} (the {'forces' if fam == 'f' else 'displacements'})")
-    if len(families["f"]) > len(families["x"]):
-        raise RecordError(f"{source}: {len(families['f'])} force columns but {len(families['x'])} displacement "
-                          f"columns; force j acts on DOF j, so there may not be more forces than displacements")
-    return ("t" if "t" in columns else None), families["f"], families["x"]
 
 
 def _column_index(spec: str | int, role: str, names: list[str], where: str) -> int:
@@ -1008,7 +1180,7 @@ def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Map
         raise RecordError(f"{where}: one column only with the delimiter {delimiter!r}{hint}")
     if columns is None:
         columns = {"t": "t", "f": "f", "x": "x"} if fs is None else {"f": "f", "x": "x"}
-    t_role, f_roles, x_roles = _check_roles(columns, source)
+    t_role, f_roles, x_roles = check_roles(list(columns), source)
     unknown = sorted(set(scale) - {"t", "f", "x"} - set(columns))
     if unknown:
         raise RecordError(f"{source}: a scale for {', '.join(unknown)}, which names no column")
@@ -1034,7 +1206,8 @@ def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Map
                 fam = role[0]
                 factor = scale.get(role, scale.get(fam))
                 if factor is None and unit not in SI_UNITS[fam]:
-                    known = _UNIT_FACTORS.get(unit)
+                    listed = lookup(unit)  # a unit of the role's quantity: say its factor (never applied)
+                    known = listed.factor if listed is not None and listed.quantity in ROLE_QUANTITIES[fam] else None
                     raise RecordError(
                         f"{source}: column {names[index[role]]!r} ({role}) is in {unit!r} (units row, line "
                         f"{units_line}): duffid needs SI units ({' or '.join(SI_UNITS[fam])}); scale it "

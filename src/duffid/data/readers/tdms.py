@@ -1,0 +1,63 @@
+"""TDMS files (NI LabVIEW, DAQmx loggers) through npTDMS, streaming: only the selected channels
+are read.
+
+A channel is named ``group/channel``; its rate is ``1 / wf_increment``, its start time
+``wf_start_offset`` [s] and its unit ``unit_string`` (the properties LabVIEW's waveforms write).
+DAQmx raw data are scaled by npTDMS as the file's scaling says.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import numpy as np
+
+from ...errors import RecordError
+from ..channels import Channel
+from . import optional_import
+
+__all__ = ["EXTENSIONS", "open_channels"]
+
+EXTENSIONS = (".tdms",)
+
+
+def _reader(path: str, name: str, channel: Any) -> Any:
+    def read() -> np.ndarray:
+        data = channel[:]
+        if not (np.issubdtype(data.dtype, np.integer) or np.issubdtype(data.dtype, np.floating)):
+            raise RecordError(f"{path}, channel {name!r}: holds {data.dtype} values, not numbers")
+        return data
+    return read
+
+
+@contextmanager
+def open_channels(path: str) -> Iterator[list[Channel]]:
+    """The channels of the TDMS file ``path`` (open while the context lasts).
+
+    Raises
+    ------
+    RecordError
+        The file is not a readable TDMS file.
+    MissingDependencyError
+        npTDMS is not installed.
+    """
+    nptdms = optional_import("nptdms", "TDMS files")
+    try:
+        handle = nptdms.TdmsFile.open(path)
+    except OSError as exc:
+        raise RecordError(f"{path}: cannot read file: {exc.strerror or exc}") from None
+    except Exception as exc:  # npTDMS raises ValueError, KeyError, struct.error ... on a bad file
+        raise RecordError(f"{path}: not a readable TDMS file ({exc or type(exc).__name__})") from None
+    with handle:
+        channels = []
+        for group in handle.groups():
+            for channel in group.channels():
+                props = channel.properties
+                name = f"{group.name}/{channel.name}"
+                increment = props.get("wf_increment")
+                rate = 1.0 / float(increment) if increment and float(increment) > 0 else None
+                unit = str(props.get("unit_string", "")).strip() or None
+                channels.append(Channel(name, unit, len(channel), rate, float(props.get("wf_start_offset", 0.0)),
+                                        str(channel.dtype), read=_reader(path, name, channel)))
+        yield channels

@@ -1,0 +1,64 @@
+"""CSV and other delimited text files, listed for ``duffid inspect``: the header's columns,
+the units row if there is one, and the number of data rows (the record itself is read by
+:meth:`duffid.data.record.Record.read_csv`, strictly)."""
+from __future__ import annotations
+
+import csv
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import numpy as np
+
+from ...errors import RecordError
+from ..channels import Channel
+
+__all__ = ["EXTENSIONS", "open_channels"]
+
+EXTENSIONS = (".csv", ".txt", ".tsv", ".dat")
+
+
+def _not_readable() -> np.ndarray:
+    raise RecordError("a CSV file's columns are read by Record.read_csv")
+
+
+@contextmanager
+def open_channels(path: str) -> Iterator[list[Channel]]:
+    """The columns of the text file ``path`` (names, units row, rows; the rate from a ``t`` column).
+
+    Raises
+    ------
+    RecordError
+        The file cannot be read or has no header line.
+    """
+    try:
+        with open(path, encoding="utf-8-sig", newline="") as fh:
+            lines = [line for line in fh.read().splitlines() if line.strip()]
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RecordError(f"{path}: cannot read file as text: {exc}") from None
+    body = [line for line in lines if not line.lstrip().startswith("#")]
+    if not body:
+        raise RecordError(f"{path}: empty file, expected a header line followed by data rows")
+    try:
+        dialect = csv.Sniffer().sniff(body[0], delimiters=",;\t ")
+    except csv.Error:
+        dialect = csv.excel
+    rows = list(csv.reader(body, dialect))
+    names = [n.strip() for n in rows[0]]
+
+    def number(text: str) -> float | None:
+        try:
+            return float(text)
+        except ValueError:
+            return None
+
+    units = [""] * len(names)
+    data = rows[1:]
+    if data and all(number(f) is None for f in data[0]):
+        units, data = [u.strip() for u in data[0]], data[1:]
+    rate = None
+    if names and names[0].lower() in ("t", "time", "time_s") and len(data) > 1:
+        t0, t1 = number(data[0][0]), number(data[1][0])
+        if t0 is not None and t1 is not None and t1 > t0:
+            rate = 1.0 / (t1 - t0)
+    yield [Channel(name, units[k] if k < len(units) and units[k] else None, len(data), rate, kind="text",
+                   read=_not_readable) for k, name in enumerate(names)]

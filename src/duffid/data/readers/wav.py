@@ -1,0 +1,68 @@
+"""WAV files (sound-card DAQs) through scipy.io.wavfile, memory-mapped where scipy can.
+
+Channels are numbered 1, 2, ... A WAV file names no units: float samples are taken as SI
+values; integer PCM samples (8, 16, 24 or 32 bit) are fractions of full scale (-1 to 1), and a
+scale per channel is required: the SI value at full scale (``--scale f=500`` for a load cell
+whose full scale is 500 N).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+import numpy as np
+import scipy.io.wavfile
+
+from ...errors import RecordError
+from ..channels import Channel
+
+__all__ = ["EXTENSIONS", "open_channels"]
+
+EXTENSIONS = (".wav",)
+#: scipy's integer dtype -> (full scale, zero): 24-bit samples come left-justified in int32.
+_FULL_SCALE = {np.dtype(np.uint8): (128.0, 128.0), np.dtype(np.int16): (2.0**15, 0.0),
+               np.dtype(np.int32): (2.0**31, 0.0)}
+
+
+def _reader(data: np.ndarray, k: int) -> Callable[[], np.ndarray]:
+    def read() -> np.ndarray:
+        column = data[:, k] if data.ndim == 2 else data
+        if data.dtype not in _FULL_SCALE:
+            return column
+        full, zero = _FULL_SCALE[data.dtype]
+        out = column.astype(np.float64)
+        if zero:
+            out -= zero
+        out /= full
+        return out
+    return read
+
+
+@contextmanager
+def open_channels(path: str) -> Iterator[list[Channel]]:
+    """The channels of the WAV file ``path``.
+
+    Raises
+    ------
+    RecordError
+        The file is not a readable WAV file.
+    """
+    try:
+        try:
+            rate, data = scipy.io.wavfile.read(path, mmap=True)
+        except ValueError as exc:  # 24-bit and a few other layouts cannot be memory-mapped
+            if "mmap" not in str(exc):
+                raise
+            rate, data = scipy.io.wavfile.read(path)
+    except OSError as exc:
+        raise RecordError(f"{path}: cannot read file: {exc.strerror or exc}") from None
+    except ValueError as exc:
+        raise RecordError(f"{path}: not a readable WAV file ({exc})") from None
+    integer = data.dtype in _FULL_SCALE
+    if not integer and not np.issubdtype(data.dtype, np.floating):
+        raise RecordError(f"{path}: WAV samples of type {data.dtype} are not supported")
+    kind = f"PCM {data.dtype} (integer)" if integer else f"{data.dtype} (float)"
+    note = "integer PCM, in fractions of full scale: its SI value at full scale is required" if integer else ""
+    n_channels = data.shape[1] if data.ndim == 2 else 1
+    yield [Channel(str(k + 1), None, int(data.shape[0]), float(rate), 0.0, kind, note, read=_reader(data, k))
+           for k in range(n_channels)]
