@@ -79,10 +79,13 @@ EMBEDDED = ROOT / "tests" / "embedded"
 #: version of the core, e.g. a checkout of an older commit's fmus/estimator).
 CORE = Path(os.environ.get("DUFFID_EMBEDDED_CORE", ROOT / "fmus" / "estimator")).resolve()
 CORE_FILES = ("duffid_estimator.c", "duffid_linalg.c")
+#: The buffered identifier's module (method "buffered"); its tables are generated per record.
+BUFFERED_FILES = ("duffid_buffered.c", "duffid_linalg.c")
+BUFFERED_TABLES = "duffid_buffered_tables.c"
 
 
-def core_sources(core: Path) -> tuple[Path, ...]:
-    return tuple(core / name for name in CORE_FILES)
+def core_sources(core: Path, method: str = "robust") -> tuple[Path, ...]:
+    return tuple(core / name for name in (BUFFERED_FILES if method == "buffered" else CORE_FILES))
 
 #: Compiler flags of the target build (Cortex-M4F, single-precision FPU, hard-float ABI).
 ARM_FLAGS = ("-mcpu=cortex-m4", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-mthumb", "-O2", "-fno-math-errno",
@@ -119,7 +122,7 @@ TOLERANCE = {real: TOLERANCE_ULPS * eps for real, eps in EPS.items()}
 UNCERTAINTY_CAP = 1.0
 
 MODELS = {"duffing1": "DUFFID_DUFFING1", "duffing2": "DUFFID_DUFFING2"}
-METHODS = {"robust": "DUFFID_ROBUST", "paper": "DUFFID_PAPER"}
+METHODS = {"robust": "DUFFID_ROBUST", "paper": "DUFFID_PAPER", "buffered": "2"}
 REAL_C = {"double": "double", "float": "float"}
 
 # Library functions, by name (libgcc's ARM EABI helpers, newlib's libm). A helper's *calls*
@@ -208,6 +211,17 @@ def write_record_header(path: Path, record: RecordData) -> None:
         f"#define RECORD_X \\\n    {values(record.x)}\n#define RECORD_F \\\n    {values(record.f)}\n")
 
 
+def write_buffered_tables(path: Path, model: str, dt: float) -> None:
+    """The buffered identifier's C tables for ``model`` at ``dt`` (BufferedIdentifier's defaults:
+    Legendre, 24 functions, a 0.25 s window, Gauss quadrature)."""
+    from duffid import Duffing1, Duffing2
+    from duffid.identification.buffered import BufferedIdentifier
+    from duffid.identification.c_buffered import tables_source
+
+    plant = Duffing1() if model == "duffing1" else Duffing2()
+    path.write_text(tables_source(BufferedIdentifier(plant, dt, "legendre"), plant))
+
+
 # ----------------------------------------------------------------------------------- builds
 
 @dataclass
@@ -236,6 +250,8 @@ def core_supports(real: str, build_dir: Path, core: Path = CORE) -> bool:
 
 def _defines(model: str, method: str, real: str) -> list[str]:
     flags = [f"-DEMBEDDED_MODEL={MODELS[model]}", f"-DEMBEDDED_METHOD={METHODS[method]}", "-DDUFFID_NO_STDIO"]
+    if method == "buffered":
+        flags.append("-DEMBEDDED_BUFFERED")
     if real != "double":
         flags.append(f"-DDUFFID_REAL={REAL_C[real]}")
     return flags
@@ -250,7 +266,10 @@ def build_program(build_dir: Path, record_dir: Path, model: str, method: str, re
     defines = [*_defines(model, method, real), *extra]
     includes = [f"-I{core}", f"-I{EMBEDDED}", f"-I{record_dir}"]
     objects = []
-    for source in (*core_sources(core), EMBEDDED / "embedded_test.c", EMBEDDED / "startup.c"):
+    sources = core_sources(core, method)
+    if method == "buffered":
+        sources = (*sources, record_dir / BUFFERED_TABLES)
+    for source in (*sources, EMBEDDED / "embedded_test.c", EMBEDDED / "startup.c"):
         obj = out / (source.stem + ".o")
         _run(["arm-none-eabi-gcc", *ARM_FLAGS, *defines, *includes, "-c", str(source), "-o", str(obj)])
         objects.append(obj)
@@ -260,8 +279,8 @@ def build_program(build_dir: Path, record_dir: Path, model: str, method: str, re
           *map(str, objects), "-lm", "-lc", "-lgcc"])
     host = out / "embedded_test_x86"
     _run(["gcc", *HOST_FLAGS, *defines, *includes, WRAP, "-o", str(host), str(EMBEDDED / "embedded_test.c"),
-          *map(str, core_sources(core)), "-lm"])
-    return Build(model, method, real, elf, host, objects[:2])
+          *map(str, sources), "-lm"])
+    return Build(model, method, real, elf, host, objects[:len(sources)])
 
 
 def build_plugin(build_dir: Path) -> Path:
@@ -660,6 +679,13 @@ def run(models: list[str], method: str = "robust", samples: int | None = None,
         record_dir = build_dir / f"record_{model}"
         record_dir.mkdir(exist_ok=True)
         write_record_header(record_dir / "embedded_record.h", record)
+        if method == "buffered":
+            from duffid.errors import InputError
+            try:
+                write_buffered_tables(record_dir / BUFFERED_TABLES, model, record.dt)
+            except InputError as exc:
+                notes.append(f"{model} buffered: {exc}; skipped")
+                continue
         for real in supported:
             progress(f"building {model} {method} {real} (arm-none-eabi-gcc, gcc)")
             build = build_program(build_dir, record_dir, model, method, real, core)

@@ -90,3 +90,21 @@ def test_heap_guard_reports_a_heap_call(runs, tmp_path):
     assert (arm.exit_code, arm.heap_during, arm.end) == (2, 1, 2)
     assert (x86.exit_code, x86.heap_during, x86.end) == (2, 1, 2)
     assert profile.calls.get("__wrap_malloc") == 1
+
+
+def test_buffered_identifier_on_the_target(tmp_path_factory):
+    """The paper's Figure 15 path (duffid_buffered.c over generated tables) on the same target:
+    ARM = x86, no heap, fixed work between window ends, published windows."""
+    build_dir = tmp_path_factory.mktemp("embedded_buffered")
+    results, info, notes = embedded.run(["duffing1"], "buffered", 600, ["double", "float"], build_dir,
+                                        progress=lambda _: None)
+    assert [(r.build.model, r.build.real) for r in results] == [("duffing1", "double"), ("duffing1", "float")]
+    for r in results:
+        name = f"buffered {r.build.real}"
+        assert r.arm.exit_code == 0 and r.x86.exit_code == 0, name
+        c = r.comparison
+        assert c.status_mismatches == 0 and c.nan_mismatches == 0 and c.out_of_tolerance == 0, name
+        assert r.arm.heap_during == 0 and len(r.profile.updates) == 600, name
+        assert any(1 in s.status for s in r.arm.samples), name   # a window was published
+        if r.build.real == "float":
+            assert not [f for f in r.profile.calls if embedded.SOFT_DOUBLE_CALLS.search(f)], name

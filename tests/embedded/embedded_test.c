@@ -7,6 +7,11 @@
  * Compile-time options:
  *   -DEMBEDDED_MODEL=DUFFID_DUFFING1|DUFFID_DUFFING2 (default DUFFID_DUFFING1)
  *   -DEMBEDDED_METHOD=DUFFID_ROBUST|DUFFID_PAPER     (default DUFFID_ROBUST)
+ *   -DEMBEDDED_BUFFERED                              the buffered identifier (duffid_buffered.h, paper
+ *                                                    Figure 15) over the tables of a generated C file
+ *                                                    that defines duffid_buffered_model, instead
+ *                                                    (statuses: PUBLISHED while the latest window is
+ *                                                    identified, else UNCERTAIN)
  *   -DEMBEDDED_MEMORY=bytes                          (static estimator memory, default 512 KiB)
  *   -DDUFFID_REAL=float                              (passed to the core, when it supports it)
  *   -DEMBEDDED_HEAP_PROBE  a negative control: one malloc inside the first update's markers
@@ -39,6 +44,9 @@
 #include "duffid_estimator.h"
 #include "embedded_record.h"
 #include "platform.h"
+#ifdef EMBEDDED_BUFFERED
+#include "duffid_buffered.h"
+#endif
 
 #ifndef EMBEDDED_MODEL
 #define EMBEDDED_MODEL DUFFID_DUFFING1
@@ -53,6 +61,22 @@
 /* The core's real type, whatever the header calls it (double today; float with
  * -DDUFFID_REAL=float once the core supports it). */
 typedef __typeof__(((duffid_output *)0)->condition) out_real;
+
+/* The identifier under test: the online core, or the buffered module. */
+#ifdef EMBEDDED_BUFFERED
+extern const duffid_buffered_tables duffid_buffered_model;
+typedef duffid_buffered estimator_t;
+typedef duffid_buffered_config config_t;
+typedef duffid_buffered_output result_t;
+#define UPDATE duffid_buffered_update
+#define MEMORY_SIZE duffid_buffered_memory_size
+#else
+typedef duffid_estimator estimator_t;
+typedef duffid_config config_t;
+typedef duffid_output result_t;
+#define UPDATE duffid_update
+#define MEMORY_SIZE duffid_memory_size
+#endif
 
 static const out_real record_x[RECORD_N * RECORD_NDOF] = {RECORD_X};
 static const out_real record_f[RECORD_N * RECORD_NFORCES] = {RECORD_F};
@@ -206,18 +230,39 @@ static long stack_used(void)
 
 static char msg[256];
 
-static int setup(duffid_estimator **est, duffid_config *cfg)
+static int setup(estimator_t **est, config_t *cfg)
 {
+#ifdef EMBEDDED_BUFFERED
+    int rc = DUFFID_OK;
+    duffid_buffered_default_config(cfg, &duffid_buffered_model, RECORD_DT);
+#else
     int rc = duffid_default_config(cfg, EMBEDDED_MODEL, EMBEDDED_METHOD, RECORD_DT);
+#endif
     msg[0] = '\0';
     if (rc != DUFFID_OK) {
         return rc;
     }
-    if (duffid_memory_size(cfg) > sizeof memory) {
-        strcpy(msg, "EMBEDDED_MEMORY is smaller than duffid_memory_size");
+    if (MEMORY_SIZE(cfg) > sizeof memory) {
+        strcpy(msg, "EMBEDDED_MEMORY is smaller than the memory size the identifier needs");
         return -100;
     }
+#ifdef EMBEDDED_BUFFERED
+    return duffid_buffered_init(est, memory, sizeof memory, cfg, msg, sizeof msg);
+#else
     return duffid_init(est, memory, sizeof memory, cfg, msg, sizeof msg);
+#endif
+}
+
+/* The statuses of one output: the online core's own; the buffered module's all PUBLISHED
+ * while its latest window is identified, else UNCERTAIN. */
+static int status_of(const result_t *out, int i)
+{
+#ifdef EMBEDDED_BUFFERED
+    (void)i;
+    return out->identified ? DUFFID_STATUS_PUBLISHED : DUFFID_STATUS_UNCERTAIN;
+#else
+    return out->status[i];
+#endif
 }
 
 #ifndef __arm__
@@ -232,9 +277,9 @@ static double now_ns(void)
  * record (each from a fresh estimator, the set-up not timed) until 0.2 s have been timed. */
 static int run_timing(void)
 {
-    duffid_config cfg;
-    duffid_estimator *est;
-    duffid_output out;
+    config_t cfg;
+    estimator_t *est;
+    result_t out;
     double start, total = 0.0;
     long n, timed = 0;
     int pass, rc;
@@ -245,7 +290,7 @@ static int run_timing(void)
         }
         start = now_ns();
         for (n = 0; n < RECORD_N; n++) {
-            duffid_update(est, &record_x[n * RECORD_NDOF], &record_f[n * RECORD_NFORCES], &out);
+            UPDATE(est, &record_x[n * RECORD_NDOF], &record_f[n * RECORD_NFORCES], &out);
         }
         if (pass > 0) {
             total += now_ns() - start;
@@ -264,9 +309,9 @@ int main(void)
 int main(int argc, char **argv)
 #endif
 {
-    duffid_config cfg;
-    duffid_estimator *est;
-    duffid_output out;
+    config_t cfg;
+    estimator_t *est;
+    result_t out;
     long n, heap_before, heap_during = 0;
     int rc, i, status = 0;
 
@@ -291,7 +336,7 @@ int main(int argc, char **argv)
 
     rc = setup(&est, &cfg);
     put_text("memory_size ");
-    put_long((long)duffid_memory_size(&cfg));
+    put_long((long)MEMORY_SIZE(&cfg));
     flush_line();
     if (rc != DUFFID_OK) {
         put_text("init_failed ");
@@ -306,7 +351,7 @@ int main(int argc, char **argv)
     for (n = 0; n < RECORD_N; n++) {
         heap_before = heap_calls;
         embedded_mark_begin();
-        rc = duffid_update(est, &record_x[n * RECORD_NDOF], &record_f[n * RECORD_NFORCES], &out);
+        rc = UPDATE(est, &record_x[n * RECORD_NDOF], &record_f[n * RECORD_NFORCES], &out);
 #ifdef EMBEDDED_HEAP_PROBE
         if (n == 0) {
             void *volatile probe = malloc(16);
@@ -326,7 +371,7 @@ int main(int argc, char **argv)
         put_long(out.identified);
         for (i = 0; i < out.n_parameters; i++) {
             put_char(i == 0 ? ' ' : ',');
-            put_long(out.status[i]);
+            put_long(status_of(&out, i));
         }
         for (i = 0; i < out.n_parameters; i++) {
             put_char(i == 0 ? ' ' : ',');
