@@ -23,7 +23,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     """Add the ``cosim`` subcommand."""
     p = sub.add_parser("cosim", help="run a system of FMUs described in a JSON or TOML file",
                               description=cosim_config.__doc__.split("\n\n")[1] if cosim_config.__doc__ else None)
-    p.add_argument("config", type=Path, help="configuration file (.json or .toml)")
+    p.add_argument("config", type=Path, help="configuration file (.json or .toml) or SSP (.ssp archive, .ssd)")
     p.add_argument("-o", "--output", type=Path, default=None, help="write the recorded outputs to this CSV")
     p.add_argument("--ordering", choices=ORDERINGS, default=None, help="override the file's run.ordering")
     p.add_argument("--loop", choices=LOOP_MODES, default=None,
@@ -32,6 +32,11 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("--progress", action="store_true", help="show a progress bar")
     p.add_argument("--export-container", type=Path, default=None, metavar="FMU",
                    help="write the system as one container FMU (see the file's container section) and exit")
+    p.add_argument("--step", type=float, default=None,
+                   help="communication step [s], overriding the file's (needed for an SSP without duffid's annotation)")
+    p.add_argument("--export-ssp", type=Path, default=None, metavar="SSP",
+                   help="write the system and its run as an SSP 1.0 archive (FMUs, connections, parameter values, "
+                        "constant inputs, default experiment) and exit")
     return p
 
 
@@ -72,7 +77,15 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     try:
-        config = load_config(args.config)
+        config = load_config(args.config, step=args.step)
+        for warning in config.warnings:
+            print(f"duffid cosim: warning: {warning}", file=sys.stderr)
+        if args.export_ssp is not None:
+            written = config.export_ssp(args.export_ssp)
+            print(f"wrote {written}: SSP 1.0 of {', '.join(config.system.components)}; "
+                  f"{len(config.system.connections)} connection(s), {config.start_time:g} to {config.stop_time:g} s "
+                  f"at step {config.step:g} s ({config.ordering})")
+            return 0
         if args.export_container is not None:
             print(_exported(config.export_container(args.export_container)))
             return 0

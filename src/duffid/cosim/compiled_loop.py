@@ -89,13 +89,16 @@ def load() -> ctypes.CDLL | None:
     return _LIBRARY[0]
 
 
-def obstacles(components: Iterable[Any], externals: Iterable[Any]) -> list[str]:
+def obstacles(components: Iterable[Any], externals: Iterable[Any], connections: Iterable[Any] = ()) -> list[str]:
     """Why the compiled loop cannot run a system, in words (empty: it can): a component that
     is a Python FMU (pythonfmu runs Python inside its FMI calls), an input that is a Python
-    function (called every step), no C compiler (checked last, by building the loop)."""
+    function (called every step), a connection with a factor or offset (an SSP linear
+    transformation: the C loop only copies values), no C compiler (checked last, by building
+    the loop)."""
     reasons = [f"component {c.name!r} is a Python FMU (pythonfmu)" for c in components
                if (c.md.generationTool or "").startswith("PythonFMU")]
     reasons += [f"the input {e.target} is a Python function" for e in externals if e.mode == "function"]
+    reasons += [f"the connection {c} has a factor or offset" for c in connections if c.transformed]
     if not reasons and load() is None:
         reasons.append("no C compiler was found to build it")
     return reasons

@@ -39,9 +39,10 @@ from typing import Any
 
 from ..errors import ConfigError, WiringError
 from .compiled_loop import LOOP_MODES
+from .ssp import ANNOTATION, SspError, read_ssp
 from .system import ORDERINGS, Result, System
 
-__all__ = ["ConfigError", "CosimConfig", "load_config"]
+__all__ = ["ConfigError", "CosimConfig", "load_config", "load_ssp"]
 
 _TOP = {"components", "connections", "inputs", "input_csv", "run", "container"}
 _RUN = {"stop_time", "step", "start_time", "ordering", "order", "record", "loop"}
@@ -73,6 +74,8 @@ class CosimConfig:
         The ``container`` section (inputs, outputs, parameters of an exported container).
     loop : str
         The inner loop (``System.run(loop=)``): ``"auto"``, ``"compiled"`` or ``"python"``.
+    warnings : list of str
+        What the file holds that duffid did not apply (an SSP's annotations of other tools).
     """
 
     path: Path
@@ -85,6 +88,14 @@ class CosimConfig:
     record: list[str] | None = None
     container: dict[str, Any] = field(default_factory=dict)
     loop: str = "auto"
+    warnings: list[str] = field(default_factory=list)
+
+    def export_ssp(self, path: str | os.PathLike[str]) -> Path:
+        """Write the system and its run (grid, ordering) as an SSP archive
+        (:meth:`duffid.cosim.system.System.to_ssp`)."""
+        return self.system.to_ssp(path, stop_time=self.stop_time, step=self.step, start_time=self.start_time,
+                                  ordering=self.ordering,
+                                  order=self.order if self.ordering == "gauss-seidel" else None)
 
     def run(self, *, progress: bool = False, ordering: str | None = None, loop: str | None = None) -> Result:
         """Run the system as configured (``ordering`` and ``loop`` override the file's)."""
@@ -146,8 +157,47 @@ def _number(path: Path, where: str, value: Any, positive: bool = False) -> float
     return float(value)
 
 
-def load_config(path: str | os.PathLike[str]) -> CosimConfig:
-    """Read a JSON (``.json``) or TOML (``.toml``) configuration and build its system.
+def load_ssp(path: str | os.PathLike[str], step: float | None = None) -> CosimConfig:
+    """Read an SSP archive (``.ssp``) or SSD file (``.ssd``) as a configuration
+    (:func:`duffid.cosim.ssp.read_ssp`): its default experiment and duffid's run annotation.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    step : float, optional
+        The communication step, overriding the file's annotation (required when the file
+        has none).
+
+    Raises
+    ------
+    SspError
+        What duffid cannot read or honour, no stop time, no step.
+    """
+    path = Path(path)
+    run = read_ssp(path, System())
+    if step is not None:
+        run.step = _number(path, "--step", step, positive=True)
+    if run.step is None:
+        raise SspError(f"{path}: no communication step: the SSD has no duffid annotation "
+                       f"(<ssc:Annotation type=\"{ANNOTATION}\"> in <DefaultExperiment>); give one (duffid cosim "
+                       "--step)")
+    if run.stop_time is None:
+        raise SspError(f"{path}: no stop time: the SSD has no <DefaultExperiment stopTime=...>")
+    return CosimConfig(path=path, system=run.system, stop_time=run.stop_time, step=run.step,
+                       start_time=run.start_time, ordering=run.ordering, order=run.order, warnings=run.warnings)
+
+
+def load_config(path: str | os.PathLike[str], step: float | None = None) -> CosimConfig:
+    """Read a JSON (``.json``) or TOML (``.toml``) configuration and build its system; an
+    SSP archive (``.ssp``) or SSD file (``.ssd``) is read by :func:`load_ssp`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    step : float, optional
+        The communication step, overriding the file's.
 
     Raises
     ------
@@ -159,6 +209,8 @@ def load_config(path: str | os.PathLike[str]) -> CosimConfig:
         is prefixed with the file and the entry.
     """
     path = Path(path)
+    if path.suffix.lower() in (".ssp", ".ssd"):
+        return load_ssp(path, step)
     data = _read(path)
     _mapping(path, "the top level", data, _TOP)
     base = path.parent
@@ -199,7 +251,7 @@ def load_config(path: str | os.PathLike[str]) -> CosimConfig:
         interpolation = _mapping(path, "input_csv.interpolation", csv_spec.get("interpolation", {}))
         wired("input_csv", system.inputs_from_csv, base / csv_spec["file"], columns, interpolation)
     run = _mapping(path, "run", data.get("run"), _RUN)
-    for key in ("stop_time", "step"):
+    for key in ("stop_time",) if step is not None else ("stop_time", "step"):
         if key not in run:
             raise ConfigError(f"{path}: run.{key} is missing")
     ordering = run.get("ordering", "jacobi")
@@ -213,7 +265,8 @@ def load_config(path: str | os.PathLike[str]) -> CosimConfig:
             raise ConfigError(f"{path}: run.{key} must be a list of names")
     container = _mapping(path, "container", data.get("container", {}), _CONTAINER)
     return CosimConfig(path=path, system=system, stop_time=_number(path, "run.stop_time", run["stop_time"]),
-                       step=_number(path, "run.step", run["step"], positive=True),
+                       step=_number(path, "--step" if step is not None else "run.step",
+                                    run["step"] if step is None else step, positive=True),
                        start_time=_number(path, "run.start_time", run.get("start_time", 0.0)),
                        ordering=ordering, order=run.get("order"), record=run.get("record"),
                        container=container, loop=loop)

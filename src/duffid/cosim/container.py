@@ -425,6 +425,10 @@ def export_container(system: System, path: str | os.PathLike[str],
     """
     if not system._components:
         raise WiringError("the system has no components")
+    transformed = [str(c) for c in system._connections if c.transformed]
+    if transformed:
+        raise WiringError(f"the connection {transformed[0]} has a factor or offset (an SSP linear transformation "
+                          "or unit conversion), which the container runtime cannot apply (it copies values)")
     if not (isinstance(step, (int, float)) and not isinstance(step, bool) and math.isfinite(step) and step > 0):
         raise WiringError(f"step must be a positive number, got {step!r}")
     path = Path(path)

@@ -18,7 +18,7 @@ from ..errors import CosimError, InputError, WiringError
 __all__ = ["InputSource", "VARIABLE_KINDS", "STATUS_NAMES", "NAME_RE", "N_MESSAGES", "N_REPORTED", "DTYPES",
            "WiringError", "Connection", "Failure", "CosimError", "Result", "with_article", "suggest", "unit_of",
            "Component", "typed_parameter", "External", "check_external_value", "sampled_on_grid",
-           "INTERPOLATIONS"]
+           "INTERPOLATIONS", "ORDERINGS"]
 
 #: Source of an external input: a constant, a function of time, or samples ``(t, values)``.
 InputSource = Union[float, Callable[[float], float], tuple]
@@ -26,6 +26,8 @@ InputSource = Union[float, Callable[[float], float], tuple]
 #: FMI 2 and FMI 3 variable types -> the kind duffid exchanges them as.
 VARIABLE_KINDS = {"Real": "Real", "Float64": "Real", "Integer": "Integer", "Int32": "Integer", "Boolean": "Boolean"}
 STATUS_NAMES = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
+#: Accepted values of ``System.run(ordering=...)``.
+ORDERINGS = ("jacobi", "gauss-seidel")
 NAME_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 N_MESSAGES = 200      # log messages kept per component
 N_REPORTED = 8        # log messages quoted in a CosimError
@@ -37,13 +39,34 @@ DTYPES = {"Real": np.float64, "Integer": np.int32, "Boolean": np.int32}
 @dataclass(frozen=True)
 class Connection:
     """A connection from ``source`` (an output, ``"component.variable"``) to ``target``
-    (an input)."""
+    (an input).
+
+    Attributes
+    ----------
+    source, target : str
+        ``"component.output"`` and ``"component.input"``.
+    factor, offset : float
+        The target receives ``factor * source + offset`` (1 and 0: the value itself; an SSP
+        linear transformation or unit conversion). Real connections only.
+    check_units : bool
+        Whether the declared units were required to agree (False: a unit-generic FMU).
+    """
 
     source: str
     target: str
+    factor: float = 1.0
+    offset: float = 0.0
+    check_units: bool = True
+
+    @property
+    def transformed(self) -> bool:
+        """Whether the connection changes the value (a factor other than 1 or an offset)."""
+        return self.factor != 1.0 or self.offset != 0.0
 
     def __str__(self) -> str:
-        return f"{self.source} -> {self.target}"
+        if not self.transformed:
+            return f"{self.source} -> {self.target}"
+        return f"{self.source} -> {self.target} (x {self.factor!r} + {self.offset!r})"
 
 
 @dataclass(frozen=True)

@@ -194,16 +194,19 @@ class Runner:
                 table = np.column_stack([self.sampled[e.target] for e in exts]).astype(DTYPES[kind])
                 self.tables[kind] = (self.g[kind][lo:lo + len(exts)], table)
         # per component inputs: connected (every step), external (every step unless constant)
-        self.inputs: list[dict[str, list[tuple[int, int, bool]]]] = [dict() for _ in self.instances]
+        # entries (value reference, slot, set every step, (factor, offset) of a transformed connection or None)
+        self.inputs: list[dict[str, list[tuple[int, int, bool, tuple[float, float] | None]]]] = [
+            dict() for _ in self.instances]
         for conn in system._connections:
             comp, var = system._lookup(conn.target, "target")
             kind, slot = self.slots[conn.source]
-            self.inputs[self.index[comp.name]].setdefault(kind, []).append((var.valueReference, slot, True))
+            affine = (conn.factor, conn.offset) if conn.transformed else None
+            self.inputs[self.index[comp.name]].setdefault(kind, []).append((var.valueReference, slot, True, affine))
         for ext in externals.values():
             comp, var = system._lookup(ext.target, "target")
             kind, slot = self.slots[ext.target]
             self.inputs[self.index[comp.name]].setdefault(kind, []).append(
-                (var.valueReference, slot, ext.mode != "constant"))
+                (var.valueReference, slot, ext.mode != "constant", None))
         # recording
         self.records = {}
         self.columns: dict[str, tuple[str, int]] = {}
@@ -351,7 +354,18 @@ class Runner:
                 setf = raw(set_name)
                 g = self.g[kind]
                 for subset, target in ((entries, inits), ([e for e in entries if e[2]], sets)):
-                    subset = sorted(subset, key=lambda e: e[1])  # by source slot
+                    transformed = [e for e in subset if e[3] is not None]
+                    if transformed:  # gathered, scaled and shifted in their own buffer, one set call
+                        vrs = (ctypes.c_uint * len(transformed))(*[e[0] for e in transformed])
+                        idx = np.array([e[1] for e in transformed], dtype=np.intp)
+                        buf = np.zeros(len(transformed), dtype=_NP[ctype])
+                        affine = (np.array([e[3][0] for e in transformed]), np.array([e[3][1] for e in transformed]))
+                        ptr = buf.ctypes.data_as(ctypes.POINTER(ctype))
+                        size = ctypes.c_size_t(len(transformed))
+                        args = (handle, vrs, size, ptr) + ((size,) if version == 3 else ())
+                        self._keep += [vrs, buf, ptr]
+                        target.append((g, idx, buf, setf, args, ci, set_name, affine))
+                    subset = sorted((e for e in subset if e[3] is None), key=lambda e: e[1])  # by source slot
                     runs: list[list[tuple[int, int, bool]]] = []
                     for e in subset:
                         if runs and runs[-1][-1][1] + 1 == e[1]:
@@ -366,7 +380,7 @@ class Runner:
                             size = ctypes.c_size_t(len(run))
                             args = (handle, vrs, size, ptr) + ((size,) if version == 3 else ())
                             self._keep += [vrs, ptr]
-                            target.append((g, None, None, setf, args, ci, set_name))
+                            target.append((g, None, None, setf, args, ci, set_name, None))
                     elif subset:  # gather with np.take into a buffer, one set call
                         vrs = (ctypes.c_uint * len(subset))(*[e[0] for e in subset])
                         idx = np.array([e[1] for e in subset], dtype=np.intp)
@@ -375,7 +389,7 @@ class Runner:
                         size = ctypes.c_size_t(len(subset))
                         args = (handle, vrs, size, ptr) + ((size,) if version == 3 else ())
                         self._keep += [vrs, buf, ptr]
-                        target.append((g, idx, buf, setf, args, ci, set_name))
+                        target.append((g, idx, buf, setf, args, ci, set_name, None))
             for kind, entries in self.reads[ci].items():
                 get_name, _, ctype = _FUNCS[version][kind]
                 g = self.g[kind]
@@ -420,9 +434,12 @@ class Runner:
                 self._set_parameters(inst)
                 self._call(inst, "enterInitializationMode", startTime=t0, stopTime=t_end)
             inst.state = "initializing"
-            for g, idx, buf, setf, args, ci, fname in self.init_ops[inst.index]:
+            for g, idx, buf, setf, args, ci, fname, affine in self.init_ops[inst.index]:
                 if idx is not None:
                     np.take(g, idx, out=buf)
+                if affine is not None:
+                    buf *= affine[0]
+                    buf += affine[1]
                 status = setf(*args)
                 if status > 1:
                     raise _StepFailure(ci, fname, status, t0)
@@ -500,9 +517,12 @@ class Runner:
                     t = grid[k]
                     t_arg.value = t
                     for sets, steps, gets, stage_posts in stages:
-                        for g, idx, buf, setf, args, ci, fname in sets:
+                        for g, idx, buf, setf, args, ci, fname, affine in sets:
                             if idx is not None:
                                 take(g, idx, out=buf)
+                            if affine is not None:
+                                buf *= affine[0]
+                                buf += affine[1]
                             status = setf(*args)
                             if status > 1:
                                 raise _StepFailure(ci, fname, status, t)
@@ -542,7 +562,7 @@ class Runner:
         FMU (not pythonfmu, which runs Python inside its calls), no input function to call in
         Python, and a C compiler (else None: the Python loop)."""
         if self.loop_mode == "python" or compiled_loop.obstacles(
-                [inst.comp for inst in self.instances], self.system._externals.values()):
+                [inst.comp for inst in self.instances], self.system._externals.values(), self.system._connections):
             return None  # System.run refused loop="compiled" for these
         moves = [(view, table, None, 0, table.strides[0]) for view, table in self.tables.values()]
         moves += [(rec, self.g[kind], None if identity else idx, rec.strides[0], 0)
@@ -564,7 +584,7 @@ class Runner:
                 code = loop.run(start, stop)
                 k = loop.failed_step.value
                 if code == compiled_loop.SET_FAILED:
-                    _, _, _, _, _, ci, fname = loop.set_entries[loop.failed_op.value]
+                    ci, fname = loop.set_entries[loop.failed_op.value][5:7]
                     raise _StepFailure(ci, fname, loop.failed_status.value, float(self.grid[k]))
                 if code == compiled_loop.GET_FAILED:
                     _, _, ci, fname = loop.get_entries[loop.failed_op.value]

@@ -73,8 +73,6 @@ import numpy as np
 __all__ = ["System", "Result", "Connection", "Failure", "CosimError", "WiringError", "ORDERINGS",
            "EXACT_ORDER_LIMIT", "VARIABLE_KINDS", "with_article"]
 
-#: Accepted values of ``run(ordering=...)``.
-ORDERINGS = ("jacobi", "gauss-seidel")
 #: Up to this many components the Gauss-Seidel order is exact (every permutation is
 #: considered, by dynamic programming over subsets); beyond, a greedy heuristic.
 EXACT_ORDER_LIMIT = 12
@@ -84,6 +82,7 @@ from .compiled_loop import LOOP_MODES, obstacles
 from .container import export_container
 from .elements import (
     INTERPOLATIONS,
+    ORDERINGS,
     NAME_RE,
     VARIABLE_KINDS,
     Component,
@@ -100,6 +99,7 @@ from .elements import (
     with_article,
 )
 from .runner import Runner
+from .ssp import read_ssp, write_ssp
 
 
 def _order_cost(order: Sequence[int], edges: Sequence[tuple[int, int]]) -> int:
@@ -240,7 +240,8 @@ class System:
                               f"it cannot also be driven by {driver}")
         return comp, var
 
-    def connect(self, source: str, target: str, *, check_units: bool = True) -> System:
+    def connect(self, source: str, target: str, *, check_units: bool = True, factor: float = 1.0,
+                offset: float = 0.0) -> System:
         """Connect an output to an input (``"plant.x"``, ``"estimator.x"``).
 
         Checks that both exist, that the source is an output and the target an input,
@@ -255,6 +256,11 @@ class System:
             False connects variables whose declared units differ: a generic FMU used in
             another domain (the 1-DOF estimator and controller, declared in m and N, on
             the Duffing circuit's charge [C] and voltage [V]). Types are still checked.
+        factor, offset : float
+            The target receives ``factor * source + offset`` (an SSP linear transformation
+            or unit conversion; Real connections only). A transformed connection runs in
+            the Python loop (``run(loop="auto")`` takes it) and cannot be exported as a
+            container FMU.
 
         Returns
         -------
@@ -274,7 +280,15 @@ class System:
         if check_units and sunit and tunit and sunit != tunit:
             raise WiringError(f"cannot connect {source!r} [{sunit}] to {target!r} [{tunit}]: units differ "
                               "(connect(..., check_units=False) for a unit-generic FMU)")
-        self._connections.append(Connection(source, target))
+        for value, label in ((factor, "factor"), (offset, "offset")):
+            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+                raise WiringError(f"connection {source!r} -> {target!r}: {label} must be a finite number, "
+                                  f"got {value!r}")
+        connection = Connection(source, target, float(factor), float(offset), bool(check_units))
+        if connection.transformed and skind != "Real":
+            raise WiringError(f"connection {source!r} -> {target!r}: a factor or offset applies to Real "
+                              f"connections only, not {svar.type}")
+        self._connections.append(connection)
         self._drivers[target] = f"the connection from {source!r}"
         return self
 
@@ -469,6 +483,39 @@ class System:
         """Connections in the order they were made."""
         return list(self._connections)
 
+    def fmu(self, component: str) -> Path:
+        """The FMU file of ``component``."""
+        return self._component(component).path
+
+    def parameter_values(self, component: str) -> dict[str, Any]:
+        """The parameter values given to ``component`` (a copy, typed as they are set)."""
+        return dict(self._component(component).parameters)
+
+    def variable(self, full: str) -> Any:
+        """The fmpy model variable of ``"component.variable"`` (read-only use)."""
+        return self._lookup(full, "variable")[1]
+
+    def model_description(self, component: str) -> Any:
+        """fmpy's model description of ``component``'s FMU (read-only use)."""
+        return self._component(component).md
+
+    @property
+    def external_inputs(self) -> dict[str, str]:
+        """Inputs driven from outside the system -> how: ``"constant"``, ``"function"``
+        or ``"sampled"``."""
+        return {target: ext.mode for target, ext in self._externals.items()}
+
+    @property
+    def constant_inputs(self) -> dict[str, float]:
+        """Inputs driven by a constant -> its value."""
+        return {target: ext.value for target, ext in self._externals.items() if ext.mode == "constant"}
+
+    def _component(self, name: str) -> Component:
+        try:
+            return self._components[name]
+        except KeyError:
+            raise WiringError(f"no component {name!r} in the system{suggest(name, self._components)}") from None
+
     def gauss_seidel_order(self) -> tuple[list[str], list[Connection]]:
         """The Gauss-Seidel stepping order and its delayed connections.
 
@@ -565,7 +612,7 @@ class System:
         if not self._components:
             raise WiringError("the system has no components")
         if loop == "compiled":
-            reasons = obstacles(self._components.values(), self._externals.values())
+            reasons = obstacles(self._components.values(), self._externals.values(), self._connections)
             if reasons:
                 raise WiringError("loop='compiled' cannot run this system: " + "; ".join(reasons))
         for value, label in ((stop_time, "stop_time"), (step, "step"), (start_time, "start_time")):
@@ -647,6 +694,39 @@ class System:
                 raise WiringError(f"recorded variable {full!r} is listed twice")
             names.append(full)
         return names
+
+    # ---------------------------------------------------------------- SSP
+    @classmethod
+    def from_ssp(cls, path: str | os.PathLike[str]) -> System:
+        """The system of an SSP archive (``.ssp``) or of a bare ``.ssd`` file.
+
+        The default experiment and duffid's run annotation are in
+        :func:`duffid.cosim.ssp.read_ssp`'s result (and ``duffid cosim system.ssp`` uses
+        them); this returns the system only. See :mod:`duffid.cosim.ssp` for what is
+        supported and how SSP maps onto a system.
+
+        Raises
+        ------
+        SspError
+            What duffid cannot read or honour, naming the file, line and element.
+        WiringError
+            A wiring error, prefixed with the place in the file it comes from.
+        """
+        system = cls()
+        read_ssp(path, system)
+        return system
+
+    def to_ssp(self, path: str | os.PathLike[str], *, stop_time: float, step: float, start_time: float = 0.0,
+               ordering: str = "jacobi", order: Sequence[str] | None = None) -> Path:
+        """Write the system as an SSP 1.0 archive (:func:`duffid.cosim.ssp.write_ssp`).
+
+        Returns
+        -------
+        Path
+            The archive written.
+        """
+        return write_ssp(self, path, stop_time=stop_time, step=step, start_time=start_time, ordering=ordering,
+                         order=order)
 
     # ---------------------------------------------------------------- container
     def export_container(self, path: str | os.PathLike[str], inputs: Mapping[str, str | Sequence[str]] | None = None,
