@@ -36,15 +36,22 @@ struct duffid_buffered {
     duffid_real *coef;  /* slots x n_ord x n_ch x r: C_p of each open window */
     duffid_real *sumsq; /* slots x n_ch: sum of the channels' squares (rounding bound) */
     long *pos;          /* slots: index of the next sample in that window, -1 when closed */
-    duffid_real *E;     /* n_kept x n_ord x n_ch: the latest window's row entries */
-    duffid_real *B;     /* n_kept x (unknowns + 1), column-major: one equation's [A D] */
-    duffid_real *R, *U, *Rinv, *scale, *rse;
+    duffid_real *E;     /* chunk x n_ord x n_ch: the row entries of one stage's rows */
+    duffid_real *B;     /* chunk x (unknowns + 1), column-major: one equation's [A D] rows */
+    duffid_real *R;     /* per equation: the (unknowns + 1)^2 factor of the window being solved */
+    duffid_real *norm2, *bound2; /* per equation and column: squares of the rows and of their rounding bounds */
+    duffid_real *U, *Rinv, *scale, *rse;
     duffid_real *V;     /* per equation: unknowns x unknowns, the Jacobi iteration's start */
     int *warm;          /* per equation */
     duffid_real *held;  /* per equation: its unknowns of the latest solved window */
-    int *offset;        /* per equation: first unknown in held and V (V: offset of squares) */
+    int *offset;        /* per equation: first unknown in held, first square in V, first in R, first
+                         * column in norm2 / bound2 */
+    int chunk;          /* rows per stage */
+    int stages;         /* stages of a window's solve: row chunks, then the solve */
     /* state */
     int64_t n;          /* samples received - 1 (-1: none) */
+    int pending;        /* the slot whose window is being solved, -1: none */
+    int stage;          /* its next stage */
     long until_start;   /* samples until the next window starts */
     int next_slot;
     int have_last;
@@ -83,19 +90,48 @@ static int max_unknowns_of(const duffid_buffered_tables *tb)
     return most;
 }
 
-static int sum_unknowns(const duffid_buffered_tables *tb, int squares)
+/* over the equations: what = 0 the unknowns n, 1 their squares n^2, 2 (n + 1)^2, 3 n + 1 */
+static int sum_unknowns(const duffid_buffered_tables *tb, int what)
 {
     int e, total = 0;
     for (e = 0; e < tb->n_equations; e++) {
-        total += squares ? tb->n_unknowns[e] * tb->n_unknowns[e] : tb->n_unknowns[e];
+        const int n = tb->n_unknowns[e];
+        total += what == 0 ? n : what == 1 ? n * n : what == 2 ? (n + 1) * (n + 1) : n + 1;
     }
     return total;
 }
 
+/* Rows per stage of a window's solve: a window's per-window work (its row entries, the
+ * factor's update) is spread over the samples after its end, a chunk of rows per sample, then
+ * one sample solves; this keeps every update within a fixed bound. */
+#define ROWS_PER_STAGE 2
+
+static long every_of(const duffid_buffered_config *cfg)
+{
+    return cfg->every > 0 ? cfg->every : cfg->tables->n_intervals;
+}
+
+/* stages of one window's solve: the row chunks and the solve, at most every (a window ends
+ * every `every` samples; its solve is done before the next ends) */
+static int stages_of(const duffid_buffered_config *cfg)
+{
+    const int kept = cfg->tables->n_kept;
+    const long every = every_of(cfg);
+    const long wanted = (kept + ROWS_PER_STAGE - 1) / ROWS_PER_STAGE + 1;
+    return (int)(wanted < every ? wanted : (every > 2 ? every : 2));
+}
+
+static int chunk_of(const duffid_buffered_config *cfg)
+{
+    const int kept = cfg->tables->n_kept, chunks = stages_of(cfg) - 1;
+    return (kept + chunks - 1) / chunks;
+}
+
 static long slots_of(const duffid_buffered_config *cfg)
 {
-    const long N = cfg->tables->n_intervals, every = cfg->every > 0 ? cfg->every : N;
-    return (N + 1 + every - 1) / every; /* windows open at once */
+    /* windows open at once, and the one being solved: a slot is reused once its solve is done */
+    const long N = cfg->tables->n_intervals, every = every_of(cfg);
+    return (N + stages_of(cfg) + every - 1) / every;
 }
 
 /* the block after the structure; base NULL: sizes only */
@@ -105,6 +141,7 @@ static size_t layout(const duffid_buffered_config *cfg, duffid_buffered *est, ch
     const long slots = slots_of(cfg);
     const int n_ord = tb->order + 1, n_ch = tb->n_channels, r = tb->n_terms, kept = tb->n_kept;
     const int p = max_unknowns_of(tb) + 1, n_eq = tb->n_equations;
+    (void)kept;
     duffid_buffered scratch;
     carver_t c;
     if (est == NULL) {
@@ -115,9 +152,11 @@ static size_t layout(const duffid_buffered_config *cfg, duffid_buffered *est, ch
     CARVE(&c, est->coef, slots * n_ord * n_ch * r);
     CARVE(&c, est->sumsq, slots * n_ch);
     CARVE(&c, est->pos, slots);
-    CARVE(&c, est->E, kept * n_ord * n_ch);
-    CARVE(&c, est->B, kept * p);
-    CARVE(&c, est->R, p * p);
+    CARVE(&c, est->E, chunk_of(cfg) * n_ord * n_ch);
+    CARVE(&c, est->B, chunk_of(cfg) * p);
+    CARVE(&c, est->R, sum_unknowns(tb, 2));
+    CARVE(&c, est->norm2, sum_unknowns(tb, 3));
+    CARVE(&c, est->bound2, sum_unknowns(tb, 3));
     CARVE(&c, est->U, (p - 1) * (p - 1));
     CARVE(&c, est->Rinv, (p - 1) * (p - 1));
     CARVE(&c, est->scale, p - 1);
@@ -125,7 +164,7 @@ static size_t layout(const duffid_buffered_config *cfg, duffid_buffered *est, ch
     CARVE(&c, est->V, sum_unknowns(tb, 1));
     CARVE(&c, est->warm, n_eq);
     CARVE(&c, est->held, sum_unknowns(tb, 0));
-    CARVE(&c, est->offset, 2 * n_eq);
+    CARVE(&c, est->offset, 4 * n_eq);
     return c.used;
 }
 
@@ -309,6 +348,8 @@ void duffid_buffered_reset(duffid_buffered *est)
         est->current[i] = R_NAN;
     }
     est->n = -1;
+    est->pending = -1;
+    est->stage = 0;
     est->until_start = 0;
     est->next_slot = 0;
     est->have_last = 0;
@@ -324,7 +365,7 @@ int duffid_buffered_init(duffid_buffered **out, void *memory, size_t size, const
     const duffid_buffered_tables *tb;
     duffid_buffered *est;
     uintptr_t address;
-    int rc, d, k, e, off, off2;
+    int rc, d, k, e, off, off2, off3, off4;
     if (out == NULL || memory == NULL) {
         duffid_la_message(msg, msg_size, "no estimator pointer or no memory (NULL)");
         return DUFFID_ERR_ARGUMENT;
@@ -364,12 +405,19 @@ int duffid_buffered_init(duffid_buffered **out, void *memory, size_t size, const
         est->t_inv[d] = d == 0 ? RC(1.0) : est->t_inv[d - 1] / ((duffid_real)est->N * cfg->dt);
     }
     est->cond_limit = DUFFID_LA_COND_SINGULAR;
-    for (e = 0, off = 0, off2 = 0; e < tb->n_equations; e++) {
-        est->offset[2 * e] = off;
-        est->offset[2 * e + 1] = off2;
-        off += tb->n_unknowns[e];
-        off2 += tb->n_unknowns[e] * tb->n_unknowns[e];
+    for (e = 0, off = 0, off2 = 0, off3 = 0, off4 = 0; e < tb->n_equations; e++) {
+        const int n = tb->n_unknowns[e];
+        est->offset[4 * e] = off;
+        est->offset[4 * e + 1] = off2;
+        est->offset[4 * e + 2] = off3;
+        est->offset[4 * e + 3] = off4;
+        off += n;
+        off2 += n * n;
+        off3 += (n + 1) * (n + 1);
+        off4 += n + 1;
     }
+    est->chunk = chunk_of(cfg);
+    est->stages = stages_of(cfg);
     duffid_buffered_reset(est);
     *out = est;
     return DUFFID_OK;
@@ -427,14 +475,14 @@ static void accumulate(duffid_buffered *est, int slot, long i, const duffid_real
 }
 
 /* ------------------------------------------------------------------ per window */
-/* E[rho, d, c] = T^-d sum_k alpha_dk (P_(n-d+k)^T C_(n-k))[kept[rho], c] */
-static void entries(duffid_buffered *est, int slot)
+/* E[rho - row0, d, c] = T^-d sum_k alpha_dk (P_(n-d+k)^T C_(n-k))[kept[rho], c], rho in [row0, row1) */
+static void entries(duffid_buffered *est, int slot, int row0, int row1)
 {
     const duffid_buffered_tables *tb = est->tb;
     const int r = est->r, n_ch = est->n_ch, n_ord = est->n_ord, n = tb->order, kept = tb->n_kept;
     const duffid_real *coef = est->coef + (size_t)slot * (size_t)(n_ord * n_ch * r);
     int rho, d, k, c, j;
-    for (rho = 0; rho < kept; rho++) {
+    for (rho = row0; rho < row1; rho++) {
         for (d = 0; d < n_ord; d++) {
             for (c = 0; c < n_ch; c++) {
                 duffid_real v = RC(0.0);
@@ -453,88 +501,101 @@ static void entries(duffid_buffered *est, int slot)
                     }
                     v += est->alpha[d * n_ord + k] * sum;
                 }
-                est->E[(rho * n_ord + d) * n_ch + c] = v * est->t_inv[d];
+                est->E[((rho - row0) * n_ord + d) * n_ch + c] = v * est->t_inv[d];
             }
         }
     }
 }
 
-/* one equation's [A D] (column-major, n_kept rows); returns the rows' relative rounding bound
- * (single precision: eps sqrt(N + 1) ||W_row|| ||g|| per entry, over each column's norm, the
- * largest column), 0 in double */
-static duffid_real assemble(duffid_buffered *est, int slot, int e)
+/* rows [row0, row1) of one equation's [A D] (column-major, B[col * m + row]), added to its
+ * factor; in single precision also the squares of the rows and of their rounding bounds
+ * (eps sqrt(N + 1) ||W_row|| ||g|| per entry, the terms' bounds added with |coef|) */
+static void factor_rows(duffid_buffered *est, int slot, int e, int row0, int row1)
 {
     const duffid_buffered_tables *tb = est->tb;
-    const int kept = tb->n_kept, n_ord = est->n_ord, n_ch = est->n_ch, n = tb->n_unknowns[e], p = n + 1;
-    int k, rho;
-    duffid_real rounding = RC(0.0);
-    memset(est->B, 0, (size_t)(kept * p) * sizeof(duffid_real));
+    const int m = row1 - row0, n_ord = est->n_ord, n_ch = est->n_ch, n = tb->n_unknowns[e], p = n + 1;
+    int k, row;
+    memset(est->B, 0, (size_t)(m * p) * sizeof(duffid_real));
     for (k = 0; k < tb->n_model_terms; k++) {
         const duffid_buffered_term *t = &tb->terms[k];
         duffid_real *col;
         if (t->equation != e) {
             continue;
         }
-        col = est->B + (t->unknown >= 0 ? t->unknown : n) * kept;
-        for (rho = 0; rho < kept; rho++) {
-            col[rho] += t->coef * est->E[(rho * n_ord + t->order) * n_ch + t->channel];
+        col = est->B + (t->unknown >= 0 ? t->unknown : n) * m;
+        for (row = 0; row < m; row++) {
+            col[row] += t->coef * est->E[(row * n_ord + t->order) * n_ch + t->channel];
         }
     }
 #if DUFFID_SINGLE
-    { /* the bound of each column: the terms' bounds (|coef| x the entry's) added */
+    {
         const duffid_real root = R_SQRT((duffid_real)(est->N + 1)) * R_EPS;
+        duffid_real *norm2 = est->norm2 + est->offset[4 * e + 3], *bound2 = est->bound2 + est->offset[4 * e + 3];
         int col;
         for (col = 0; col < p; col++) {
-            duffid_real bound2 = RC(0.0), norm2 = RC(0.0);
-            for (rho = 0; rho < kept; rho++) {
-                duffid_real b = RC(0.0);
+            for (row = 0; row < m; row++) {
+                duffid_real bound = RC(0.0);
                 for (k = 0; k < tb->n_model_terms; k++) {
                     const duffid_buffered_term *t = &tb->terms[k];
                     if (t->equation == e && (t->unknown >= 0 ? t->unknown : n) == col) {
-                        b += R_FABS(t->coef) * tb->w_norm[t->order * kept + rho] * est->t_inv[t->order] *
-                             R_SQRT(est->sumsq[slot * n_ch + t->channel]);
+                        bound += R_FABS(t->coef) * tb->w_norm[t->order * tb->n_kept + row0 + row] *
+                                 est->t_inv[t->order] * R_SQRT(est->sumsq[slot * n_ch + t->channel]);
                     }
                 }
-                b *= root;
-                bound2 += b * b;
-                norm2 += est->B[col * kept + rho] * est->B[col * kept + rho];
-            }
-            if (norm2 > RC(0.0)) {
-                const duffid_real rel = R_SQRT(bound2 / norm2);
-                rounding = rel > rounding ? rel : rounding;
+                bound *= root;
+                bound2[col] += bound * bound;
+                norm2[col] += est->B[col * m + row] * est->B[col * m + row];
             }
         }
     }
 #else
     (void)slot;
 #endif
+    duffid_la_qr_accumulate(est->R + est->offset[4 * e + 2], p, RC(1.0), est->B, m);
+}
+
+/* the relative rounding of an equation's rows: the largest column's bound over its norm (0 in
+ * double) */
+static duffid_real rows_rounding(const duffid_buffered *est, int e)
+{
+    duffid_real rounding = RC(0.0);
+#if DUFFID_SINGLE
+    const duffid_real *norm2 = est->norm2 + est->offset[4 * e + 3], *bound2 = est->bound2 + est->offset[4 * e + 3];
+    int col;
+    for (col = 0; col <= est->tb->n_unknowns[e]; col++) {
+        if (norm2[col] > RC(0.0)) {
+            const duffid_real rel = R_SQRT(bound2[col] / norm2[col]);
+            rounding = rel > rounding ? rel : rounding;
+        }
+    }
+#else
+    (void)est;
+    (void)e;
+#endif
     return rounding;
 }
 
-/* BufferedIdentifier.solve_window on the window in slot */
-static void solve_window(duffid_buffered *est, int slot)
+/* BufferedIdentifier.solve_window's solve, on the factors of the window's rows */
+static void solve(duffid_buffered *est)
 {
     const duffid_buffered_tables *tb = est->tb;
-    const int kept = tb->n_kept;
     duffid_real cond = RC(0.0), worst = RC(0.0);
     int e, i, all_finite = 1;
-    entries(est, slot);
     for (e = 0; e < tb->n_equations; e++) {
         const int n = tb->n_unknowns[e], p = n + 1;
-        duffid_real *held = est->held + est->offset[2 * e], *V = est->V + est->offset[2 * e + 1];
-        duffid_real c = R_INF, rounding = assemble(est, slot, e);
+        const duffid_real *R = est->R + est->offset[4 * e + 2];
+        duffid_real *held = est->held + est->offset[4 * e], *V = est->V + est->offset[4 * e + 1];
+        duffid_real c = R_INF, rounding = rows_rounding(est, e);
         int known = 0;
-        memset(est->R, 0, (size_t)(p * p) * sizeof(duffid_real));
-        duffid_la_qr_accumulate(est->R, p, RC(1.0), est->B, kept);
         for (i = 0; i < p; i++) {
-            known |= est->R[i * p + n] != RC(0.0);
+            known |= R[i * p + n] != RC(0.0);
         }
         if (!known) { /* no force (or other known term) in the rows: the scale is free; hold */
             cond = R_INF;
             worst = R_INF;
             continue;
         }
-        if (duffid_la_solve_factor(n, est->R, (duffid_real)kept, RC(1.0), est->cond_limit, est->scale, est->U,
+        if (duffid_la_solve_factor(n, R, (duffid_real)tb->n_kept, RC(1.0), est->cond_limit, est->scale, est->U,
                                    est->Rinv, V, &est->warm[e], held, est->rse, &c) != 0) {
             for (i = 0; i < n; i++) {
                 held[i] = R_NAN;
@@ -553,13 +614,42 @@ static void solve_window(duffid_buffered *est, int slot)
         }
     }
     for (i = 0; i < tb->n_parameters; i++) {
-        est->current[i] = est->held[est->offset[2 * tb->parameter_equation[i]] + tb->parameter_unknown[i]];
+        est->current[i] = est->held[est->offset[4 * tb->parameter_equation[i]] + tb->parameter_unknown[i]];
         all_finite &= is_finite(est->current[i]);
     }
     est->condition = cond;
     est->uncertainty = worst;
     est->identified = cond <= est->cfg.max_condition && worst <= est->cfg.max_uncertainty && all_finite;
     est->windows++;
+}
+
+/* one stage of the pending window's solve; returns 1 when the window was solved */
+static int solve_stage(duffid_buffered *est)
+{
+    const duffid_buffered_tables *tb = est->tb;
+    const int slot = est->pending;
+    int e;
+    if (est->stage == 0) {
+        memset(est->R, 0, (size_t)sum_unknowns(tb, 2) * sizeof(duffid_real));
+        memset(est->norm2, 0, (size_t)sum_unknowns(tb, 3) * sizeof(duffid_real));
+        memset(est->bound2, 0, (size_t)sum_unknowns(tb, 3) * sizeof(duffid_real));
+    }
+    if (est->stage < est->stages - 1) {
+        const int row0 = est->stage * est->chunk;
+        const int row1 = row0 + est->chunk < tb->n_kept ? row0 + est->chunk : tb->n_kept;
+        if (row0 < row1) {
+            entries(est, slot, row0, row1);
+            for (e = 0; e < tb->n_equations; e++) {
+                factor_rows(est, slot, e, row0, row1);
+            }
+        }
+        est->stage++;
+        return 0;
+    }
+    solve(est); /* (the slot is free from here: its position is past the window) */
+    est->pending = -1;
+    est->stage = 0;
+    return 1;
 }
 
 static void report(const duffid_buffered *est, int solved, duffid_buffered_output *out)
@@ -626,22 +716,28 @@ int duffid_buffered_update(duffid_buffered *est, const duffid_real *x, const duf
         est->until_start = est->every;
     }
     est->until_start--;
+    if (est->pending >= 0) { /* one stage of the window that ended before this sample */
+        solved = solve_stage(est);
+    }
     for (i = 0; i < est->n_slots; i++) {
-        if (est->pos[i] >= 0) {
+        if (est->pos[i] >= 0 && est->pos[i] <= est->N && i != est->pending) {
             accumulate(est, i, est->pos[i], g);
-            if (est->pos[i] == est->N) {
-                solve_window(est, i);
-                est->pos[i] = -1;
-                solved = 1;
-            } else {
-                est->pos[i]++;
+            if (est->pos[i] == est->N) { /* complete: solved over the next samples */
+                est->pending = i;
+                est->stage = 0;
             }
+            est->pos[i]++;
         }
     }
     if (out != NULL) {
         report(est, solved, out);
     }
     return DUFFID_OK;
+}
+
+long duffid_buffered_latency(const duffid_buffered *est)
+{
+    return est != NULL ? (long)est->stages : 0L;
 }
 
 size_t duffid_buffered_output_size(void)

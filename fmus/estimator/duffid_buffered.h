@@ -12,10 +12,13 @@
  *   - per sample, fixed work: the sample's channels times s^p (s = i / N, p = 0..n) times the
  *     projection weights Q[:, i] are added to the coefficients of every window that holds
  *     the sample (r x (n + 1) x channels multiply-adds per window; no sample buffer);
- *   - per window, once: the operational matrices' powers (sparse) turn the coefficients into
- *     the rows, which are factored by Householder reflections; the unknowns and their
- *     standard errors come from the triangular inverse, the condition number from a Jacobi
- *     iteration (as in the online core, duffid_linalg.h).
+ *   - per window, spread over the samples after its end (a few rows per sample, then the
+ *     solve, so that no update does much more than another): the operational matrices' powers
+ *     (sparse) turn the coefficients into the rows, which enter a triangular factor by
+ *     Householder reflections; the unknowns and their standard errors come from the
+ *     triangular inverse, the condition number from a Jacobi iteration (as in the online
+ *     core, duffid_linalg.h). A window's solution is output duffid_buffered_latency()
+ *     samples after its last sample (ceil(r' / 2) + 1, at most `every`).
  *
  * Honesty: a window's estimate is published (parameters[]) only when the column-equilibrated
  * condition number is at most max_condition (and, in single precision, 0.01 / eps) and every
@@ -104,7 +107,9 @@ typedef struct duffid_buffered_output {
     duffid_real current[DUFFID_MAX_PARAMS];    /* the latest window's solution, trusted or not */
     int n_parameters;
     int identified;                            /* the latest window passed both checks */
-    int solved;                                /* 1 when this sample ended a window */
+    int solved;                                /* 1 when this sample's update output a new window's
+                                                * solution (the window ended duffid_buffered_latency()
+                                                * samples before) */
     long windows;                              /* windows solved so far */
     duffid_real condition;                     /* the latest window's largest condition number */
     duffid_real uncertainty;                   /* and largest relative standard error */
@@ -131,6 +136,8 @@ void duffid_buffered_reset(duffid_buffered *est);
  * DUFFID_ERR_SAMPLE and changes nothing. */
 int duffid_buffered_update(duffid_buffered *est, const duffid_real *x, const duffid_real *f,
                            duffid_buffered_output *out);
+/* Samples between a window's last sample and the update that outputs its solution. */
+long duffid_buffered_latency(const duffid_buffered *est);
 size_t duffid_buffered_output_size(void);
 size_t duffid_buffered_config_size(void);
 

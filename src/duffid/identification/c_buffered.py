@@ -245,7 +245,8 @@ class CBufferedIdentifier:
     -----
     :meth:`run` returns one row per sample: ``current`` (the latest window's solution),
     ``parameters`` (the same, NaN unless that window was identified), ``identified``,
-    ``solved``, ``condition``, ``uncertainty``.
+    ``solved``, ``condition``, ``uncertainty``. A window's solution appears :attr:`latency`
+    samples after its last sample (Python's at that sample).
     """
 
     def __init__(self, model: Chain, dt: float, method: str = "legendre", *, precision: str = "double",
@@ -284,6 +285,10 @@ class CBufferedIdentifier:
         if rc != 0:
             raise InputError(f"C buffered identifier: {msg.value.decode()}")
         self._lib, self._cfg = lib, cfg
+        lib.duffid_buffered_latency.restype = ctypes.c_long
+        #: Samples between a window's last sample and the update that outputs its solution (the
+        #: C module spreads a window's solve over them, to bound every update's work).
+        self.latency = int(lib.duffid_buffered_latency(self._handle))
         self.parameter_names = tuple(self.python.parameter_names)
 
     def run(self, x: np.ndarray, f: np.ndarray) -> dict[str, np.ndarray]:
