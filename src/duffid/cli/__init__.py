@@ -1,4 +1,4 @@
-"""The command-line interface ``duffid``: one module per subcommand (identify, simulate,
+"""The command-line interface ``duffid``: one module per subcommand (identify, inspect, simulate,
 nonlinearity, silverbox, build-fmus, cosim, campaign, demo, paper-cases), each with ``add_parser``
 and ``run``."""
 from __future__ import annotations
@@ -17,6 +17,7 @@ from . import (
     cosim,
     demo,
     identify,
+    inspect,
     nonlinearity,
     paper_cases,
     silverbox,
@@ -26,7 +27,7 @@ from . import (
 __all__ = ["main", "build_parser", "COMMANDS"]
 
 #: Subcommand -> its module (``add_parser(sub)``, ``run(args)``), in the order of ``duffid --help``.
-COMMANDS = {"identify": identify, "simulate": simulate, "nonlinearity": nonlinearity, "silverbox": silverbox,
+COMMANDS = {"identify": identify, "inspect": inspect, "simulate": simulate, "nonlinearity": nonlinearity, "silverbox": silverbox,
             "build-fmus": build_fmus, "build-estimator": build_estimator, "cosim": cosim, "campaign": campaign,
             "demo": demo, "paper-cases": paper_cases}
 

@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from ..data.channels import ROLE_PATTERN
+from ..data.formats import FORMATS, detect_format
 from ..data.record import Record
 from ..errors import RecordError
 from ..identification.trust import OFFSETS
@@ -37,15 +39,15 @@ def window_value(text: str) -> float | str:
 
 
 def role_pairs(text: str, flag: str, value: Any) -> dict[str, Any]:
-    """``ROLE=VALUE,...`` of ``flag`` as a dict (roles t, f, x, f1.., x1..)."""
+    """``ROLE=VALUE,...`` of ``flag`` as a dict (roles t, f, x, v, a, f1.., x1..)."""
     out: dict[str, Any] = {}
     for item in (part.strip() for part in text.split(",")):
         role, sep, raw = item.partition("=")
         role, raw = role.strip(), raw.strip()
         if not sep or not role or not raw:
             raise argparse.ArgumentTypeError(f"{item!r} is not ROLE=" + ("COLUMN" if flag == "--columns" else "FACTOR"))
-        if not re.fullmatch(r"[tfx]|[fx][1-9][0-9]*", role):
-            raise argparse.ArgumentTypeError(f"unknown role {role!r} (roles: t, f, x, or f1.., x1..)")
+        if not ROLE_PATTERN.fullmatch(role):
+            raise argparse.ArgumentTypeError(f"unknown role {role!r} (roles: t, f, x, v, a, or f1.., x1..)")
         if role in out:
             raise argparse.ArgumentTypeError(f"{role} is given twice")
         out[role] = value(raw)
@@ -53,7 +55,8 @@ def role_pairs(text: str, flag: str, value: Any) -> dict[str, Any]:
 
 
 def columns_value(text: str) -> dict[str, str | int]:
-    """``--columns ROLE=COLUMN,...``: the column of each signal, by header name or 1-based number."""
+    """``--columns ROLE=COLUMN,...``: the column or channel of each signal, by name (``group/channel``,
+    a dataset path) or 1-based number."""
     return role_pairs(text, "--columns", lambda raw: int(raw) if raw.isdigit() else raw)
 
 
@@ -79,16 +82,22 @@ def delimiter_value(text: str) -> str:
 
 
 def add_file_arguments(p: argparse.ArgumentParser) -> None:
-    """The options that say how to read a record file (CSV from a logger, or .mat)."""
-    g = p.add_argument_group("reading the file (CSV from a logger, .mat)")
-    g.add_argument("--columns", type=columns_value, default=None, metavar="ROLE=COLUMN,...",
-                   help="CSV: the column of each signal, by header name or 1-based number, e.g. "
-                        "t=time_s,f=force_N,x=3 (roles t, f, x, or f1.., x1..); default: header t,f,x")
+    """The options that say how to read a record file (CSV from a logger, .mat, TDMS, UFF, HDF5, WAV)."""
+    g = p.add_argument_group("reading the file (CSV from a logger, .mat, TDMS, UFF 58/58b, HDF5, WAV)")
+    g.add_argument("--format", choices=tuple(FORMATS), default=None,
+                   help="the file's format (default: from its extension; duffid inspect FILE lists its channels)")
+    g.add_argument("--columns", type=columns_value, default=None, metavar="ROLE=CHANNEL,...",
+                   help="the column or channel of each signal, by name or 1-based number, e.g. "
+                        "t=time_s,f=force_N,x=3 (roles t, f, x, or f1.., x1..); TDMS: group/channel, HDF5: "
+                        "dataset path, .mat: variable, WAV: channel number. Default: CSV header t,f,x; other "
+                        "formats: the one force and one displacement channel, by unit or name")
     g.add_argument("--delimiter", type=delimiter_value, default=",", help="CSV field separator (default ','; tab, ';', ...)")
     g.add_argument("--decimal", choices=(".", ","), default=".",
                    help="CSV decimal mark (default '.'; ',' for files that write 1,5 - with --delimiter ';' or tab)")
     g.add_argument("--scale", type=scales_value, default=None, metavar="ROLE=FACTOR,...",
-                   help="multiply columns into SI units (s, N, m), e.g. x=1e-3 for millimetres")
+                   help="multiply columns into SI units (s, N, m), e.g. x=1e-3 for millimetres; replaces the "
+                        "factor of a unit the file names; required for integer PCM WAV (the SI value at full "
+                        "scale) and sensor voltages (1 / sensitivity)")
     g.add_argument("--fs", type=positive_float, default=None,
                    help="sampling frequency [Hz] of a file without a time column or variable")
     g.add_argument("--sampling-tolerance", type=positive_float, default=1e-6,
@@ -121,7 +130,11 @@ def read_record(args: argparse.Namespace, path: Path | None = None) -> Record:
     path = path if path is not None else args.file
     if not path.exists():
         raise RecordError(f"{path}: no such file")
-    if path.suffix.lower() == ".mat":
+    fmt = detect_format(path, args.format)
+    if fmt not in ("csv", "mat") or (fmt == "mat" and args.columns is not None):
+        return Record.read(path, format=fmt, columns=args.columns, scale=args.scale, fs=args.fs,
+                           sampling_rtol=args.sampling_tolerance)
+    if fmt == "mat":
         split = lambda s: [v.strip() for v in s.split(",")] if "," in s else s  # noqa: E731
         record = Record.read_mat(path, x=split(args.x_var), f=split(args.f_var), t=args.t_var, fs=args.fs,
                                  sampling_rtol=args.sampling_tolerance)

@@ -215,9 +215,12 @@ def select(channels: Sequence[Channel], columns: Mapping[str, str | int] | None,
         if len(times) == 1 and not (forces[0].rate and motion[0].rate):
             chosen = {"t": times[0], **chosen}
         return chosen
+    strange = [c for c in channels if c.unit and c.unit.strip() and lookup(c.unit) is None]
+    unknown = (f"; unknown unit{'s' if len(strange) > 1 else ''}: "
+               + ", ".join(f"{c.name!r} in {c.unit!r}" for c in strange)) if strange else ""
     raise RecordError(f"{source}: cannot tell which channel is the force and which the displacement "
-                      f"({len(forces)} force and {len(motion)} motion channels found by unit or name); select "
-                      f"them, e.g. --columns f=NAME,x=NAME (channels: {_listing(channels)})")
+                      f"({len(forces)} force and {len(motion)} motion channels found by unit or name{unknown}); "
+                      f"select them, e.g. --columns f=NAME,x=NAME (channels: {_listing(channels)})")
 
 
 def _same(a: float, b: float) -> bool:
