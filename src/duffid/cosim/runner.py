@@ -354,8 +354,10 @@ class Runner:
                 setf = raw(set_name)
                 g = self.g[kind]
                 for subset, target in ((entries, inits), ([e for e in entries if e[2]], sets)):
-                    transformed = [e for e in subset if e[3] is not None]
-                    if transformed:  # gathered, scaled and shifted in their own buffer, one set call
+                    # a transformed connection is gathered, scaled and shifted in its own buffer (one set call),
+                    # every step; during initialisation its input keeps its start value (no output is read yet)
+                    transformed = [e for e in subset if e[3] is not None] if target is sets else []
+                    if transformed:
                         vrs = (ctypes.c_uint * len(transformed))(*[e[0] for e in transformed])
                         idx = np.array([e[1] for e in transformed], dtype=np.intp)
                         buf = np.zeros(len(transformed), dtype=_NP[ctype])
