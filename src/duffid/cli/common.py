@@ -41,7 +41,7 @@ def window_value(text: str) -> float | str:
 def role_pairs(text: str, flag: str, value: Any) -> dict[str, Any]:
     """``ROLE=VALUE,...`` of ``flag`` as a dict (roles t, f, x, v, a, f1.., x1..)."""
     out: dict[str, Any] = {}
-    for item in (part.strip() for part in text.split(",")):
+    for item in (part.strip() for part in re.split(r",(?![^(]*\))", text)):  # not the comma of x(:,2)
         role, sep, raw = item.partition("=")
         role, raw = role.strip(), raw.strip()
         if not sep or not role or not raw:

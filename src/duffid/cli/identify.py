@@ -28,8 +28,9 @@ __all__ = ["add_parser", "run", "equation_text", "result_text", "bare_offset"]
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
     """Add the ``identify`` subcommand."""
-    p = sub.add_parser("identify", help="identify a model's parameters from a CSV or .mat record")
-    p.add_argument("file", type=Path, help="record: CSV (t, f, x or t, f1.., x1..) or .mat")
+    p = sub.add_parser("identify", help="identify a model's parameters from a record file")
+    p.add_argument("file", type=Path, help="record: CSV (t, f, x or t, f1.., x1..), .mat (v5 or v7.3), TDMS, "
+                                           "UFF 58/58b, HDF5 or WAV (duffid inspect FILE lists its channels)")
     add_model_arguments(p)
     p.add_argument("--method", choices=METHODS, default=None,
                    help="robust (default), paper, or a buffered basis (the same for --equation)")

@@ -21,7 +21,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                                    "'cannot tell' - with what it rests on. Records of one plant at several "
                                    "amplitudes are also compared with each other (homogeneity test).")
     p.add_argument("files", type=Path, nargs="+",
-                   help="records (CSV or .mat): sweeps with a ring-down, random-force records, or stepped sines")
+                   help="records (CSV, .mat, TDMS, UFF, HDF5, WAV): sweeps with a ring-down, random-force records, or stepped sines")
     p.add_argument("--estimator", choices=("auto", "sweep", "h1"), default="auto",
                    help="FRF estimator: sweep = ratio of transforms (sweep or burst plus ring-down), h1 = averaged "
                         "H1 with coherence (stationary random force), auto = sweep when the record starts and ends "

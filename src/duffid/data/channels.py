@@ -85,7 +85,7 @@ class Channel:
             return unit.quantity
         if self.unit and self.unit.strip():
             return None
-        last = re.split(r"[/.:]", self.name.strip("/"))[-1].strip()
+        last = re.split(r"[/.:]", re.sub(r"\(.*\)$", "", self.name).strip("/"))[-1].strip()
         hits = [q for q, pattern in _NAME_HINTS.items() if pattern.fullmatch(last)]
         return hits[0] if len(hits) == 1 else None
 
@@ -165,8 +165,8 @@ def _find(spec: str | int, role: str, channels: Sequence[Channel], source: str) 
     return hits[0]
 
 
-def select(channels: Sequence[Channel], columns: Mapping[str, str | int] | None, source: str,
-           ) -> dict[str, Channel]:
+def select(channels: Sequence[Channel], columns: Mapping[str, str | int] | None, source: str, *,
+           time: bool = True) -> dict[str, Channel]:
     """Which channel plays which role.
 
     Parameters
@@ -179,6 +179,9 @@ def select(channels: Sequence[Channel], columns: Mapping[str, str | int] | None,
         their names), besides time channels, is read as such.
     source : str
         The file, for messages.
+    time : bool, optional
+        Without ``columns``: whether a lone time channel may play ``t`` (False when the user gives
+        the sampling rate).
 
     Returns
     -------
@@ -212,7 +215,7 @@ def select(channels: Sequence[Channel], columns: Mapping[str, str | int] | None,
             raise RecordError(f"{source}: channel {motion[0].name!r} measures {motion[0].quantity} "
                               f"({motion[0].unit or 'by its name'}): {MOTION_NOT_YET}")
         chosen = {"f": forces[0], "x": motion[0]}
-        if len(times) == 1 and not (forces[0].rate and motion[0].rate):
+        if time and len(times) == 1 and not (forces[0].rate and motion[0].rate):
             chosen = {"t": times[0], **chosen}
         return chosen
     strange = [c for c in channels if c.unit and c.unit.strip() and lookup(c.unit) is None]

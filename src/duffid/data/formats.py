@@ -106,4 +106,4 @@ def read_arrays(path: str | os.PathLike[str], *, format: str | None = None,
         raise InputError("CSV files are read by Record.read_csv")
     _exists(source)
     with FORMATS[fmt].open_channels(source) as channels:
-        return assemble(select(channels, columns, source), source, scale=scale, fs=fs)
+        return assemble(select(channels, columns, source, time=fs is None), source, scale=scale, fs=fs)
