@@ -43,6 +43,7 @@ def _python_windows(ident, rec):
     ("haar", {"n_terms": 32, "repeated": "exact"}),
     ("legendre", {"window": 0.2, "every": 130}),     # overlapping windows: two open at once
     ("legendre", {"window": 0.05, "n_terms": 12, "every": 3}),  # a solve every 3 samples: 3 stages
+    ("legendre", {"window": 0.02, "n_terms": 8, "every": 2}),   # every 2: solved at the window's end
 ])
 def test_double_equals_python_per_window(record, method, options):
     c = CBufferedIdentifier(Duffing1(), record.dt, method, **options)

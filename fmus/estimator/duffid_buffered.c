@@ -40,14 +40,18 @@ struct duffid_buffered {
     duffid_real *B;     /* chunk x (unknowns + 1), column-major: one equation's [A D] rows */
     duffid_real *R;     /* per equation: the (unknowns + 1)^2 factor of the window being solved */
     duffid_real *norm2, *bound2; /* per equation and column: squares of the rows and of their rounding bounds */
-    duffid_real *U, *Rinv, *scale, *rse;
+    duffid_real *rse;           /* workspace */
+    duffid_real *U, *Rinv, *scale; /* per equation: the equilibrated factor, its inverse, the column scales */
+    duffid_real *eq_cond;       /* per equation: its condition number (infinite: singular or held) */
+    int *eq_state;              /* per equation: SOLVABLE, SINGULAR or HELD (no known term) */
     duffid_real *V;     /* per equation: unknowns x unknowns, the Jacobi iteration's start */
     int *warm;          /* per equation */
     duffid_real *held;  /* per equation: its unknowns of the latest solved window */
     int *offset;        /* per equation: first unknown in held, first square in V, first in R, first
                          * column in norm2 / bound2 */
     int chunk;          /* rows per stage */
-    int stages;         /* stages of a window's solve: row chunks, then the solve */
+    int stages;         /* stages of a window's solve: row chunks, the conditions, the unknowns */
+    int immediate;      /* 1: all stages at the window's last sample (every < 3) */
     /* state */
     int64_t n;          /* samples received - 1 (-1: none) */
     int pending;        /* the slot whose window is being solved, -1: none */
@@ -111,19 +115,26 @@ static long every_of(const duffid_buffered_config *cfg)
     return cfg->every > 0 ? cfg->every : cfg->tables->n_intervals;
 }
 
-/* stages of one window's solve: the row chunks and the solve, at most every (a window ends
- * every `every` samples; its solve is done before the next ends) */
+/* stages of one window's solve: the row chunks, the factors' inverses, their condition
+ * numbers, the unknowns; at most every (a window ends every `every` samples: its solve is
+ * done before the next ends), and when fewer than 4 fit, all of them at the window's last
+ * sample */
 static int stages_of(const duffid_buffered_config *cfg)
 {
     const int kept = cfg->tables->n_kept;
     const long every = every_of(cfg);
-    const long wanted = (kept + ROWS_PER_STAGE - 1) / ROWS_PER_STAGE + 1;
-    return (int)(wanted < every ? wanted : (every > 2 ? every : 2));
+    const long wanted = (kept + ROWS_PER_STAGE - 1) / ROWS_PER_STAGE + 3;
+    return (int)(wanted < every ? wanted : every);
+}
+
+static int immediate(const duffid_buffered_config *cfg)
+{
+    return stages_of(cfg) < 4;
 }
 
 static int chunk_of(const duffid_buffered_config *cfg)
 {
-    const int kept = cfg->tables->n_kept, chunks = stages_of(cfg) - 1;
+    const int kept = cfg->tables->n_kept, chunks = immediate(cfg) ? 1 : stages_of(cfg) - 3;
     return (kept + chunks - 1) / chunks;
 }
 
@@ -131,7 +142,7 @@ static long slots_of(const duffid_buffered_config *cfg)
 {
     /* windows open at once, and the one being solved: a slot is reused once its solve is done */
     const long N = cfg->tables->n_intervals, every = every_of(cfg);
-    return (N + stages_of(cfg) + every - 1) / every;
+    return (N + (immediate(cfg) ? 1 : stages_of(cfg)) + every - 1) / every;
 }
 
 /* the block after the structure; base NULL: sizes only */
@@ -157,10 +168,12 @@ static size_t layout(const duffid_buffered_config *cfg, duffid_buffered *est, ch
     CARVE(&c, est->R, sum_unknowns(tb, 2));
     CARVE(&c, est->norm2, sum_unknowns(tb, 3));
     CARVE(&c, est->bound2, sum_unknowns(tb, 3));
-    CARVE(&c, est->U, (p - 1) * (p - 1));
-    CARVE(&c, est->Rinv, (p - 1) * (p - 1));
-    CARVE(&c, est->scale, p - 1);
+    CARVE(&c, est->U, sum_unknowns(tb, 1));
     CARVE(&c, est->rse, p - 1);
+    CARVE(&c, est->Rinv, sum_unknowns(tb, 1));
+    CARVE(&c, est->scale, sum_unknowns(tb, 0));
+    CARVE(&c, est->eq_cond, n_eq);
+    CARVE(&c, est->eq_state, n_eq);
     CARVE(&c, est->V, sum_unknowns(tb, 1));
     CARVE(&c, est->warm, n_eq);
     CARVE(&c, est->held, sum_unknowns(tb, 0));
@@ -417,7 +430,8 @@ int duffid_buffered_init(duffid_buffered **out, void *memory, size_t size, const
         off4 += n + 1;
     }
     est->chunk = chunk_of(cfg);
-    est->stages = stages_of(cfg);
+    est->stages = immediate(cfg) ? (tb->n_kept + est->chunk - 1) / est->chunk + 3 : stages_of(cfg);
+    est->immediate = immediate(cfg);
     duffid_buffered_reset(est);
     *out = est;
     return DUFFID_OK;
@@ -450,24 +464,37 @@ static duffid_real channel_value(const duffid_buffered *est, const duffid_buffer
     return out;
 }
 
-/* the coefficients of one window: sample i (of 0..N) with channel values g */
+/* the coefficients of one window: sample i (of 0..N) with channel values g (two of the
+ * (power, channel) accumulators per pass over the sample's weights) */
 static void accumulate(duffid_buffered *est, int slot, long i, const duffid_real *g)
 {
-    const int r = est->r, n_ch = est->n_ch, n_ord = est->n_ord;
+    const int r = est->r, n_ch = est->n_ch, K = est->n_ord * est->n_ch;
     const duffid_real *q = est->tb->Q + (size_t)i * (size_t)r;
     const duffid_real s = (duffid_real)i / (duffid_real)est->N;
-    duffid_real *coef = est->coef + (size_t)slot * (size_t)(n_ord * n_ch * r);
-    duffid_real sp = RC(1.0);
-    int p, c, j;
-    for (p = 0; p < n_ord; p++) {
+    duffid_real *coef = est->coef + (size_t)slot * (size_t)(K * r);
+    duffid_real w[MAX_ORD * DUFFID_MAX_CHANNELS], sp = RC(1.0);
+    int p, c, j, k;
+    for (p = 0, k = 0; p < est->n_ord; p++) { /* the sample's channels times s^p */
         for (c = 0; c < n_ch; c++) {
-            const duffid_real w = g[c] * sp;
-            duffid_real *a = coef + (p * n_ch + c) * r;
-            for (j = 0; j < r; j++) {
-                a[j] += q[j] * w;
-            }
+            w[k++] = g[c] * sp;
         }
         sp *= s;
+    }
+    for (k = 0; k + 1 < K; k += 2) {
+        duffid_real *a = coef + k * r, *b = a + r;
+        const duffid_real wa = w[k], wb = w[k + 1];
+        for (j = 0; j < r; j++) {
+            const duffid_real qj = q[j];
+            a[j] += qj * wa;
+            b[j] += qj * wb;
+        }
+    }
+    if (k < K) {
+        duffid_real *a = coef + k * r;
+        const duffid_real wa = w[k];
+        for (j = 0; j < r; j++) {
+            a[j] += q[j] * wa;
+        }
     }
     for (c = 0; c < n_ch; c++) {
         est->sumsq[slot * n_ch + c] += g[c] * g[c];
@@ -575,33 +602,69 @@ static duffid_real rows_rounding(const duffid_buffered *est, int e)
     return rounding;
 }
 
-/* BufferedIdentifier.solve_window's solve, on the factors of the window's rows */
-static void solve(duffid_buffered *est)
+enum { SOLVABLE, SINGULAR, HELD };
+
+/* the scales, equilibrated factors and their inverses of every equation (range = 0), or the
+ * condition numbers of the solvable ones (range = 1) */
+static void solve_conditions(duffid_buffered *est, int range)
+{
+    const duffid_buffered_tables *tb = est->tb;
+    int e, i;
+    for (e = 0; e < tb->n_equations; e++) {
+        const int n = tb->n_unknowns[e], p = n + 1;
+        const duffid_real *R = est->R + est->offset[4 * e + 2];
+        duffid_real *U = est->U + est->offset[4 * e + 1];
+        if (range) {
+            if (est->eq_state[e] == SOLVABLE &&
+                duffid_la_factor_range(n, U, est->cond_limit, est->V + est->offset[4 * e + 1], &est->warm[e],
+                                       &est->eq_cond[e]) != 0) {
+                est->eq_state[e] = SINGULAR;
+            }
+            continue;
+        }
+        {
+            int known = 0;
+            for (i = 0; i < p; i++) {
+                known |= R[i * p + n] != RC(0.0);
+            }
+            est->eq_cond[e] = R_INF;
+            if (!known) { /* no force (or other known term) in the rows: the scale is free; hold */
+                est->eq_state[e] = HELD;
+            } else if (duffid_la_factor_prepare(n, R, est->scale + est->offset[4 * e], U,
+                                                est->Rinv + est->offset[4 * e + 1]) != 0) {
+                est->eq_state[e] = SINGULAR;
+                est->warm[e] = 0;
+            } else {
+                est->eq_state[e] = SOLVABLE;
+            }
+        }
+    }
+}
+
+/* BufferedIdentifier.solve_window's unknowns, errors and verdict, from the conditions */
+static void solve_unknowns(duffid_buffered *est)
 {
     const duffid_buffered_tables *tb = est->tb;
     duffid_real cond = RC(0.0), worst = RC(0.0);
     int e, i, all_finite = 1;
     for (e = 0; e < tb->n_equations; e++) {
-        const int n = tb->n_unknowns[e], p = n + 1;
-        const duffid_real *R = est->R + est->offset[4 * e + 2];
-        duffid_real *held = est->held + est->offset[4 * e], *V = est->V + est->offset[4 * e + 1];
-        duffid_real c = R_INF, rounding = rows_rounding(est, e);
-        int known = 0;
-        for (i = 0; i < p; i++) {
-            known |= R[i * p + n] != RC(0.0);
-        }
-        if (!known) { /* no force (or other known term) in the rows: the scale is free; hold */
+        const int n = tb->n_unknowns[e];
+        duffid_real *held = est->held + est->offset[4 * e];
+        const duffid_real c = est->eq_cond[e], rounding = rows_rounding(est, e);
+        if (est->eq_state[e] == HELD) {
             cond = R_INF;
             worst = R_INF;
             continue;
         }
-        if (duffid_la_solve_factor(n, R, (duffid_real)tb->n_kept, RC(1.0), est->cond_limit, est->scale, est->U,
-                                   est->Rinv, V, &est->warm[e], held, est->rse, &c) != 0) {
+        if (est->eq_state[e] == SINGULAR) {
             for (i = 0; i < n; i++) {
                 held[i] = R_NAN;
                 est->rse[i] = R_INF;
             }
-            c = R_INF;
+        } else {
+            duffid_la_factor_unknowns(n, est->R + est->offset[4 * e + 2], (duffid_real)tb->n_kept, RC(1.0),
+                                      est->scale + est->offset[4 * e], est->Rinv + est->offset[4 * e + 1], held,
+                                      est->rse);
         }
         cond = c > cond ? c : cond;
         for (i = 0; i < n; i++) {
@@ -634,7 +697,7 @@ static int solve_stage(duffid_buffered *est)
         memset(est->norm2, 0, (size_t)sum_unknowns(tb, 3) * sizeof(duffid_real));
         memset(est->bound2, 0, (size_t)sum_unknowns(tb, 3) * sizeof(duffid_real));
     }
-    if (est->stage < est->stages - 1) {
+    if (est->stage < est->stages - 3) {
         const int row0 = est->stage * est->chunk;
         const int row1 = row0 + est->chunk < tb->n_kept ? row0 + est->chunk : tb->n_kept;
         if (row0 < row1) {
@@ -646,7 +709,12 @@ static int solve_stage(duffid_buffered *est)
         est->stage++;
         return 0;
     }
-    solve(est); /* (the slot is free from here: its position is past the window) */
+    if (est->stage < est->stages - 1) { /* the factors' inverses, then their condition numbers */
+        solve_conditions(est, est->stage == est->stages - 2);
+        est->stage++;
+        return 0;
+    }
+    solve_unknowns(est); /* (the slot is free from here: its position is past the window) */
     est->pending = -1;
     est->stage = 0;
     return 1;
@@ -657,10 +725,9 @@ static void report(const duffid_buffered *est, int solved, duffid_buffered_outpu
     int i;
     out->t = (duffid_real)est->n * est->cfg.dt;
     out->n_parameters = est->tb->n_parameters;
-    for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
-        const int used = i < out->n_parameters;
-        out->current[i] = used ? est->current[i] : R_NAN;
-        out->parameters[i] = used && est->identified ? est->current[i] : R_NAN;
+    for (i = 0; i < out->n_parameters; i++) { /* (the entries beyond are not written) */
+        out->current[i] = est->current[i];
+        out->parameters[i] = est->identified ? est->current[i] : R_NAN;
     }
     out->identified = est->identified;
     out->solved = solved;
@@ -725,6 +792,9 @@ int duffid_buffered_update(duffid_buffered *est, const duffid_real *x, const duf
             if (est->pos[i] == est->N) { /* complete: solved over the next samples */
                 est->pending = i;
                 est->stage = 0;
+                while (est->immediate && !solved) {
+                    solved = solve_stage(est);
+                }
             }
             est->pos[i]++;
         }
@@ -737,7 +807,7 @@ int duffid_buffered_update(duffid_buffered *est, const duffid_real *x, const duf
 
 long duffid_buffered_latency(const duffid_buffered *est)
 {
-    return est != NULL ? (long)est->stages : 0L;
+    return est != NULL && !est->immediate ? (long)est->stages : 0L;
 }
 
 size_t duffid_buffered_output_size(void)

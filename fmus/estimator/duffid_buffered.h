@@ -18,7 +18,8 @@
  *     Householder reflections; the unknowns and their standard errors come from the
  *     triangular inverse, the condition number from a Jacobi iteration (as in the online
  *     core, duffid_linalg.h). A window's solution is output duffid_buffered_latency()
- *     samples after its last sample (ceil(r' / 2) + 1, at most `every`).
+ *     samples after its last sample (ceil(r' / 2) + 3, at most `every`; 0 when `every` < 4:
+ *     then the window's last update solves it).
  *
  * Honesty: a window's estimate is published (parameters[]) only when the column-equilibrated
  * condition number is at most max_condition (and, in single precision, 0.01 / eps) and every
@@ -103,6 +104,7 @@ typedef struct duffid_buffered_config {
 
 typedef struct duffid_buffered_output {
     duffid_real t;                             /* time of the sample, n dt [s] */
+    /* entries 0 .. n_parameters - 1 (those beyond are not written) */
     duffid_real parameters[DUFFID_MAX_PARAMS]; /* the latest window's solution, NaN unless identified */
     duffid_real current[DUFFID_MAX_PARAMS];    /* the latest window's solution, trusted or not */
     int n_parameters;

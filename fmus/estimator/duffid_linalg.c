@@ -541,13 +541,10 @@ duffid_real duffid_la_hypot(duffid_real a, duffid_real b)
 #endif
 }
 
-int duffid_la_solve_factor(int n, const duffid_real *Raug, duffid_real rows, duffid_real overlap,
-                           duffid_real cond_limit, duffid_real *scale, duffid_real *U, duffid_real *Rinv,
-                           duffid_real *v, int *warm, duffid_real *theta, duffid_real *rse, duffid_real *cond)
+int duffid_la_factor_prepare(int n, const duffid_real *Raug, duffid_real *scale, duffid_real *U, duffid_real *Rinv)
 {
     const int p = n + 1;
-    duffid_real c, dof, s2, hi, lo;
-    int i, j, k;
+    int i, j;
     for (j = 0; j < n; j++) { /* column norms: np.linalg.norm(R, axis=0), rows in order */
         duffid_real sum = RC(0.0);
         for (i = 0; i <= j; i++) {
@@ -557,7 +554,6 @@ int duffid_la_solve_factor(int n, const duffid_real *Raug, duffid_real rows, duf
     }
     for (j = 0; j < n; j++) {
         if (!(scale[j] > RC(0.0))) {
-            *warm = 0;
             return 1;
         }
     }
@@ -566,10 +562,13 @@ int duffid_la_solve_factor(int n, const duffid_real *Raug, duffid_real rows, duf
             U[i * n + j] = j >= i ? Raug[i * p + j] / scale[j] : RC(0.0);
         }
     }
-    if (duffid_la_upper_inverse(n, U, n, Rinv) != 0) {
-        *warm = 0;
-        return 1;
-    }
+    return duffid_la_upper_inverse(n, U, n, Rinv) != 0;
+}
+
+int duffid_la_factor_range(int n, const duffid_real *U, duffid_real cond_limit, duffid_real *v, int *warm,
+                           duffid_real *cond)
+{
+    duffid_real c, hi, lo;
     duffid_la_singular_range(n, U, v, *warm, &hi, &lo);
     c = lo > RC(0.0) ? hi / lo : R_INF;
     if (!(c <= cond_limit)) { /* also NaN */
@@ -578,6 +577,26 @@ int duffid_la_solve_factor(int n, const duffid_real *Raug, duffid_real rows, duf
     }
     *warm = 1;
     *cond = c;
+    return 0;
+}
+
+int duffid_la_factor_condition(int n, const duffid_real *Raug, duffid_real cond_limit, duffid_real *scale,
+                               duffid_real *U, duffid_real *Rinv, duffid_real *v, int *warm, duffid_real *cond)
+{
+    if (duffid_la_factor_prepare(n, Raug, scale, U, Rinv) != 0) {
+        *warm = 0;
+        return 1;
+    }
+    return duffid_la_factor_range(n, U, cond_limit, v, warm, cond);
+}
+
+void duffid_la_factor_unknowns(int n, const duffid_real *Raug, duffid_real rows, duffid_real overlap,
+                               const duffid_real *scale, const duffid_real *Rinv, duffid_real *theta,
+                               duffid_real *rse)
+{
+    const int p = n + 1;
+    duffid_real dof, s2;
+    int i, k;
     for (i = 0; i < n; i++) { /* theta = R^-1 d / scale: the triangular inverse is R^-1 */
         duffid_real sum = RC(0.0);
         for (k = i; k < n; k++) {
@@ -590,7 +609,7 @@ int duffid_la_solve_factor(int n, const duffid_real *Raug, duffid_real rows, duf
         for (i = 0; i < n; i++) {
             rse[i] = R_INF;
         }
-        return 0;
+        return;
     }
     s2 = Raug[n * p + n] * Raug[n * p + n] / dof * overlap;
     for (i = 0; i < n; i++) {
@@ -601,6 +620,16 @@ int duffid_la_solve_factor(int n, const duffid_real *Raug, duffid_real rows, duf
         std = R_SQRT(s2 * duffid_la_pairwise_sum(sq, n - i, 1)) / scale[i];
         rse[i] = theta[i] != RC(0.0) ? std / R_FABS(theta[i]) : R_INF;
     }
+}
+
+int duffid_la_solve_factor(int n, const duffid_real *Raug, duffid_real rows, duffid_real overlap,
+                           duffid_real cond_limit, duffid_real *scale, duffid_real *U, duffid_real *Rinv,
+                           duffid_real *v, int *warm, duffid_real *theta, duffid_real *rse, duffid_real *cond)
+{
+    if (duffid_la_factor_condition(n, Raug, cond_limit, scale, U, Rinv, v, warm, cond) != 0) {
+        return 1;
+    }
+    duffid_la_factor_unknowns(n, Raug, rows, overlap, scale, Rinv, theta, rse);
     return 0;
 }
 

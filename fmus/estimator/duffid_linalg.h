@@ -96,6 +96,18 @@ duffid_real duffid_la_hypot(duffid_real a, duffid_real b);
 int duffid_la_solve_factor(int n, const duffid_real *Raug, duffid_real rows, duffid_real overlap,
                            duffid_real cond_limit, duffid_real *scale, duffid_real *U, duffid_real *Rinv,
                            duffid_real *v, int *warm, duffid_real *theta, duffid_real *rse, duffid_real *cond);
+/* Its parts, for callers that spread the work over several samples: the column scales, the
+ * equilibrated factor U and its triangular inverse (0, or 1 for a zero column or pivot);
+ * the condition number of U (0, or 1 when non-finite or above cond_limit; *warm as above);
+ * both (duffid_la_factor_condition); the unknowns and their errors from those. */
+int duffid_la_factor_prepare(int n, const duffid_real *Raug, duffid_real *scale, duffid_real *U, duffid_real *Rinv);
+int duffid_la_factor_range(int n, const duffid_real *U, duffid_real cond_limit, duffid_real *v, int *warm,
+                           duffid_real *cond);
+int duffid_la_factor_condition(int n, const duffid_real *Raug, duffid_real cond_limit, duffid_real *scale,
+                               duffid_real *U, duffid_real *Rinv, duffid_real *v, int *warm, duffid_real *cond);
+void duffid_la_factor_unknowns(int n, const duffid_real *Raug, duffid_real rows, duffid_real overlap,
+                               const duffid_real *scale, const duffid_real *Rinv, duffid_real *theta,
+                               duffid_real *rse);
 
 /* Determinant by LU with partial pivoting, returned as numpy's det does:
  * sign * exp(sum log |u_ii|) (0 for an exactly singular matrix). a is destroyed. */
