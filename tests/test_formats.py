@@ -347,12 +347,14 @@ def test_wav_integer_pcm_requires_a_scale(files):
 
 def test_uff_function_type_and_exponents_are_checked(tmp_path, record):
     frf = _set58(record, record.f[:, 0], "H1", 0, "N", 13, (0, 1), func_type=4)
-    path = write_uff(tmp_path / "frf.uff", record, sets=[frf, _set58(record, record.x[:, 0], "laser", 0, "m", 8, (1, 0))])
+    laser = _set58(record, record.x[:, 0], "laser", 0, "m", 8, (1, 0))
+    path = write_uff(tmp_path / "frf.uff", record, sets=[frf, laser])
     with pytest.raises(RecordError, match=r"frf\.uff, channel 'H1': data set 1 is a frequency response function "
                                           r"\(function type 4\); duffid reads time responses \(type 1\)"):
         Record.read(path, columns={"f": "H1", "x": "laser"})
     bad = _set58(record, record.x[:, 0], "laser", 0, "m", 8, (0, 1))
-    path = write_uff(tmp_path / "exp.uff", record, sets=[_set58(record, record.f[:, 0], "load cell", 0, "N", 13, (0, 1)), bad])
+    cell = _set58(record, record.f[:, 0], "load cell", 0, "N", 13, (0, 1))
+    path = write_uff(tmp_path / "exp.uff", record, sets=[cell, bad])
     with pytest.raises(RecordError, match=r"exp\.uff, channel 'laser': data set 2 names the unit 'm' \(displacement\) "
                                           r"but its ordinate's length and force exponents are 0 and 1"):
         Record.read(path, columns={"f": 1, "x": 2})

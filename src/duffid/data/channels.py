@@ -21,7 +21,8 @@ import numpy as np
 from ..errors import RecordError
 from .units import QUANTITY_OF_ROLE, lookup, si_factor
 
-__all__ = ["Channel", "ROLE_PATTERN", "MOTION_NOT_YET", "check_roles", "channel_table", "select", "assemble"]
+__all__ = ["Channel", "ROLE_PATTERN", "MOTION_NOT_YET", "numeric", "check_roles", "channel_table", "select",
+           "assemble"]
 
 #: A role of the selection syntax: ``t``, ``f``, ``x``, ``v``, ``a`` or numbered ``f1``, ``x2``, ...
 ROLE_PATTERN = re.compile(r"[tfxva]|[fxva][1-9][0-9]*", re.ASCII)
@@ -36,6 +37,11 @@ _NAME_HINTS = {
     "acceleration": re.compile(r"a\d*|acc\w*|accel\w*|acceleration\w*", re.I),
 }
 _FAMILY_WORDS = {"f": "forces", "x": "displacements", "v": "velocities", "a": "accelerations"}
+
+
+def numeric(dtype: np.dtype) -> bool:
+    """Whether values of ``dtype`` are real numbers (not text, timestamps, compound, complex or boolean)."""
+    return bool(np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating))
 
 
 @dataclass(frozen=True)

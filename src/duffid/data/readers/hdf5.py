@@ -15,11 +15,11 @@ from typing import Any
 import numpy as np
 
 from ...errors import RecordError
-from ..channels import Channel
+from ..channels import Channel, numeric
 from . import optional_import
 
 __all__ = ["EXTENSIONS", "RATE_ATTRIBUTES", "STEP_ATTRIBUTES", "START_ATTRIBUTES", "UNIT_ATTRIBUTES",
-           "open_file", "numeric", "open_channels"]
+           "open_file", "open_channels"]
 
 EXTENSIONS = (".h5", ".hdf5", ".hdf", ".he5")
 #: Attributes holding a sampling rate [Hz], in the order they are looked for.
@@ -32,11 +32,6 @@ START_ATTRIBUTES = ("t0", "start_time", "wf_start_offset", "start")
 UNIT_ATTRIBUTES = ("unit", "units", "unit_string", "unit_str")
 
 
-def numeric(dtype: np.dtype) -> bool:
-    """Whether values of ``dtype`` are real numbers (not text, compound, complex or boolean)."""
-    return bool(np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating))
-
-
 @contextmanager
 def open_file(path: str, what: str, advice: str = "") -> Iterator[Any]:
     """The HDF5 file ``path`` open for reading (``what``: the format's name for messages; ``advice``:
@@ -47,7 +42,8 @@ def open_file(path: str, what: str, advice: str = "") -> Iterator[Any]:
     except FileNotFoundError:
         raise RecordError(f"{path}: no such file") from None
     except OSError as exc:
-        raise RecordError(f"{path}: " + (advice.format(exc=exc) if advice else f"not a readable {what} ({exc})")) from None
+        reason = advice.format(exc=exc) if advice else f"not a readable {what} ({exc})"
+        raise RecordError(f"{path}: {reason}") from None
     with handle:
         yield handle
 
@@ -95,12 +91,7 @@ def _vector_reader(dataset: Any) -> Any:
 def open_channels(path: str) -> Iterator[list[Channel]]:
     """The vector datasets of the HDF5 file ``path`` as channels (open while the context lasts).
 
-    Raises
-    ------
-    RecordError
-        The file is not a readable HDF5 file, or an attribute is not a number.
-    MissingDependencyError
-        h5py is not installed.
+    Errors as :mod:`duffid.data.readers` says.
     """
     with open_file(path, "HDF5 file") as handle:
         h5py = optional_import("h5py", "HDF5 files")  # loaded by open_file

@@ -13,12 +13,11 @@ from typing import Any
 
 import numpy as np
 import scipy.io
-from scipy.io.matlab import MatReadError
 
-from ...errors import MissingDependencyError, RecordError
-from ..channels import Channel
-from . import optional_import
-from .hdf5 import numeric, open_file
+from ...errors import MissingDependencyError
+from ..channels import Channel, numeric
+from . import optional_import, reading
+from .hdf5 import open_file
 
 __all__ = ["EXTENSIONS", "is_v73", "open_channels"]
 
@@ -28,11 +27,8 @@ _NUMERIC_CLASSES = {"double", "single", "int8", "uint8", "int16", "uint16", "int
 
 def is_v73(path: str) -> bool:
     """Whether ``path`` is a MATLAB v7.3 file (an HDF5 file), which scipy cannot read."""
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(128)
-    except OSError as exc:
-        raise RecordError(f"{path}: cannot read file: {exc.strerror or exc}") from None
+    with reading(path, "MATLAB .mat file"), open(path, "rb") as fh:
+        head = fh.read(128)
     return head.startswith(b"MATLAB 7.3") or head.startswith(b"\x89HDF")
 
 
@@ -47,12 +43,8 @@ def _columns(name: str, shape: tuple[int, ...], kind: str, column: Callable[[int
 
 @contextmanager
 def _v5(path: str) -> Iterator[list[Channel]]:
-    try:
+    with reading(path, "MATLAB .mat file"):
         listed = scipy.io.whosmat(path, appendmat=False)
-    except OSError as exc:
-        raise RecordError(f"{path}: cannot read file: {exc.strerror or exc}") from None
-    except (MatReadError, ValueError, TypeError, IndexError, KeyError) as exc:
-        raise RecordError(f"{path}: not a readable MATLAB .mat file ({exc or type(exc).__name__})") from None
     cache: dict[str, np.ndarray] = {}
 
     def column(name: str) -> Callable[[int], Callable[[], np.ndarray]]:
@@ -104,12 +96,7 @@ def _v73(path: str) -> Iterator[list[Channel]]:
 def open_channels(path: str) -> Iterator[list[Channel]]:
     """The numeric variables of the MATLAB file ``path`` as channels (v5 and v7.3).
 
-    Raises
-    ------
-    RecordError
-        The file is not a readable ``.mat`` file.
-    MissingDependencyError
-        h5py is not installed (v7.3 files only).
+    Errors as :mod:`duffid.data.readers` says.
     """
     with (_v73 if is_v73(path) else _v5)(path) as channels:
         yield channels

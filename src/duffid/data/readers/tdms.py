@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 from ...errors import RecordError
-from ..channels import Channel
-from . import optional_import
+from ..channels import Channel, numeric
+from . import optional_import, reading
 
 __all__ = ["EXTENSIONS", "open_channels"]
 
@@ -25,7 +25,7 @@ EXTENSIONS = (".tdms",)
 def _reader(path: str, name: str, channel: Any) -> Any:
     def read() -> np.ndarray:
         data = channel[:]
-        if not (np.issubdtype(data.dtype, np.integer) or np.issubdtype(data.dtype, np.floating)):
+        if not numeric(data.dtype):
             raise RecordError(f"{path}, channel {name!r}: holds {data.dtype} values, not numbers")
         return data
     return read
@@ -35,20 +35,11 @@ def _reader(path: str, name: str, channel: Any) -> Any:
 def open_channels(path: str) -> Iterator[list[Channel]]:
     """The channels of the TDMS file ``path`` (open while the context lasts).
 
-    Raises
-    ------
-    RecordError
-        The file is not a readable TDMS file.
-    MissingDependencyError
-        npTDMS is not installed.
+    Errors as :mod:`duffid.data.readers` says.
     """
     nptdms = optional_import("nptdms", "TDMS files")
-    try:
+    with reading(path, "TDMS file"):
         handle = nptdms.TdmsFile.open(path)
-    except OSError as exc:
-        raise RecordError(f"{path}: cannot read file: {exc.strerror or exc}") from None
-    except Exception as exc:  # npTDMS raises ValueError, KeyError, struct.error ... on a bad file
-        raise RecordError(f"{path}: not a readable TDMS file ({exc or type(exc).__name__})") from None
     with handle:
         channels = []
         for group in handle.groups():

@@ -11,6 +11,7 @@ import numpy as np
 
 from ...errors import RecordError
 from ..channels import Channel
+from . import reading
 
 __all__ = ["EXTENSIONS", "open_channels"]
 
@@ -25,16 +26,10 @@ def _not_readable() -> np.ndarray:
 def open_channels(path: str) -> Iterator[list[Channel]]:
     """The columns of the text file ``path`` (names, units row, rows; the rate from a ``t`` column).
 
-    Raises
-    ------
-    RecordError
-        The file cannot be read or has no header line.
+    Errors as :mod:`duffid.data.readers` says.
     """
-    try:
-        with open(path, encoding="utf-8-sig", newline="") as fh:
-            lines = [line for line in fh.read().splitlines() if line.strip()]
-    except (OSError, UnicodeDecodeError) as exc:
-        raise RecordError(f"{path}: cannot read file as text: {exc}") from None
+    with reading(path, "text file"), open(path, encoding="utf-8-sig", newline="") as fh:
+        lines = [line for line in fh.read().splitlines() if line.strip()]
     body = [line for line in lines if not line.lstrip().startswith("#")]
     if not body:
         raise RecordError(f"{path}: empty file, expected a header line followed by data rows")

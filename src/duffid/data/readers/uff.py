@@ -15,10 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import RecordError
 from ..channels import Channel
 from ..units import lookup
-from . import optional_import
+from . import optional_import, reading
 
 __all__ = ["EXTENSIONS", "FUNCTION_TYPES", "open_channels"]
 
@@ -30,7 +29,8 @@ FUNCTION_TYPES = {0: "general or unknown", 1: "time response", 2: "auto spectrum
                   11: "probability density function", 12: "spectrum", 13: "cumulative frequency distribution",
                   14: "peaks valley", 15: "stress/cycles", 16: "strain/cycles", 17: "orbit",
                   18: "mode indicator function", 19: "force pattern", 20: "partial power", 21: "partial coherence",
-                  22: "eigenvalue", 23: "eigenvector", 24: "shock response spectrum", 25: "finite impulse response filter",
+                  22: "eigenvalue", 23: "eigenvector", 24: "shock response spectrum",
+                  25: "finite impulse response filter",
                   26: "multiple coherence", 27: "order function"}
 #: Ordinate specific data types -> SI unit, for data sets without a unit label.
 _DATA_TYPE_UNITS = {8: "m", 9: "N", 11: "m/s", 12: "m/s^2", 13: "N"}
@@ -45,7 +45,6 @@ def _label(value: Any) -> str:
 
 
 def _channel(path: str, uff: Any, index: int, number: int, head: dict[str, Any]) -> Channel:
-    place = f"{path}, data set {number} (58{'b' if head.get('binary') else ''})"
     name = _label(head.get("id1")) or f"set {number}"
     func = int(head.get("func_type", 0))
     problem = ""
@@ -58,7 +57,8 @@ def _channel(path: str, uff: Any, index: int, number: int, head: dict[str, Any])
         problem = "has an uneven abscissa; duffid never resamples: write it evenly spaced"
     elif int(head.get("abscissa_spec_data_type", _TIME)) not in (0, _TIME):
         problem = f"has an abscissa of specific data type {head['abscissa_spec_data_type']}, not time (17)"
-    unit = _label(head.get("ordinate_axis_units_lab")) or _DATA_TYPE_UNITS.get(int(head.get("ordinate_spec_data_type", 0)))
+    unit = _label(head.get("ordinate_axis_units_lab")) or \
+        _DATA_TYPE_UNITS.get(int(head.get("ordinate_spec_data_type", 0)))
     exponents = (int(head.get("ordinate_len_unit_exp", 0)), int(head.get("ordinate_force_unit_exp", 0)))
     known = lookup(unit)
     if not problem and known is not None and exponents != (0, 0) and \
@@ -68,15 +68,13 @@ def _channel(path: str, uff: Any, index: int, number: int, head: dict[str, Any])
     increment = float(head.get("abscissa_inc", 0.0) or 0.0)
 
     def read() -> np.ndarray:
-        try:
-            data = uff.read_sets(index)["data"]
-        except Exception as exc:  # pyuff raises bare Exception on a damaged data set
-            raise RecordError(f"{place} {name!r}: cannot be read ({exc})") from None
-        return np.asarray(data, dtype=np.float64)
+        with reading(path, f"UFF data set {number} {name!r}"):
+            return np.asarray(uff.read_sets(index)["data"], dtype=np.float64)
 
     kind = f"58{'b' if head.get('binary') else ''} {FUNCTION_TYPES.get(func, f'type {func}')}"
     return Channel(name, unit, int(head.get("num_pts", 0)), 1.0 / increment if increment > 0 else None,
-                   float(head.get("abscissa_min", 0.0) or 0.0), kind, problem=f"data set {number} {problem}" if problem else "",
+                   float(head.get("abscissa_min", 0.0) or 0.0), kind,
+                   problem=f"data set {number} {problem}" if problem else "",
                    read=read)
 
 
@@ -84,20 +82,11 @@ def _channel(path: str, uff: Any, index: int, number: int, head: dict[str, Any])
 def open_channels(path: str) -> Iterator[list[Channel]]:
     """The data sets 58 of the UFF file ``path`` as channels (headers only until one is read).
 
-    Raises
-    ------
-    RecordError
-        The file is not a readable UFF file.
-    MissingDependencyError
-        pyuff is not installed.
+    Errors as :mod:`duffid.data.readers` says.
     """
     pyuff = optional_import("pyuff", "UFF files")
-    try:
+    with reading(path, "UFF file"):
         uff = pyuff.UFF(path)
         types = [int(t) for t in uff.get_set_types()]
         heads = {k: uff.read_sets(k, header_only=True) for k, t in enumerate(types) if t == 58}
-    except OSError as exc:
-        raise RecordError(f"{path}: cannot read file: {exc.strerror or exc}") from None
-    except Exception as exc:  # pyuff raises bare Exception on a file it cannot parse
-        raise RecordError(f"{path}: not a readable UFF file ({exc or type(exc).__name__})") from None
     yield [_channel(path, uff, k, n + 1, head) for n, (k, head) in enumerate(heads.items())]

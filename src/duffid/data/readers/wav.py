@@ -15,6 +15,7 @@ import scipy.io.wavfile
 
 from ...errors import RecordError
 from ..channels import Channel
+from . import reading
 
 __all__ = ["EXTENSIONS", "open_channels"]
 
@@ -42,22 +43,15 @@ def _reader(data: np.ndarray, k: int) -> Callable[[], np.ndarray]:
 def open_channels(path: str) -> Iterator[list[Channel]]:
     """The channels of the WAV file ``path``.
 
-    Raises
-    ------
-    RecordError
-        The file is not a readable WAV file.
+    Errors as :mod:`duffid.data.readers` says.
     """
-    try:
+    with reading(path, "WAV file"):
         try:
             rate, data = scipy.io.wavfile.read(path, mmap=True)
         except ValueError as exc:  # 24-bit and a few other layouts cannot be memory-mapped
             if "mmap" not in str(exc):
                 raise
             rate, data = scipy.io.wavfile.read(path)
-    except OSError as exc:
-        raise RecordError(f"{path}: cannot read file: {exc.strerror or exc}") from None
-    except ValueError as exc:
-        raise RecordError(f"{path}: not a readable WAV file ({exc})") from None
     integer = data.dtype in _FULL_SCALE
     if not integer and not np.issubdtype(data.dtype, np.floating):
         raise RecordError(f"{path}: WAV samples of type {data.dtype} are not supported")
