@@ -456,3 +456,42 @@ def test_a_10m_sample_file_needs_at_most_three_times_its_data(tmp_path, kind):
     samples, used = (int(v) for v in done.stdout.split())
     assert samples == n
     assert used <= 3 * data_size, f"reading took {used / 1e6:.0f} MB for {data_size / 1e6:.0f} MB of data"
+
+
+# ---------------------------------------------------------------------- more selections and checks
+def test_csv_refuses_velocity_and_acceleration_roles(files):
+    with pytest.raises(RecordError, match=r"rec\.csv: a selects a acceleration channel and no displacement: "
+                                          r"identification from velocity \(v\) or acceleration \(a\) is not "
+                                          r"available yet"):
+        Record.read(files["csv"], columns={"t": "t", "f": "f", "a": "x"})
+
+
+def test_scale_reads_a_unit_duffid_does_not_know(tmp_path, record):
+    path = _tdms(tmp_path, record, disp={"unit_string": "furlong"})
+    got = Record.read(path, columns={"f": "Data/force", "x": "Data/disp"}, scale={"x": 1e-3})
+    np.testing.assert_allclose(got.x, record.x, rtol=1e-12)
+
+
+def test_a_time_channel_that_disagrees_with_the_rate_is_refused(tmp_path, record):
+    extra = [nptdms.ChannelObject("Data", "time", record.t * 2, {"unit_string": "s"})]
+    path = _tdms(tmp_path, record, extra=extra)
+    with pytest.raises(RecordError, match=r"the time channel 'Data/time' steps by 0\.002 s but channel 'Data/force' "
+                                          r"is sampled at 1000 Hz"):
+        Record.read(path, columns={"t": "Data/time", "f": "Data/force", "x": "Data/disp"})
+    got = Record.read(path)  # the waveforms carry their rate: the time channel is not needed
+    np.testing.assert_allclose(got.t, record.t, atol=1e-12)
+
+
+def test_readers_hand_over_their_arrays_without_a_copy(record):
+    t = np.array(record.t)
+    t.setflags(write=False)
+    kept = Record(t, record.f, record.x)
+    assert kept.t is t  # read-only and owned: adopted
+    writable = np.array(record.t)
+    assert Record(writable, record.f, record.x).t is not writable  # the caller could change it: copied
+
+
+def test_cli_nonlinearity_reads_every_format(capsys, files):
+    assert main(["nonlinearity", str(files["hdf5"]), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["source"] == str(files["hdf5"])

@@ -298,18 +298,23 @@ def assemble(chosen: Mapping[str, Channel], source: str, *, scale: Mapping[str, 
         raise RecordError(f"{source}: no sampling rate: channels {', '.join(repr(chosen[r].name) for r in roles)} "
                           "carry none; give the sampling rate (--fs) or a time channel (t=)")
 
-    def values(role: str, out: np.ndarray | None = None) -> np.ndarray:
+    factors = {}  # every unit and scale is checked before anything is read
+    for role in roles:
         channel = chosen[role]
         where = f"{source}, channel {channel.name!r}"
         if channel.problem:
             raise RecordError(f"{where}: {channel.problem}")
-        factor = scale.get(role, scale.get(role[0]))
-        if channel.needs_scale and factor is None:
+        given = scale.get(role, scale.get(role[0]))
+        if channel.needs_scale and given is None:
             raise RecordError(f"{where}: {channel.needs_scale}; give --scale {role}=FACTOR")
-        factor = si_factor(channel.unit, role, where, factor)
+        factors[role] = si_factor(channel.unit, role, where, given)
+
+    def values(role: str, out: np.ndarray | None = None) -> np.ndarray:
+        channel = chosen[role]
         raw = channel.read()
         if raw.shape != (channel.length,):
-            raise RecordError(f"{where}: read {raw.shape} values, the metadata say {channel.length}")
+            raise RecordError(f"{source}, channel {channel.name!r}: read {raw.shape} values, the metadata say "
+                              f"{channel.length}")
         if out is None:
             out = np.asarray(raw, dtype=np.float64)
             if out is raw and not (out.flags.owndata and out.flags.writeable):
@@ -317,8 +322,8 @@ def assemble(chosen: Mapping[str, Channel], source: str, *, scale: Mapping[str, 
         else:
             out[:] = raw
         del raw
-        if factor != 1.0:
-            out *= factor
+        if factors[role] != 1.0:
+            out *= factors[role]
         return out
 
     n = first.length
@@ -331,6 +336,10 @@ def assemble(chosen: Mapping[str, Channel], source: str, *, scale: Mapping[str, 
         columns[fam] = block
     if "t" in chosen:
         t = values("t")
+        step = (t[-1] - t[0]) / (n - 1) if n > 1 else math.nan
+        if rated and not math.isclose(step * rated[0].rate, 1.0, rel_tol=1e-6):
+            raise RecordError(f"{source}: the time channel {chosen['t'].name!r} steps by {step:.12g} s but channel "
+                              f"{rated[0].name!r} is sampled at {rated[0].rate:.12g} Hz; give one of them")
     else:
         rate = rated[0].rate if rated else fs
         start = rated[0].start if rated else 0.0
