@@ -400,6 +400,8 @@ def test_inspect_lists_channels_units_rates_lengths(capsys, files):
     assert "integer PCM" in data["channels"][0]["note"]
     assert main(["inspect", str(files["uff"])]) == 0
     assert "load cell" in capsys.readouterr().out
+    assert main(["inspect", str(files["wav-pcm24"])]) == 0
+    assert "PCM 24-bit" in capsys.readouterr().out
 
 
 def test_cli_errors_are_one_line_in_the_cli_voice(capsys, files, tmp_path):

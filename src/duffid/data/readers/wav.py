@@ -7,6 +7,7 @@ whose full scale is 500 N).
 """
 from __future__ import annotations
 
+import wave
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
@@ -39,6 +40,15 @@ def _reader(data: np.ndarray, k: int) -> Callable[[], np.ndarray]:
     return read
 
 
+def _bits(path: str) -> str:
+    """``"24-bit"``: the sample width of a PCM file, which scipy's int32 does not tell (24 or 32)."""
+    try:
+        with wave.open(path) as fh:
+            return f"{8 * fh.getsampwidth()}-bit"
+    except (wave.Error, EOFError, OSError):
+        return ""
+
+
 @contextmanager
 def open_channels(path: str) -> Iterator[list[Channel]]:
     """The channels of the WAV file ``path``.
@@ -55,7 +65,7 @@ def open_channels(path: str) -> Iterator[list[Channel]]:
     integer = data.dtype in _FULL_SCALE
     if not integer and not np.issubdtype(data.dtype, np.floating):
         raise RecordError(f"{path}: WAV samples of type {data.dtype} are not supported")
-    kind = f"PCM {data.dtype} (integer)" if integer else f"{data.dtype} (float)"
+    kind = f"PCM {_bits(path) or data.dtype}" if integer else f"{data.dtype} (float)"
     note = "integer PCM, in fractions of full scale: its SI value at full scale is required" if integer else ""
     n_channels = data.shape[1] if data.ndim == 2 else 1
     yield [Channel(str(k + 1), None, int(data.shape[0]), float(rate), 0.0, kind, note, read=_reader(data, k))
