@@ -553,11 +553,7 @@ class _Reader:
     def _binding_values(self, xml: XmlFile, binding: etree._Element) -> dict[str, _Value]:
         """name (prefix applied, mapping applied) -> value of one ParameterBinding."""
         place = xml.where(binding)
-        if binding.get("type", _SSV_TYPE) != _SSV_TYPE:
-            raise SspError(f"{place}: type={binding.get('type')!r}: duffid reads parameter sets ({_SSV_TYPE})")
-        if binding.get("sourceBase", "SSD") != "SSD":
-            raise SspError(f"{place}: sourceBase={binding.get('sourceBase')!r}: only sources relative to the SSD are "
-                           "supported")
+        self._check_reference(xml, binding, _SSV_TYPE, "parameter sets")
         values: dict[str, _Value] = {}
         inline = None
         mapping: list[tuple[str, str, bool, tuple[float, float] | None, str]] | None = None
@@ -596,13 +592,34 @@ class _Reader:
                                     value.definitions, linear or (1.0, 0.0))
         return mapped
 
+    def _transformation(self, xml: XmlFile, element: etree._Element) -> tuple[float, float] | None:
+        """(factor, offset) of the ``LinearTransformation`` inside a connection or mapping
+        entry (None without one); the other transformations are refused."""
+        linear = None
+        for child in _children(xml, element, ("LinearTransformation", "BooleanMappingTransformation",
+                                              "IntegerMappingTransformation", "EnumerationMappingTransformation",
+                                              "Annotations")):
+            tag = local_name(child)
+            if tag == "LinearTransformation":
+                linear = (_number(xml, child, "factor", 1.0), _number(xml, child, "offset", 0.0))
+            elif tag == "Annotations":
+                _annotations(xml, child, self.run.warnings)
+            else:
+                raise SspError(f"{xml.where(child)}: {tag} is not supported by duffid (LinearTransformation is)")
+        return linear
+
+    @staticmethod
+    def _check_reference(xml: XmlFile, element: etree._Element, mime: str, what: str) -> None:
+        """A parameter source or mapping must be SSP's own format, relative to the SSD."""
+        if element.get("type", mime) != mime:
+            raise SspError(f"{xml.where(element)}: type={element.get('type')!r}: duffid reads {what} ({mime})")
+        if element.get("sourceBase", "SSD") != "SSD":
+            raise SspError(f"{xml.where(element)}: sourceBase={element.get('sourceBase')!r}: only sources relative "
+                           "to the SSD are supported")
+
     def _mapping(self, xml: XmlFile, element: etree._Element) -> list[tuple[str, str, bool, tuple[float, float] | None, str]]:
         place = xml.where(element)
-        if element.get("type", _SSM_TYPE) != _SSM_TYPE:
-            raise SspError(f"{place}: type={element.get('type')!r}: duffid reads parameter mappings ({_SSM_TYPE})")
-        if element.get("sourceBase", "SSD") != "SSD":
-            raise SspError(f"{place}: sourceBase={element.get('sourceBase')!r}: only sources relative to the SSD are "
-                           "supported")
+        self._check_reference(xml, element, _SSM_TYPE, "parameter mappings")
         if element.get("source") is not None:
             ssm = self.package.xml(xml, element, "source")
             root = ssm.root
@@ -621,16 +638,7 @@ class _Reader:
             source, target = entry.get("source"), entry.get("target")
             if not source or not target:
                 raise SspError(f"{ssm.where(entry)}: a mapping entry needs a source and a target")
-            linear = None
-            for child in _children(ssm, entry, ("LinearTransformation", "Annotations", "BooleanMappingTransformation",
-                                                "IntegerMappingTransformation", "EnumerationMappingTransformation")):
-                tag = local_name(child)
-                if tag == "LinearTransformation":
-                    linear = (_number(ssm, child, "factor", 1.0), _number(ssm, child, "offset", 0.0))
-                elif tag == "Annotations":
-                    _annotations(ssm, child, self.run.warnings)
-                else:
-                    raise SspError(f"{ssm.where(child)}: {tag} is not supported by duffid (LinearTransformation is)")
+            linear = self._transformation(ssm, entry)
             out.append((source, target, _boolean(ssm, entry, "suppressUnitConversion"), linear, ssm.where(entry)))
         return out
 
@@ -768,17 +776,7 @@ class _Reader:
         """("connect", source, target, factor, offset, check_units, place), ("constant", system
         connector, target, factor, offset, _, place) or ("output", ...)."""
         place = xml.where(element)
-        linear = (1.0, 0.0)
-        for child in _children(xml, element, ("LinearTransformation", "BooleanMappingTransformation",
-                                              "IntegerMappingTransformation", "EnumerationMappingTransformation",
-                                              "Annotations")):
-            tag = local_name(child)
-            if tag == "LinearTransformation":
-                linear = (_number(xml, child, "factor", 1.0), _number(xml, child, "offset", 0.0))
-            elif tag == "Annotations":
-                _annotations(xml, child, self.run.warnings)
-            else:
-                raise SspError(f"{xml.where(child)}: {tag} is not supported by duffid (LinearTransformation is)")
+        linear = self._transformation(xml, element) or (1.0, 0.0)
         suppress = _boolean(xml, element, "suppressUnitConversion")
         start, start_connector, start_variable = self._endpoint(xml, element, "start")
         end, end_connector, end_variable = self._endpoint(xml, element, "end")
