@@ -492,3 +492,43 @@ def test_ecos_runs_the_exported_loop_as_duffid(loop_ssp):
     x = np.array(x)
     assert _close(x, ours["plant.x"]) <= TOLERANCE
     assert np.array_equal(x, ours["plant.x"])
+
+
+# ------------------------------------------------------------------------------ container from an SSP
+def test_the_system_connectors_are_the_interface_of_an_exported_container(fmus, tmp_path):
+    ssd = """<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" version="1.0" name="Box">
+  <ssd:System name="Box">
+    <ssd:Connectors>
+      <ssd:Connector name="u" kind="input"><ssc:Real/></ssd:Connector>
+      <ssd:Connector name="y" kind="output"><ssc:Real/></ssd:Connector>
+    </ssd:Connectors>
+    <ssd:Elements>
+      <ssd:Component name="gain" source="resources/Gain.fmu">
+        <ssd:Connectors>
+          <ssd:Connector name="u" kind="input"/><ssd:Connector name="y" kind="output"/>
+        </ssd:Connectors>
+        <ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>
+          <ssv:ParameterSet version="1.0" name="p"><ssv:Parameters>
+            <ssv:Parameter name="k"><ssv:Real value="4"/></ssv:Parameter>
+          </ssv:Parameters></ssv:ParameterSet>
+        </ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>
+      </ssd:Component>
+    </ssd:Elements>
+    <ssd:Connections>
+      <ssd:Connection startConnector="u" endElement="gain" endConnector="u"/>
+      <ssd:Connection startElement="gain" startConnector="y" endConnector="y"/>
+    </ssd:Connections>
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0" stopTime="1"/>
+</ssd:SystemStructureDescription>"""
+    path = _pack(tmp_path / "box.ssp", {"SystemStructure.ssd": ssd, "resources/Gain.fmu": fmus["Gain"]})
+    config = load_config(path, step=0.25)
+    assert config.container == {"inputs": {"u": ["gain.u"]}, "outputs": {"y": "gain.y"}}
+    assert any("system input 'u' is given no value" in w for w in config.warnings)
+    assert np.all(config.run()["gain.y"] == 0.0)  # the input keeps its start value
+    fmu = config.export_container(tmp_path / "box.fmu")
+    result = System().add("box", fmu).set_input("box.u", 2.5).run(1.0, 0.25)
+    assert np.allclose(result["box.y"][1:], 10.0)

@@ -71,7 +71,8 @@ class CosimConfig:
     record : list of str or None
         Variables to record (None: every output).
     container : dict
-        The ``container`` section (inputs, outputs, parameters of an exported container).
+        The ``container`` section (inputs, outputs, parameters of an exported container); for
+        an SSP, its system's input and output connectors (every output when it has none).
     loop : str
         The inner loop (``System.run(loop=)``): ``"auto"``, ``"compiled"`` or ``"python"``.
     warnings : list of str
@@ -184,8 +185,12 @@ def load_ssp(path: str | os.PathLike[str], step: float | None = None) -> CosimCo
                        "--step)")
     if run.stop_time is None:
         raise SspError(f"{path}: no stop time: the SSD has no <DefaultExperiment stopTime=...>")
+    container = {"inputs": run.interface["inputs"]}
+    if run.interface["outputs"]:
+        container["outputs"] = run.interface["outputs"]
     return CosimConfig(path=path, system=run.system, stop_time=run.stop_time, step=run.step,
-                       start_time=run.start_time, ordering=run.ordering, order=run.order, warnings=run.warnings)
+                       start_time=run.start_time, ordering=run.ordering, order=run.order, warnings=run.warnings,
+                       container=container)
 
 
 def load_config(path: str | os.PathLike[str], step: float | None = None) -> CosimConfig:

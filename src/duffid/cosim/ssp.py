@@ -25,9 +25,12 @@ How SSP maps onto a system
   ``target = factor * convert(source) + offset``, the unit conversion first as SSP's
   parameter mapping specifies. ``suppressUnitConversion="true"`` connects without converting
   or checking units. A connection from a system input or parameter connector to a component
-  input delivers the value bound to that system connector (a constant input); a connection
-  from a component output to a system output connector is accepted and has no effect on the
-  run (a top-level system's outputs have no consumer).
+  input delivers the value bound to that system connector (a constant input; a system input
+  without a value leaves the component input at its start value, with a warning); a
+  connection from a component output to a system output connector has no effect on the run
+  (a top-level system's outputs have no consumer). The system's input and output connectors
+  are the interface of the container FMU that ``duffid cosim x.ssp --export-container``
+  writes (:attr:`SspRun.interface`; the container's inputs start at the FMUs' start values).
 * **Parameter bindings** (inline ``<ParameterValues>`` or an ``.ssv`` source, with an
   optional inline or ``.ssm`` parameter mapping, ``prefix`` honoured) on components and on
   the system: values bound to FMU parameters are set before initialisation, values bound to
@@ -143,6 +146,10 @@ class SspRun:
         What was read but not understood (other tools' annotations), with file and line.
     name : str
         The SSD's ``name``.
+    interface : dict
+        The system's own connectors as a container FMU's interface (``duffid cosim x.ssp
+        --export-container``): ``{"inputs": {connector: [component inputs]}, "outputs":
+        {connector: "component.output"}}``.
     """
 
     path: Path
@@ -154,6 +161,7 @@ class SspRun:
     order: list[str] | None = None
     warnings: list[str] = field(default_factory=list)
     name: str = ""
+    interface: dict[str, dict[str, Any]] = field(default_factory=lambda: {"inputs": {}, "outputs": {}})
 
 
 # ------------------------------------------------------------------------------------ helpers
@@ -719,11 +727,23 @@ class _Reader:
             if kind == "connect":
                 self._wired(place, self.system.connect, source, target, check_units=check_units, factor=factor,
                             offset=offset)
-            elif kind == "constant":
+            elif kind == "output":
+                self.run.interface["outputs"][target] = source
+            else:  # from a system connector
+                connector = self.system_connectors[source]
+                if connector.kind == "input":
+                    self.run.interface["inputs"].setdefault(source, []).append(target)
                 value = system_values.get(source)
                 if value is None:
-                    raise SspError(f"{place}: the system connector {source!r} is given no value (bind one in the "
-                                   "system's <ParameterBindings>): duffid runs the top-level system on its own")
+                    if connector.kind != "input":
+                        raise SspError(f"{place}: the system parameter {source!r} is given no value (bind one in the "
+                                       "system's <ParameterBindings>)")
+                    if (factor, offset) != (1.0, 0.0):
+                        raise SspError(f"{place}: the system input {source!r} has no value and its connection a "
+                                       "LinearTransformation: a container input cannot carry it")
+                    self.run.warnings.append(f"{place}: the system input {source!r} is given no value: {target} keeps "
+                                             "its start value in a run (it is an input of an exported container)")
+                    continue
                 if value.kind != "Real" and (factor, offset) != (1.0, 0.0):
                     raise SspError(f"{place}: a LinearTransformation applies to Real values")
                 comp = self.elements[target.split(".", 1)[0]]
