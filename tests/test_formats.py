@@ -497,3 +497,28 @@ def test_cli_nonlinearity_reads_every_format(capsys, files):
     assert main(["nonlinearity", str(files["hdf5"]), "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     assert data["source"] == str(files["hdf5"])
+
+
+@pytest.mark.parametrize("unit, quantity, factor", [
+    ("g", "acceleration", 9.80665), ("mm/s^2", "acceleration", 1e-3), ("mm/s²", "acceleration", 1e-3),
+    ("m/s2", "acceleration", 1.0), ("m/s/s", "acceleration", 1.0), ("mm", "displacement", 1e-3),
+    ("µm", "displacement", 1e-6), ("μm", "displacement", 1e-6), ("um", "displacement", 1e-6),
+    ("kN", "force", 1e3), ("N", "force", 1.0), ("mV", "voltage", 1e-3), ("V", "voltage", 1.0),
+    ("mm/s", "velocity", 1e-3), (" m ", "displacement", 1.0),
+])
+def test_the_unit_table(unit, quantity, factor):
+    from duffid.data.units import lookup
+
+    found = lookup(unit)
+    assert found is not None and found.quantity == quantity and found.factor == factor
+
+
+def test_units_are_checked_against_the_role():
+    from duffid.data.units import si_factor
+
+    assert si_factor("V", "f", "here") == 1.0  # the circuit's source voltage, as in CSV files
+    assert si_factor("mV", "f", "here", 0.5) == 0.5  # a load cell's 2 mV/N
+    with pytest.raises(RecordError, match=r"here: unit 'V' is a sensor voltage; give its sensitivity as --scale "
+                                          r"x=FACTOR \(m per V, i\.e\. 1 / the sensitivity in V/m\)"):
+        si_factor("V", "x", "here")
+    assert si_factor(None, "x", "here") == 1.0 and si_factor("", "x", "here") == 1.0

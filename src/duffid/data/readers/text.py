@@ -18,10 +18,6 @@ __all__ = ["EXTENSIONS", "open_channels"]
 EXTENSIONS = (".csv", ".txt", ".tsv", ".dat")
 
 
-def _not_readable() -> np.ndarray:
-    raise RecordError("a CSV file's columns are read by Record.read_csv")
-
-
 @contextmanager
 def open_channels(path: str) -> Iterator[list[Channel]]:
     """The columns of the text file ``path`` (names, units row, rows; the rate from a ``t`` column).
@@ -55,5 +51,8 @@ def open_channels(path: str) -> Iterator[list[Channel]]:
         t0, t1 = number(data[0][0]), number(data[1][0])
         if t0 is not None and t1 is not None and t1 > t0:
             rate = 1.0 / (t1 - t0)
+    def not_here() -> np.ndarray:
+        raise RecordError(f"{path}: a text file's columns are read by Record.read_csv")
+
     yield [Channel(name, units[k] if k < len(units) and units[k] else None, len(data), rate, kind="text",
-                   read=_not_readable) for k, name in enumerate(names)]
+                   read=not_here) for k, name in enumerate(names)]
