@@ -17,6 +17,8 @@ Tables:
      (CasADi-generated channels; what identify(engine="c") runs for an equation), one batch
      call each: samples/s, medians of --repeats runs (C: at least 20), and the ratios to the
      Python engine and to the core's own description, all measured in the same run.
+  3. The C update alone (identifiers built once, a 20 s record, interleaved runs): ns per
+     sample of the three C engines and their ratio to the core's own description.
 """
 from __future__ import annotations
 
@@ -193,18 +195,52 @@ def cost(repeats: int) -> None:
     base = times["equation model, Python engine"]
     own = times["Duffing1, C core's own description"]
     print(f"\n2. Cost of the robust estimator on Duffing1 ({record.n_samples} samples; median of {repeats} runs, "
-          f"C: of {max(repeats, 20)}; ratios from this run)")
+          f"C: of {max(repeats, 20)}; ratios from this run; each run builds its identifier: the C engines' "
+          "set-up (description, library lookup) is part of it)")
     print(f"{'engine':<40}{'samples/s':>12}{'× Python equation':>19}{'× C own Duffing1':>18}")
     for label, seconds in times.items():
         print(f"{label:<40}{record.n_samples / seconds:>12,.0f}{base / seconds:>19.1f}{own / seconds:>18.2f}")
+    per_sample(repeats)
+
+
+def per_sample(repeats: int, seconds: float = 20.0) -> None:
+    """The C engines' update alone: one identifier per engine built once, the batch call over
+    a longer record timed (median of max(repeats, 7) runs, interleaved), per sample."""
+    record = measure(simulate(Duffing1(), Chirp(10.0, 1.0, 12.0, 2.0), t_end=seconds, dt=1e-3), snr_db=40,
+                     seed=1)
+    model = EquationModel("m*der(x,2) + b*der(x) + k*x + kp*x^3 = f", record.column_names)
+    engines = {"Duffing1, C core's own description": CIdentifier(Duffing1(), record.dt),
+               "Duffing1, generic C (generated)": CIdentifier(Duffing1(), record.dt, generated=True),
+               "equation model, generic C (generated)": CIdentifier(model, record.dt)}
+    times: dict[str, list[float]] = {label: [] for label in engines}
+    try:
+        for _ in range(max(repeats, 7)):
+            for label, ident in engines.items():
+                ident.reset()
+                start = time.perf_counter()
+                ident.run(record.x, record.f)
+                times[label].append((time.perf_counter() - start) / record.n_samples * 1e9)
+    finally:
+        for ident in engines.values():
+            ident.close()
+    own = float(np.median(times["Duffing1, C core's own description"]))
+    print(f"\n3. The C update alone ({record.n_samples} samples, identifier built once; ns per sample, median of "
+          f"{max(repeats, 7)} interleaved runs, min-max; issue 28's target: an equation model within 1.3x of the "
+          "built-in description)")
+    print(f"{'engine':<40}{'ns/sample':>12}{'min-max':>16}{'× C own Duffing1 time':>24}")
+    for label, values in times.items():
+        median = float(np.median(values))
+        print(f"{label:<40}{median:>12,.0f}{f'{min(values):,.0f}-{max(values):,.0f}':>16}{median / own:>24.2f}")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--methods", default="robust,paper,legendre")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--cost-only", action="store_true", help="only the cost tables (2 and 3)")
     args = parser.parse_args()
-    accuracy(args.methods.split(","))
+    if not args.cost_only:
+        accuracy(args.methods.split(","))
     cost(args.repeats)
 
 
