@@ -212,7 +212,9 @@ class Record:
 
     Notes
     -----
-    The arrays are stored as read-only float64 copies.  Two records compare
+    The arrays are stored as read-only float64 copies; a read-only float64
+    array that owns its data (what the file readers hand over) is kept as is,
+    so that a long record is not held twice.  Two records compare
     equal when their ``t``, ``f``, ``x`` and ``sampling_rtol`` are identical;
     ``source`` is ignored.
     """
