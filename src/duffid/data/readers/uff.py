@@ -6,6 +6,10 @@ make a record; the rate is ``1 / abscissa increment``, the start the abscissa mi
 is the ordinate's unit label or, without one, the SI unit of its specific data type
 (displacement, velocity, acceleration, force); the label must agree with the ordinate's
 length and force exponents.
+
+The format's header holds the abscissa increment to 6 significant digits (E13.5) and ASCII data
+to 12: a rate such as 1024 Hz comes back within 5e-7. pyuff reads a data set whole, not in
+slices: a selected channel is read once, the others not at all.
 """
 from __future__ import annotations
 
