@@ -11,10 +11,10 @@ from typing import Any
 
 from ..cosim import config as cosim_config
 from ..cosim.compiled_loop import LOOP_MODES
-from ..cosim.config import load_config
+from ..cosim.config import load_config, load_ssp
 from ..cosim.runner import signals_held
 from ..cosim.system import ORDERINGS
-from ..errors import CosimError
+from ..errors import ConfigError, CosimError
 
 __all__ = ["add_parser", "run"]
 
@@ -34,6 +34,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                    help="write the system as one container FMU (see the file's container section) and exit")
     p.add_argument("--step", type=float, default=None,
                    help="communication step [s], overriding the file's (needed for an SSP without duffid's annotation)")
+    p.add_argument("--parameter-set", type=Path, default=None, metavar="SSV",
+                   help="an SSP's run: apply this parameter set (.ssv, names component.parameter) over the SSP's own")
     p.add_argument("--export-ssp", type=Path, default=None, metavar="SSP",
                    help="write the system and its run as an SSP 1.0 archive (FMUs, connections, parameter values, "
                         "constant inputs, default experiment) and exit")
@@ -77,7 +79,12 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     try:
-        config = load_config(args.config, step=args.step)
+        if args.parameter_set is not None:
+            if args.config.suffix.lower() not in (".ssp", ".ssd"):
+                raise ConfigError(f"--parameter-set applies to an SSP (.ssp, .ssd), not to {args.config}")
+            config = load_ssp(args.config, step=args.step, parameter_set=args.parameter_set)
+        else:
+            config = load_config(args.config, step=args.step)
         for warning in config.warnings:
             print(f"duffid cosim: warning: {warning}", file=sys.stderr)
         if args.export_ssp is not None:

@@ -35,7 +35,7 @@ import os
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 from ..errors import ConfigError, WiringError
 from .compiled_loop import LOOP_MODES
@@ -158,7 +158,9 @@ def _number(path: Path, where: str, value: Any, positive: bool = False) -> float
     return float(value)
 
 
-def load_ssp(path: str | os.PathLike[str], step: float | None = None) -> CosimConfig:
+def load_ssp(path: str | os.PathLike[str], step: float | None = None, *, stop_time: float | None = None,
+             parameter_set: str | os.PathLike[str] | None = None,
+             parameters: Mapping[str, Any] | None = None) -> CosimConfig:
     """Read an SSP archive (``.ssp``) or SSD file (``.ssd``) as a configuration
     (:func:`duffid.cosim.ssp.read_ssp`): its default experiment and duffid's run annotation.
 
@@ -169,6 +171,14 @@ def load_ssp(path: str | os.PathLike[str], step: float | None = None) -> CosimCo
     step : float, optional
         The communication step, overriding the file's annotation (required when the file
         has none).
+    stop_time : float, optional
+        Overrides the default experiment's stop time.
+    parameter_set : str or os.PathLike, optional
+        An ``.ssv`` file of values (``component.parameter``), with priority over the SSD's
+        bindings (a campaign's parameter set).
+    parameters : mapping, optional
+        ``"component.parameter"`` -> value, with priority over everything (a campaign's
+        overrides).
 
     Raises
     ------
@@ -176,9 +186,11 @@ def load_ssp(path: str | os.PathLike[str], step: float | None = None) -> CosimCo
         What duffid cannot read or honour, no stop time, no step.
     """
     path = Path(path)
-    run = read_ssp(path, System())
+    run = read_ssp(path, System(), parameter_set=parameter_set, parameters=parameters)
     if step is not None:
         run.step = _number(path, "--step", step, positive=True)
+    if stop_time is not None:
+        run.stop_time = _number(path, "stop_time", stop_time)
     if run.step is None:
         raise SspError(f"{path}: no communication step: the SSD has no duffid annotation "
                        f"(<ssc:Annotation type=\"{ANNOTATION}\"> in <DefaultExperiment>); give one (duffid cosim "

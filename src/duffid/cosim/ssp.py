@@ -401,8 +401,12 @@ class _Element:
 
 
 class _Reader:
-    def __init__(self, path: Path, system: System) -> None:
-        self.path, self.system = path, system
+    def __init__(self, path: Path, system: System, parameter_set: Path | None = None,
+                 parameters: Mapping[str, Any] | None = None) -> None:
+        self.path, self.system, self.parameter_set = path, system, parameter_set
+        self.overrides = {name: _python_value(name, value) for name, value in (parameters or {}).items()}
+        if parameter_set is not None and not parameter_set.is_file():
+            raise SspError(f"{parameter_set}: no such parameter set (.ssv) file")
         self.package = _Package(path, system)
         self.run = SspRun(path=path, system=system)
         self.units: dict[str, _Unit] = {}
@@ -691,8 +695,13 @@ class _Reader:
                         raise SspError(f"{value.place}: component {comp.name!r} ({comp.fmu.name}) has no variable "
                                        f"{name!r} (SSP would ignore the value; duffid refuses it)")
                     bound[comp.name][name] = value
-        for xml, binding in self.system_bindings:
-            for name, value in self._binding_values(xml, binding).items():
+        sources = [self._binding_values(xml, binding) for xml, binding in self.system_bindings]
+        if self.parameter_set is not None:  # the caller's, after the SSD's: it takes priority
+            ssv = parse_xml(self.parameter_set.read_bytes(), str(self.parameter_set))
+            sources.append(self._parameter_set(ssv, ssv.root))
+        sources.append(self.overrides)
+        for values in sources:
+            for name, value in values.items():
                 if name in self.system_connectors:
                     system_values[name] = value
                     continue
@@ -830,7 +839,22 @@ class _Reader:
         return "connect", f"{start}.{start_connector.name}", target, factor, offset, check_units, place
 
 
-def read_ssp(path: str | os.PathLike[str], system: System) -> SspRun:
+def _python_value(name: str, value: Any) -> _Value:
+    """A caller's parameter value as a bound value (its kind from its Python type)."""
+    place = f"parameters[{name!r}]"
+    if isinstance(value, bool):
+        return _Value("Boolean", value, None, place)
+    if isinstance(value, int):
+        return _Value("Integer", value, None, place)
+    if isinstance(value, float) and math.isfinite(value):
+        return _Value("Real", value, None, place)
+    if isinstance(value, str):
+        return _Value("String", value, None, place)
+    raise SspError(f"{place}: {value!r} is not a finite number, a bool or a string")
+
+
+def read_ssp(path: str | os.PathLike[str], system: System, *, parameter_set: str | os.PathLike[str] | None = None,
+             parameters: Mapping[str, Any] | None = None) -> SspRun:
     """Fill ``system`` (empty) from an SSP archive or a bare ``.ssd`` file.
 
     Parameters
@@ -840,6 +864,12 @@ def read_ssp(path: str | os.PathLike[str], system: System) -> SspRun:
     system : System
         An empty system, filled in place (FMUs inside an archive are extracted into a
         temporary folder deleted with the system).
+    parameter_set : str or os.PathLike, optional
+        An ``.ssv`` file applied as a system-level binding after the SSD's (names
+        ``component.variable`` or system connectors; it takes priority).
+    parameters : mapping, optional
+        ``"component.variable"`` (or system connector) -> value, applied last (priority
+        over everything): Real as float, Integer as int, Boolean as bool.
 
     Returns
     -------
@@ -856,7 +886,7 @@ def read_ssp(path: str | os.PathLike[str], system: System) -> SspRun:
     """
     if system.components:
         raise WiringError("read_ssp fills an empty system")
-    return _Reader(Path(path), system).read()
+    return _Reader(Path(path), system, None if parameter_set is None else Path(parameter_set), parameters).read()
 
 
 # ------------------------------------------------------------------------------------ writing
@@ -1041,14 +1071,12 @@ def write_ssp(system: System, path: str | os.PathLike[str], *, stop_time: float,
     ssd = _ssd(system, name, members, files, start_time, stop_time, step, ordering, order)
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(path.name + ".part")
-    with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
-        archive.writestr(SSD_MEMBER, _bytes(ssd))
-        for component, parameter_set in sets.items():
-            archive.writestr(files[component], _bytes(parameter_set))
-        written = set()
-        for component, member in members.items():
-            if member not in written:
-                archive.write(system.fmu(component), member)
-                written.add(member)
+    contents = {SSD_MEMBER: _bytes(ssd)}
+    contents.update({files[component]: _bytes(parameter_set) for component, parameter_set in sets.items()})
+    contents.update({member: system.fmu(component).read_bytes() for component, member in members.items()})
+    with zipfile.ZipFile(partial, "w") as archive:
+        for member, data in contents.items():  # a fixed date: the same system gives the same bytes
+            archive.writestr(zipfile.ZipInfo(member, date_time=(1980, 1, 1, 0, 0, 0)), data,
+                             compress_type=zipfile.ZIP_DEFLATED)
     os.replace(partial, path)
     return path
