@@ -39,7 +39,7 @@ fmpy = pytest.importorskip("fmpy")
 from lxml import etree  # noqa: E402
 
 from duffid.cli import main  # noqa: E402
-from duffid.cosim.config import load_config  # noqa: E402
+from duffid.cosim.config import ConfigError, load_config, load_ssp  # noqa: E402
 from duffid.cosim.ssp import PARAMETER_SET, SspError, read_ssp  # noqa: E402
 from duffid.cosim.ssp_xml import SspArchive, parse_xml  # noqa: E402
 from duffid.cosim.system import System, WiringError  # noqa: E402
@@ -188,8 +188,10 @@ def test_hand_written_ssp_runs_as_fmpy_runs_it(fmus, tmp_path):
 
     path = _hand_written(tmp_path, fmus, "chain")
     _validate(path)
-    config = load_config(path, step=0.0625)
+    config = load_ssp(path, step=0.0625)
     assert (config.stop_time, config.step) == (2.0, 0.0625)
+    with pytest.raises(ConfigError, match="an SSP file, not a JSON or TOML configuration: read it with"):
+        load_config(path)  # whose callers may edit parameters: they must not be dropped silently
     result = config.run()
     parameters = read_ssv(str(path), resource="resources/Chain.ssv")
     for p in parameters.parameters:
@@ -213,7 +215,7 @@ def test_hand_written_features(fmus, tmp_path, capsys):
     path = _hand_written(tmp_path, fmus, "features")
     _validate(path)
     with pytest.raises(SspError, match="no communication step"):
-        load_config(path)
+        load_ssp(path)
     run = read_ssp(path, System())
     assert len(run.warnings) == 1 and "com.example.editor" in run.warnings[0] and "line" in run.warnings[0]
     system = run.system
@@ -263,7 +265,7 @@ def test_ssp2_with_an_fmi3_component(fmus, tmp_path):
 </ssd:SystemStructureDescription>"""
     path = _pack(tmp_path / "two.ssp", {"SystemStructure.ssd": ssd, "resources/Ramp.fmu": fmus["Ramp"],
                                         "resources/Gain3.fmu": fmus["Gain_fmi3"]})
-    config = load_config(path)
+    config = load_ssp(path)
     result = config.run()
     assert config.step == 0.25 and np.allclose(result["gain.y"][1:], 2.0 * result.time[:-1])
 
@@ -525,7 +527,7 @@ def test_the_system_connectors_are_the_interface_of_an_exported_container(fmus, 
   <ssd:DefaultExperiment startTime="0" stopTime="1"/>
 </ssd:SystemStructureDescription>"""
     path = _pack(tmp_path / "box.ssp", {"SystemStructure.ssd": ssd, "resources/Gain.fmu": fmus["Gain"]})
-    config = load_config(path, step=0.25)
+    config = load_ssp(path, step=0.25)
     assert config.container == {"inputs": {"u": ["gain.u"]}, "outputs": {"y": "gain.y"}}
     assert any("system input 'u' is given no value" in w for w in config.warnings)
     assert np.all(config.run()["gain.y"] == 0.0)  # the input keeps its start value
@@ -536,8 +538,6 @@ def test_the_system_connectors_are_the_interface_of_an_exported_container(fmus, 
 
 def test_a_parameter_set_and_overrides_take_priority(fmus, tmp_path):
     """A campaign's .ssv parameter set and its overrides over the SSP's own bindings."""
-    from duffid.cosim.config import load_ssp
-
     path = _hand_written(tmp_path, fmus, "chain")
     ssv = tmp_path / "other.ssv"
     ssv.write_text('''<?xml version="1.0" encoding="UTF-8"?>

@@ -11,7 +11,7 @@ from typing import Any
 
 from ..cosim import config as cosim_config
 from ..cosim.compiled_loop import LOOP_MODES
-from ..cosim.config import load_config, load_ssp
+from ..cosim.config import SSP_SUFFIXES, load_config, load_ssp
 from ..cosim.runner import signals_held
 from ..cosim.system import ORDERINGS
 from ..errors import ConfigError, CosimError
@@ -79,10 +79,10 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     try:
-        if args.parameter_set is not None:
-            if args.config.suffix.lower() not in (".ssp", ".ssd"):
-                raise ConfigError(f"--parameter-set applies to an SSP (.ssp, .ssd), not to {args.config}")
+        if args.config.suffix.lower() in SSP_SUFFIXES:
             config = load_ssp(args.config, step=args.step, parameter_set=args.parameter_set)
+        elif args.parameter_set is not None:
+            raise ConfigError(f"--parameter-set applies to an SSP (.ssp, .ssd), not to {args.config}")
         else:
             config = load_config(args.config, step=args.step)
         for warning in config.warnings:

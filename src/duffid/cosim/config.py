@@ -42,8 +42,10 @@ from .compiled_loop import LOOP_MODES
 from .ssp import ANNOTATION, SspError, read_ssp
 from .system import ORDERINGS, Result, System
 
-__all__ = ["ConfigError", "CosimConfig", "load_config", "load_ssp"]
+__all__ = ["ConfigError", "CosimConfig", "load_config", "load_ssp", "SSP_SUFFIXES"]
 
+#: File suffixes read as SSP (:func:`load_ssp`).
+SSP_SUFFIXES = (".ssp", ".ssd")
 _TOP = {"components", "connections", "inputs", "input_csv", "run", "container"}
 _RUN = {"stop_time", "step", "start_time", "ordering", "order", "record", "loop"}
 _COMPONENT = {"fmu", "parameters"}
@@ -206,8 +208,11 @@ def load_ssp(path: str | os.PathLike[str], step: float | None = None, *, stop_ti
 
 
 def load_config(path: str | os.PathLike[str], step: float | None = None) -> CosimConfig:
-    """Read a JSON (``.json``) or TOML (``.toml``) configuration and build its system; an
-    SSP archive (``.ssp``) or SSD file (``.ssd``) is read by :func:`load_ssp`.
+    """Read a JSON (``.json``) or TOML (``.toml``) configuration and build its system.
+
+    An SSP archive (``.ssp``) or SSD file (``.ssd``) is refused: read it with
+    :func:`load_ssp`, which takes its own overrides (a caller that edits a configuration's
+    parameters must not have them dropped on an SSP).
 
     Parameters
     ----------
@@ -226,8 +231,9 @@ def load_config(path: str | os.PathLike[str], step: float | None = None) -> Cosi
         is prefixed with the file and the entry.
     """
     path = Path(path)
-    if path.suffix.lower() in (".ssp", ".ssd"):
-        return load_ssp(path, step)
+    if path.suffix.lower() in SSP_SUFFIXES:
+        raise ConfigError(f"{path}: an SSP file, not a JSON or TOML configuration: read it with "
+                          "duffid.cosim.config.load_ssp (duffid cosim does), which applies parameter sets and overrides")
     data = _read(path)
     _mapping(path, "the top level", data, _TOP)
     base = path.parent
