@@ -407,7 +407,7 @@ def test_archive_members_with_unsafe_paths_are_refused(tmp_path, member):
 def test_not_an_archive(tmp_path):
     path = tmp_path / "plain.ssp"
     path.write_text("not a zip")
-    with pytest.raises(SspError, match="plain.ssp: not a readable SSP"):
+    with pytest.raises(SspError, match="plain.ssp: not a readable ZIP archive"):
         System.from_ssp(path)
 
 
@@ -555,3 +555,31 @@ def test_a_parameter_set_and_overrides_take_priority(fmus, tmp_path):
     assert main(["cosim", str(path), "--step", "0.5", "--parameter-set", str(ssv), "-o", str(tmp_path / "o.csv")]) == 0
     rows = (tmp_path / "o.csv").read_text().splitlines()
     assert rows[0] == "time,ramp.y,integrator.y,gain.y" and rows[2].split(",")[0] == "0.5" and abs(float(rows[2].split(",")[1]) - 3.5) < 1e-12
+
+
+def test_an_fmu_in_the_archive_is_checked_as_the_archive_is(fmus, tmp_path):
+    with zipfile.ZipFile(fmus["Gain"]) as z:
+        members = {name: z.read(name) for name in z.namelist()}
+    members["modelDescription.xml"] = members["modelDescription.xml"].replace(
+        b"<fmiModelDescription", b'<!DOCTYPE x [<!ENTITY e SYSTEM "file:///etc/passwd">]>\n<fmiModelDescription', 1)
+    evil = _pack(tmp_path / "Evil.fmu", members)
+    path = _minimal(fmus, tmp_path)
+    with zipfile.ZipFile(path) as z:
+        ssd = z.read("SystemStructure.ssd")
+    path = _pack(tmp_path / "evil.ssp", {"SystemStructure.ssd": ssd, "resources/Gain.fmu": evil})
+    with pytest.raises(SspError, match=r"Gain.fmu!modelDescription.xml, line \d+: a <!DOCTYPE declaration is refused"):
+        System.from_ssp(path)
+
+
+@pytest.mark.parametrize("source, message", [
+    ("http://example.com/Gain.fmu", "only relative URIs and file: URIs are supported"),
+    ("resources/Missing.fmu", "the archive has no member 'resources/Missing.fmu'"),
+])
+def test_component_sources(fmus, tmp_path, source, message):
+    with zipfile.ZipFile(_minimal(fmus, tmp_path)) as z:
+        ssd = z.read("SystemStructure.ssd").decode().replace('source="resources/Gain.fmu"', f'source="{source}"')
+    path = _pack(tmp_path / "s.ssp", {"SystemStructure.ssd": ssd})
+    with pytest.raises(SspError, match=rf"line 7, <Component name='gain'>: source=.*{message}"):
+        System.from_ssp(path)
+    ssd = ssd.replace(f'source="{source}"', f'source="{fmus["Gain"].as_uri()}"')
+    assert System.from_ssp(_pack(tmp_path / "f.ssp", {"SystemStructure.ssd": ssd})).fmu("gain") == fmus["Gain"]

@@ -371,6 +371,15 @@ class _Package:
 
 
 # ------------------------------------------------------------------------------------ reading
+def _check_fmu(path: Path, place: str) -> None:
+    """An FMU from the SSP passes the same checks as the SSP itself before fmpy reads it: its
+    member names, and its model description parsed safely (no DTD, no entities)."""
+    with SspArchive(path) as fmu:
+        if not fmu.has("modelDescription.xml"):
+            raise SspError(f"{place}: {path.name} has no modelDescription.xml (not an FMU)")
+        fmu.xml("modelDescription.xml")
+
+
 @dataclass
 class _Connector:
     name: str
@@ -527,6 +536,7 @@ class _Reader:
             raise SspError(f"{place}: implementation={implementation!r}: duffid runs co-simulation FMUs only "
                            "(Model Exchange components are not supported)")
         path = self.package.file(xml, element, "source")
+        _check_fmu(path, place)
         try:
             md = fmpy.read_model_description(str(path))
         except Exception as exc:  # fmpy raises plain Exceptions for bad archives / XML

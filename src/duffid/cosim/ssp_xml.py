@@ -138,7 +138,7 @@ class SspArchive:
         try:
             self._zip = zipfile.ZipFile(self.path)
         except (OSError, zipfile.BadZipFile) as exc:
-            raise SspError(f"{self.path}: not a readable SSP (ZIP) archive: {exc}") from None
+            raise SspError(f"{self.path}: not a readable ZIP archive (an SSP or an FMU): {exc}") from None
         self.names = [check_member_name(str(self.path), info.filename) for info in self._zip.infolist()]
 
     def __enter__(self) -> SspArchive:
