@@ -583,3 +583,14 @@ def test_component_sources(fmus, tmp_path, source, message):
         System.from_ssp(path)
     ssd = ssd.replace(f'source="{source}"', f'source="{fmus["Gain"].as_uri()}"')
     assert System.from_ssp(_pack(tmp_path / "f.ssp", {"SystemStructure.ssd": ssd})).fmu("gain") == fmus["Gain"]
+
+
+def test_an_fmi3_component_round_trips(fmus, tmp_path):
+    system = (System().add("ramp", fmus["Ramp"], parameters={"a": 0.5}).add("gain", fmus["Gain_fmi3"], parameters={"k": 3.0})
+              .connect("ramp.y", "gain.u"))
+    path = system.to_ssp(tmp_path / "mixed.ssp", stop_time=1.0, step=0.25)
+    _validate(path)
+    again = System.from_ssp(path)
+    assert again.parameter_values("gain") == {"k": 3.0} and again.model_description("gain").fmiVersion == "3.0"
+    a, b = system.run(1.0, 0.25), again.run(1.0, 0.25)
+    assert np.array_equal(a["gain.y"], b["gain.y"]) and np.allclose(b["gain.y"][1:], 1.5 * b.time[:-1])
