@@ -31,7 +31,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                         "takes C unless a component is a Python FMU")
     p.add_argument("--progress", action="store_true", help="show a progress bar")
     p.add_argument("--export-container", type=Path, default=None, metavar="FMU",
-                   help="write the system as one container FMU (see the file's container section) and exit")
+                   help="write the system as one container FMU (its interface: the file's container section; for an "
+                        "SSP, its system's input and output connectors) and exit")
     p.add_argument("--step", type=float, default=None,
                    help="communication step [s], overriding the file's (needed for an SSP without duffid's annotation)")
     p.add_argument("--parameter-set", type=Path, default=None, metavar="SSV",
