@@ -42,11 +42,14 @@ bench: $(STAMP)
 embedded: $(STAMP)
 	$(BIN)/python benchmarks/embedded.py
 
-# files generated from one source: the C tables of the estimator options and the controller
-# parameters, from duffid.identification.options and duffid.control.settings
+# files generated from one source: the C tables of the estimator options, the estimator core's
+# facts (limits, return codes, statuses) and the controller parameters, from
+# duffid.identification.options, duffid.identification.c_facts and duffid.control.settings
 generated: $(STAMP)
 	$(BIN)/python -c 'from duffid.identification.options import c_header; print(c_header(), end="")' \
 		> fmus/estimator/duffid_options.h
+	$(BIN)/python -c 'from duffid.identification.c_facts import c_header; print(c_header(), end="")' \
+		> fmus/estimator/duffid_facts.h
 	$(BIN)/python -c 'from duffid.control.settings import c_header; print(c_header(), end="")' \
 		> fmus/controller/duffid_ctrl_params.h
 

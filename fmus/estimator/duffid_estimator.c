@@ -50,7 +50,7 @@
 #define MAX_DEG (DUFFID_MAX_ROWS + 4) /* highest moment power */
 #define MAX_POW (MAX_DEG + 1)
 #define MAX_CORR 6                   /* quadrature end corrections */
-#define MIN_SAMPLES 8                /* identification._MIN_SAMPLES */
+#define MIN_SAMPLES DUFFID_MIN_SAMPLES  /* engine.MIN_SAMPLES (duffid_facts.h) */
 #define MAX_CAPACITY 100000000L      /* longest robust window in samples */
 #define ANY_SIGN (DUFFID_ALLOW_POSITIVE | DUFFID_ALLOW_ZERO | DUFFID_ALLOW_NEGATIVE)
 /* the built-in models' largest description (Duffing2 with offsets) */

@@ -42,14 +42,10 @@ extern "C" {
 
 #define DUFFID_VERSION "0.1.0"
 
-/* Fixed maxima: those of a model description (duffid_model.h) and */
-#define DUFFID_MAX_ROWS 17      /* rows per window of the robust method (n_rows) */
-
-/* Status codes: every function that can fail returns one of these. */
-#define DUFFID_OK 0
-#define DUFFID_ERR_ARGUMENT (-1) /* NULL pointer or wrong memory size */
-#define DUFFID_ERR_CONFIG (-2)   /* invalid configuration, see the message buffer */
-#define DUFFID_ERR_SAMPLE (-3)   /* a NaN or infinite sample; the state is unchanged */
+/* The maxima (DUFFID_MAX_*, DUFFID_MAX_ROWS), the return codes (DUFFID_OK, DUFFID_ERR_*), the
+ * parameter statuses (DUFFID_STATUS_*) and the publication constants (DUFFID_MIN_SHARE,
+ * DUFFID_LOSS_FACTOR, DUFFID_GROWTH_STEADY, DUFFID_MIN_SAMPLES, DUFFID_OUTLIER_*) are in
+ * duffid_facts.h (via duffid_model.h), generated from duffid.identification.c_facts. */
 
 /* Models (public parameter order in brackets; offsets c1 [c2] are appended when
  * duffid_config.offset is set). */
@@ -76,18 +72,11 @@ extern "C" {
  *   NOT_EXCITED  its term carries less than DUFFID_MIN_SHARE of the force balance;
  *   LOST         it was published and since then its error has been above
  *                DUFFID_LOSS_FACTOR x max_uncertainty (or its value non-physical) for settle
- *                s: the value is withdrawn (NaN). */
-#define DUFFID_STATUS_UNCERTAIN 0
-#define DUFFID_STATUS_PUBLISHED 1
-#define DUFFID_STATUS_NOT_EXCITED 2
-#define DUFFID_STATUS_LOST 3
-#define DUFFID_MIN_SHARE 0.01
-#define DUFFID_LOSS_FACTOR 2.0
-/* A growing window's estimate is published once it has stayed within max_uncertainty / 2
+ *                s: the value is withdrawn (NaN).
+ * A growing window's estimate is published once it has stayed within max_uncertainty / 2
  * of one value while the window grew by this share of its length (full windows' need not).
  * Without a prior size, only a physical value (mass > 0, damping >= 0) whose term carries
  * at least DUFFID_MIN_SHARE of the force balance is published. */
-#define DUFFID_GROWTH_STEADY 0.25
 
 /* Isolated displacement outliers (duffid.identification.engine.OUTLIER_*): a sample further than
  * DUFFID_OUTLIER_SIGMAS robust standard deviations (never less than the quantisation
@@ -95,9 +84,6 @@ extern "C" {
  * samples before it is held back one sample; if the next sample agrees with the samples
  * before it, the held one is replaced by the quadratic through its neighbours and counted.
  * Meanwhile the previous output is repeated. */
-#define DUFFID_OUTLIER_SIGMAS 12.0
-#define DUFFID_OUTLIER_RANGE 1e-4
-#define DUFFID_OUTLIER_MEMORY 64.0
 
 /* Quadrature of the paper method's integrators. */
 #define DUFFID_ADAMS3 0

@@ -22,6 +22,7 @@
 #define DUFFID_MODEL_H
 
 #include "duffid_build.h" /* may define DUFFID_GENERATED_MODEL (an FMU's sources) */
+#include "duffid_facts.h" /* the maxima, return codes and publication constants (generated) */
 
 /* The real type of the core and of its API: double by default; compiling every file of the
  * core with -DDUFFID_REAL=float builds it in single precision (microcontrollers with a
@@ -48,21 +49,8 @@ typedef DUFFID_REAL duffid_real;
 extern "C" {
 #endif
 
-/* Fixed maxima of a description (every array of the engine is sized by them). */
-#define DUFFID_MAX_DOF 6         /* displacements per sample */
-#define DUFFID_MAX_FORCES 6      /* forces per sample */
-#define DUFFID_MAX_PARAMS 40     /* parameters of a model */
-#define DUFFID_MAX_CHANNELS 24   /* distinct channels */
-#define DUFFID_MAX_UNKNOWNS 16   /* unknowns of one block */
-#define DUFFID_MAX_BLOCKS 6      /* blocks (equations or groups of equations solved together) */
-#define DUFFID_MAX_PARTS 6       /* equations of one block */
-#define DUFFID_MAX_TERMS 64      /* terms of one block */
-#define DUFFID_MAX_RULES 8       /* scale rules of one unforced block */
-#define DUFFID_MAX_SOURCES 6     /* combination and share sources of one parameter */
-#define DUFFID_MAX_LINEAR 96     /* non-zero coefficients of the linear M or K map */
-#define DUFFID_MAX_DERIVATIVE 2  /* highest derivative order of a term */
-#define DUFFID_NAME_SIZE 24      /* bytes of a parameter name, with its terminating 0 */
-#define DUFFID_SIGNATURE_SIZE 40 /* bytes of a model's signature, with its terminating 0 */
+/* The maxima of a description (DUFFID_MAX_*), the return codes and the publication constants:
+ * duffid_facts.h, generated from duffid.identification.c_facts. */
 
 /* Physical sign of a parameter: the values allowed (bits); 7 = any value. */
 #define DUFFID_ALLOW_POSITIVE 1

@@ -2,8 +2,8 @@
  * glue (fmus/common), FMI 2.0 and 3.0: DuffingEstimator1 (inputs x, f), DuffingEstimator2
  * (inputs x1, x2, f1), DuffingCircuitEstimator (inputs q, u: the Duffing1 core with L = m,
  * R = b, C = 1/k, a = kp) and the estimator of any chain or of the user's own equations
- * (the model DUFFID_GENERATED: its description is the generated file compiled in with
- * duffid_estimator_generated.c).
+ * (the model DUFFID_GENERATED: its description is the generated file estimator_model.c,
+ * duffid.identification.c_core.model_source, compiled in with a duffid_build.h that selects it).
  *
  * The variable table (names, start values, causality, variability) comes from the
  * generated header estimator_fmu_config.h (duffid.fmu.estimator, from the one table of

@@ -72,7 +72,7 @@ from .python_estimator import FMU_NAMES, build_python_fmu
 __all__ = ["build_estimator_fmus", "build_estimator_fmu", "build_equation_fmu", "build_chain_fmu", "BACKENDS",
            "GENERATED_MODEL_FILE"]
 
-_CORE_FILES = ("duffid_estimator.c", "duffid_estimator.h", "duffid_model.h", "duffid_build.h", "duffid_options.h",
+_CORE_FILES = ("duffid_estimator.c", "duffid_estimator.h", "duffid_model.h", "duffid_build.h", "duffid_options.h", "duffid_facts.h",
                "duffid_linalg.c", "duffid_linalg.h", "fmu_model_estimator.c")
 #: File of an FMU's ``sources/`` that holds the generated model (chains, equations).
 GENERATED_MODEL_FILE = "estimator_model.c"

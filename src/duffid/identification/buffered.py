@@ -64,6 +64,7 @@ __all__ = [
     "DEFAULT_TERMS",
     "regression_from_model",
     "velocity_signs",
+    "solve_groups",
     "BufferedIdentifier",
     "BufferedIdentification",
     "identify_buffered",
@@ -334,7 +335,7 @@ class BufferedIdentifier(Identifier):
             raise InputError(f"{len(self.kept)} usable coefficients cannot determine "
                              f"{max(len(u) for u in self.regression.unknowns)} unknowns: raise n_terms")
         self._maps = self.regression.assembly()
-        self._groups = _groups(self.regression)
+        self._groups = solve_groups(self.regression)
         n_ch = len(self.regression.channel_labels)
         self._buffer = np.zeros((N + 1, n_ch))
         self.reset()
@@ -494,8 +495,9 @@ class BufferedIdentifier(Identifier):
             used_terms=len(self.kept), matrices=self.matrices())
 
 
-def _groups(reg: Regression) -> list[tuple[list[int], list[str]]]:
-    """Equations solved together: those sharing unknown names (joint), else one each."""
+def solve_groups(reg: Regression) -> list[tuple[list[int], list[str]]]:
+    """(equations, unknown names) of each least-squares problem: the equations sharing unknown
+    names (a joint regression) together, else one problem per equation."""
     if not reg.joint:
         return [([i], list(u)) for i, u in enumerate(reg.unknowns)]
     parent = list(range(len(reg.unknowns)))

@@ -30,8 +30,8 @@ from ..assets import fmu_sources
 from ..cbuild import LIBRARY_FLAGS, cached_library, default_build_dir
 from ..errors import InputError
 from ..models.chain import Chain
-from .buffered import BufferedIdentifier, _groups
-from .c_core import PRECISIONS, _check_precision, source_dir
+from .buffered import BufferedIdentifier, solve_groups
+from .c_core import PRECISIONS, check_precision, source_dir
 from .orthogonal import make_basis, projection_matrix
 
 __all__ = ["CHANNEL_KINDS", "tables_source", "build_buffered_library", "CBufferedIdentifier", "SOURCES", "HEADERS"]
@@ -39,6 +39,7 @@ __all__ = ["CHANNEL_KINDS", "tables_source", "build_buffered_library", "CBuffere
 #: C sources of the buffered module, relative to :func:`~duffid.identification.c_core.source_dir`.
 SOURCES = ("duffid_buffered.c", "duffid_linalg.c")
 HEADERS = ("duffid_buffered.h", "duffid_estimator.h", "duffid_linalg.h", "duffid_model.h", "duffid_options.h",
+           "duffid_facts.h",
            "duffid_build.h")
 #: Channel kinds of :class:`~duffid.models.chain.Channel` and their codes (duffid_buffered.h).
 CHANNEL_KINDS = {"x": 0, "deflection": 1, "force": 2, "sign_velocity": 3, "one": 4}
@@ -123,7 +124,7 @@ def tables_source(ident: BufferedIdentifier, model: Chain, symbol: str = TABLES_
     if o["accumulate"]:
         raise InputError("the C buffered identifier solves each window alone: accumulate=True is not covered")
     reg = ident.regression
-    if any(len(eqs) > 1 for eqs, _ in _groups(reg)):
+    if any(len(eqs) > 1 for eqs, _ in solve_groups(reg)):
         raise InputError(f"{reg.name}: equations sharing unknowns (solved jointly) are not covered by the C "
                          "buffered identifier")
     chans = _model_channels(model, reg.channel_labels)
@@ -190,7 +191,7 @@ def build_buffered_library(ident: BufferedIdentifier, model: Chain,
                            precision: str = "double") -> Path:
     """Compile the C buffered module with the tables of ``ident`` into a shared library
     (cached by the hash of the sources, the tables' included)."""
-    _check_precision(precision)
+    check_precision(precision)
     text = tables_source(ident, model)
     if build_dir is None:
         build_dir = default_build_dir(fmu_sources("estimator"), "estimator")
@@ -251,8 +252,7 @@ class CBufferedIdentifier:
 
     def __init__(self, model: Chain, dt: float, method: str = "legendre", *, precision: str = "double",
                  **options: Any) -> None:
-        if precision not in PRECISIONS:
-            raise InputError(f"precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
+        check_precision(precision)
         self.python = BufferedIdentifier(model, dt, method, **options)
         self.precision = precision
         self._real = _REALS[precision]

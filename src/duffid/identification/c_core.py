@@ -39,6 +39,8 @@ from ..models.chain import Duffing1, Duffing2, model_from_name
 from ..models.description import ModelDescription, describe
 from .engine import STATUSES, Estimate, Identification, check_record, prior_sizes
 from .identifier import Identifier
+from .c_facts import C_HEADER_NAME as FACTS_HEADER_NAME
+from .c_facts import LIMITS, RETURN_CODES, limit, return_code
 from .options import C_HEADER_NAME, check_options, ctypes_fields, to_c
 
 __all__ = [
@@ -55,12 +57,14 @@ __all__ = [
     "SOURCES",
     "CFLAGS",
     "PRECISIONS",
+    "check_precision",
     "config_type",
 ]
 
 #: C sources of the core, relative to :func:`source_dir`.
 SOURCES = ("duffid_estimator.c", "duffid_linalg.c")
-HEADERS = ("duffid_estimator.h", "duffid_linalg.h", "duffid_model.h", "duffid_build.h", C_HEADER_NAME)
+HEADERS = ("duffid_estimator.h", "duffid_linalg.h", "duffid_model.h", "duffid_build.h", C_HEADER_NAME,
+           FACTS_HEADER_NAME)
 #: The build configuration header (empty in the sources; an FMU of a generated model ships
 #: :data:`GENERATED_BUILD_HEADER` under this name).
 BUILD_HEADER = "duffid_build.h"
@@ -80,20 +84,25 @@ CFLAGS = CBUILD_FLAGS + LIBRARY_FLAGS
 #: Compiles the core with the generated model of the other source (DUFFID_GENERATED).
 GENERATED_MODEL_FLAG = "-DDUFFID_GENERATED_MODEL"
 
-_MAX_PARAMS = 40
+_MAX_PARAMS = limit("max_params")
 _MODELS = {"duffing1": 1, "duffing2": 2}
 _GENERATED = 3
 #: Characters of a generated model's signature (duffid_model.h: below DUFFID_SIGNATURE_SIZE).
 _SIGNATURE_CHARS = 32
 _SIGNATURE_SLOT = "@DUFFID_SIGNATURE@"
-#: Limits of a description (duffid_model.h).
-_LIMITS = {"n_dof": ("displacements", 6), "n_forces": ("forces", 6), "parameters": ("parameters", 40),
-           "channels": ("channels", 24), "unknowns": ("unknowns in one block", 16), "blocks": ("blocks", 6),
-           "parts": ("equations in one block", 6), "terms": ("terms in one block", 64),
-           "rules": ("scale rules of one block", 8), "sources": ("sources of one parameter", 6),
-           "linear": ("coefficients of the linear M or K", 96), "name": ("characters in a name", 23)}
+#: Limits of a description (duffid_facts.h, from duffid.identification.c_facts): what is counted,
+#: the limit.
+_LIMITS = {"n_dof": ("displacements", limit("max_dof")), "n_forces": ("forces", limit("max_forces")),
+           "parameters": ("parameters", limit("max_params")), "channels": ("channels", limit("max_channels")),
+           "unknowns": ("unknowns in one block", limit("max_unknowns")), "blocks": ("blocks", limit("max_blocks")),
+           "parts": ("equations in one block", limit("max_parts")), "terms": ("terms in one block", limit("max_terms")),
+           "rules": ("scale rules of one block", limit("max_rules")),
+           "sources": ("sources of one parameter", limit("max_sources")),
+           "linear": ("coefficients of the linear M or K", limit("max_linear")),
+           "name": ("characters in a name", limit("name_size") - 1)}
 _METHODS = {"robust": 0, "paper": 1}
-_STATUS = {0: "ok", -1: "invalid argument", -2: "invalid configuration", -3: "sample not finite"}
+_STATUS = {fact.value: fact.meaning for fact in RETURN_CODES.values()}
+_ERR_SAMPLE = return_code("err_sample")
 
 
 #: The core's real types (duffid_model.h's ``duffid_real``): ``double``, or ``float`` for a core
@@ -155,14 +164,15 @@ CConfig = _TYPES["double"][1]
 _FLOAT_FLAG = "-DDUFFID_REAL=float"
 
 
-def _check_precision(precision: str) -> None:
+def check_precision(precision: str) -> None:
+    """InputError unless ``precision`` is one of :data:`PRECISIONS`."""
     if precision not in PRECISIONS:
         raise InputError(f"precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
 
 
 def config_type(precision: str = "double") -> type[ctypes.Structure]:
     """The ctypes ``duffid_config`` of the core of ``precision`` (:data:`CConfig` for double)."""
-    _check_precision(precision)
+    check_precision(precision)
     return _TYPES[precision][1]
 
 
@@ -208,7 +218,7 @@ def build_library(build_dir: str | os.PathLike[str] | None = None, *, compiler: 
     if missing:
         raise AssetError(f"C sources of the estimator core not found in {src}: {missing} "
                          "(set DUFFID_C_SOURCES to the fmus/estimator folder)")
-    _check_precision(precision)
+    check_precision(precision)
     if build_dir is None:
         build_dir = default_build_dir(fmu_sources("estimator"), "estimator")
     single = precision == "float"
@@ -223,7 +233,7 @@ _LIBRARIES: dict[str, ctypes.CDLL] = {}
 def load_library(path: str | os.PathLike[str] | None = None, precision: str = "double") -> ctypes.CDLL:
     """Load (building if needed) the shared library of the core of ``precision`` and declare
     its functions."""
-    _check_precision(precision)
+    check_precision(precision)
     path = str(path if path is not None else build_library(precision=precision))
     lib = _LIBRARIES.get(path)
     if lib is not None:
@@ -273,9 +283,9 @@ def _check_limits(d: ModelDescription) -> None:
         what, limit = _LIMITS[key]
         if value > limit:
             raise InputError(f"{d.name}: the C estimator core supports at most {limit} {what}, the model has {value}")
-    if d.max_order > 2:
-        raise InputError(f"{d.name}: the C estimator core supports derivatives up to order 2, the model has "
-                         f"{d.max_order}")
+    if d.max_order > limit("max_derivative"):
+        raise InputError(f"{d.name}: the C estimator core supports derivatives up to order "
+                         f"{limit('max_derivative')}, the model has {d.max_order}")
 
 
 def _c_string(text: str) -> str:
@@ -379,7 +389,7 @@ def build_model_library(model: Any, build_dir: str | os.PathLike[str] | None = N
     CompilerNotFoundError, BuildError
         As :func:`build_library`.
     """
-    _check_precision(precision)
+    check_precision(precision)
     text = model_source(model)
     src = source_dir()
     if build_dir is None:
@@ -453,7 +463,7 @@ class CIdentifier(Identifier):
                  **options: Any) -> None:
         if method not in _METHODS:
             raise InputError(f"unknown method {method!r}; the C core supports {', '.join(_METHODS)}")
-        _check_precision(precision)
+        check_precision(precision)
         super().__init__(_resolve_model(model), dt, method, check_options(method, options))
         builtin = _builtin(self.model) and not generated
         self.generated = not builtin
@@ -528,7 +538,7 @@ class CIdentifier(Identifier):
         for i, v in enumerate(fa):
             self._f[i] = v
         rc = self._lib.duffid_update(self._live(), self._x, self._f, ctypes.byref(self._out))
-        if rc == -3:
+        if rc == _ERR_SAMPLE:
             raise InputError(f"{self.model.name}: sample {self.n + 1} is not finite"
                              f"{' in ' + self.precision if self.precision == 'float' else ''} (x={xa}, f={fa})")
         if rc != 0:
@@ -568,7 +578,7 @@ class CIdentifier(Identifier):
         dbl_p = ctypes.POINTER(self._real)
         rc = self._lib.duffid_run(self._live(), n, xa.ctypes.data_as(dbl_p), fa.ctypes.data_as(dbl_p),
                                   out, ctypes.byref(failed))
-        if rc == -3:
+        if rc == _ERR_SAMPLE:
             k = failed.value
             self.n += k
             raise InputError(f"{self.model.name}: sample {self.n + 1} is not finite (x={xa[k]}, f={fa[k]})")

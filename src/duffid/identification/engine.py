@@ -71,7 +71,8 @@ LOSS_FACTOR = 2.0
 #: ``max_uncertainty`` of one value while the window grew by this share of its length.
 GROWTH_STEADY = 0.25
 
-_MIN_SAMPLES = 8
+#: Samples before any solution is identified (and half the shortest record).
+MIN_SAMPLES = 8
 
 
 # ---------------------------------------------------------------------- channels
@@ -215,7 +216,7 @@ class _OutlierGuard:
                     xp[j] = value
             self._accept(xp, threshold)
             out.append((xp, fp))
-        if self.count >= _MIN_SAMPLES:
+        if self.count >= MIN_SAMPLES:
             threshold = self._threshold()
             suspect = np.abs(x - (3.0 * h[0] - 3.0 * h[1] + h[2])) > threshold
             if suspect.any():
@@ -640,7 +641,7 @@ class OnlineIdentifier(Identifier):
     def _window_ok(self, cond: float, L: int) -> bool:
         o = self.options
         return bool(cond <= o["max_condition"] and L * self.dt >= o["min_time"] - 1e-12
-                    and self.n >= _MIN_SAMPLES)
+                    and self.n >= MIN_SAMPLES)
 
     def _combine(self) -> tuple[dict[str, float], float, dict[str, float], dict[str, float]]:
         solutions = [dict(zip(st.equation.unknowns, st.theta)) for st in self._states]
@@ -974,6 +975,6 @@ def check_record(record: Record, model: Any, dt: float | None = None) -> None:
     if record.n_forces != model.n_forces:
         raise RecordError(f"{record.source}: model {model.name} needs {model.n_forces} force column(s), "
                           f"the record has {record.n_forces}")
-    record.require_samples(2 * _MIN_SAMPLES, f"identification of {model.name}")
+    record.require_samples(2 * MIN_SAMPLES, f"identification of {model.name}")
     if dt is not None and abs(record.dt - dt) > 1e-9 * dt:
         raise RecordError(f"{record.source}: sampled every {record.dt} s, the identifier expects {dt} s")
