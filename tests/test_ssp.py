@@ -594,3 +594,34 @@ def test_an_fmi3_component_round_trips(fmus, tmp_path):
     assert again.parameter_values("gain") == {"k": 3.0} and again.model_description("gain").fmiVersion == "3.0"
     a, b = system.run(1.0, 0.25), again.run(1.0, 0.25)
     assert np.array_equal(a["gain.y"], b["gain.y"]) and np.allclose(b["gain.y"][1:], 1.5 * b.time[:-1])
+
+
+@pytest.mark.parametrize("units, expected", [
+    ('<ssv:Units><ssc:Unit name="g"><ssc:BaseUnit kg="1" factor="0.001"/></ssc:Unit></ssv:Units>', 2.6),
+    ("", r"cannot convert \[g\] to \[kg\]: the unit 'g' has no definition"),
+    ('<ssv:Units><ssc:Unit name="g"><ssc:BaseUnit m="1"/></ssc:Unit></ssv:Units>',
+     r"cannot convert \[g\] to \[kg\]: different base units"),
+])
+def test_parameter_values_are_converted_to_the_variables_unit(loop_fmus, tmp_path, units, expected):
+    ssv = f"""<?xml version="1.0" encoding="UTF-8"?>
+<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon" version="1.0" name="mass">
+  <ssv:Parameters><ssv:Parameter name="plant.m"><ssv:Real value="2600" unit="g"/></ssv:Parameter></ssv:Parameters>
+  {units}
+</ssv:ParameterSet>"""
+    ssd = """<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    version="1.0" name="P">
+  <ssd:System name="P">
+    <ssd:ParameterBindings><ssd:ParameterBinding source="resources/mass.ssv"/></ssd:ParameterBindings>
+    <ssd:Elements><ssd:Component name="plant" source="resources/Oscillator1DOF.fmu"/></ssd:Elements>
+  </ssd:System>
+</ssd:SystemStructureDescription>"""
+    path = _pack(tmp_path / "p.ssp", {"SystemStructure.ssd": ssd, "resources/mass.ssv": ssv,
+                                      "resources/Oscillator1DOF.fmu": loop_fmus["Oscillator1DOF"]})
+    if isinstance(expected, float):
+        assert System.from_ssp(path).parameter_values("plant")["m"] == pytest.approx(expected, rel=1e-15)
+    else:
+        with pytest.raises(SspError, match=r"p.ssp!resources/mass.ssv, line 4, <Parameter name='plant.m'> -> "
+                                           r"plant.m: " + expected):
+            System.from_ssp(path)
