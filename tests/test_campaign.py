@@ -428,3 +428,22 @@ def test_the_cosim_example_spec_runs_with_the_demo_fmus(tmp_path, loop_fmus):
     row = run_task(spec.tasks[0])
     assert row["status"] == "ok", row["error"]
     assert row["m_hat"] == pytest.approx(2.024, rel=0.02) and row["tracking_rms"] < 1e-4
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".mat"])
+def test_identification_task_reads_a_record_in_any_format(tmp_path, suffix):
+    """task.record is read by Record.read: the format comes from the extension."""
+    from duffid import Multisine
+    from duffid.campaign.spec import Task
+    from duffid.campaign.tasks import run_task
+
+    plant = Duffing1(m=0.4, b=1.5, k=2.5e3, kp=5e7)
+    record = measure(simulate(plant, Multisine(8.0, 2.0, 30.0, 1.5, phases="random", seed=1), 3.0, 1e-3),
+                     pulses_per_cm=None, snr_db=60.0, seed=2)
+    path = tmp_path / f"record{suffix}"
+    record.to_csv(path) if suffix == ".csv" else record.to_mat(path)
+    settings = {"model": "duffing1", "record": str(path), "method": "robust", "check": False, "engine": "c",
+                **{f"plant.{k}": v for k, v in plant.parameters.items()}}
+    row = run_task(Task(id="t", kind="identification", settings=settings, factors={}))
+    assert row["status"] == "ok", row["error"]
+    assert abs(row["error_k"]) < 1.0  # percent

@@ -30,7 +30,8 @@ Keys of ``[task]`` and ``[factors]`` per kind (:data:`KEYS`); nested tables
   true parameters of the simulated plant, the model's nominal values otherwise),
   ``excitation`` (a signal spec, :func:`duffid.data.signals.from_spec`), ``t_end``, ``dt``,
   ``snr_db`` (measurement noise; absent: none), ``quantise`` (the encoder, default true),
-  or ``record`` (a CSV record instead of a simulation; the truth is then ``plant.<p>``);
+  or ``record`` (a measured record instead of a simulation, in any format ``Record.read`` reads
+  by its extension: CSV, MATLAB, TDMS, UFF, HDF5, WAV; the truth is then ``plant.<p>``);
   ``method``, ``options.<o>`` (method options), ``check`` (default true: the checked
   :func:`duffid.identify` with trust statuses; false: the bare estimator), ``engine``.
 - ``nonlinearity``: ``model``, ``plant.<p>``, ``amplitude`` [N], ``rate`` [Hz/s], ``f_max``
@@ -76,7 +77,7 @@ MODELS = tuple(PLANTS)
 KEYS: dict[str, dict[str, str]] = {
     "identification": {"model": "model name", "excitation": "signal spec", "t_end": "positive number",
                        "dt": "positive number", "snr_db": "number", "quantise": "boolean",
-                       "record": "CSV file", "method": "method", "check": "boolean", "engine": "engine"},
+                       "record": "record file", "method": "method", "check": "boolean", "engine": "engine"},
     "nonlinearity": {"model": "model name", "amplitude": "positive number", "rate": "positive number",
                      "f_max": "positive number", "dt": "positive number", "ring_down": "positive number",
                      "band": "band", "n_modes": "positive integer"},

@@ -81,7 +81,7 @@ def _exact(name: str, plant: tuple[tuple[str, float], ...], excitation: str, t_e
 def _identification(settings: Mapping[str, Any]) -> dict[str, Any]:
     plant = plant_model(settings)
     if "record" in settings:
-        record = Record.read_csv(settings["record"])
+        record = Record.read(settings["record"])  # any format duffid reads, by its extension
         truth = {k[len("plant."):]: float(v) for k, v in settings.items() if k.startswith("plant.")}
     else:
         key = tuple(sorted((k[len("plant."):], float(v)) for k, v in settings.items() if k.startswith("plant.")))
