@@ -53,7 +53,8 @@ other tools are not understood: each is reported in :attr:`SspRun.warnings` (wit
 and line; ``duffid cosim`` prints them), never dropped silently. Graphical information
 (geometry, notes) and meta-data are not needed to run and are skipped.
 
-Export writes SSP 1.0 (valid against the schemas FMPy ships): the FMUs under
+Export writes SSP 1.0 (valid against the schemas FMPy ships; also with FMI 3 components,
+which SSP 2.0 describes with the same elements, since Ecos reads version 1.0 only): the FMUs under
 ``resources/``, one connector per connected variable, the connections (a factor or offset as
 a ``LinearTransformation``, ``check_units=False`` as ``suppressUnitConversion``), the
 parameter values and constant inputs as one ``resources/<component>.ssv`` per component,
