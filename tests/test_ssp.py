@@ -629,3 +629,22 @@ def test_parameter_values_are_converted_to_the_variables_unit(loop_fmus, tmp_pat
         with pytest.raises(SspError, match=r"p.ssp!resources/mass.ssv, line 4, <Parameter name='plant.m'> -> "
                                            r"plant.m: " + expected):
             System.from_ssp(path)
+
+
+OMS_ANNOTATION = """<ssd:Annotations><ssc:Annotation type="org.openmodelica">
+      <oms:Annotations xmlns:oms="https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd">
+        <oms:SimulationInformation><oms:{master} description="oms-ma" stepSize="0.125"/></oms:SimulationInformation>
+      </oms:Annotations></ssc:Annotation></ssd:Annotations>"""
+
+
+def test_omsimulators_fixed_step_master_gives_the_step(fmus, tmp_path):
+    path = _minimal(fmus, tmp_path, system_inner=OMS_ANNOTATION.format(master="FixedStepMaster"),
+                    root_extra='<ssd:DefaultExperiment stopTime="1"/>')
+    config = load_ssp(path)
+    assert config.step == 0.125 and len(config.warnings) == 2
+    assert "only its fixed-step master is understood" in config.warnings[0]
+    assert "line 13, <FixedStepMaster>: the communication step 0.125 s is taken" in config.warnings[1]
+    assert load_ssp(path, step=0.5).step == 0.5
+    path = _minimal(fmus, tmp_path, system_inner=OMS_ANNOTATION.format(master="VariableStepMaster"), name="v.ssp")
+    with pytest.raises(SspError, match=r"v.ssp!SystemStructure.ssd, line 13, <VariableStepMaster>: OMSimulator's"):
+        load_ssp(path)

@@ -49,8 +49,12 @@ the line and the element: nested systems, signal dictionaries, Model Exchange co
 other component types, Boolean, Integer and Enumeration mapping transformations, array and
 clocked connectors, binary and enumeration values, parameter sources relative to a
 component, URIs other than relative ones and ``file:``, unknown elements. Annotations of
-other tools are not understood: each is reported in :attr:`SspRun.warnings` (with its file
-and line; ``duffid cosim`` prints them), never dropped silently. Graphical information
+other tools are not understood (SSP makes annotations optional for the tools that do not
+know them): each is reported in :attr:`SspRun.warnings` (with its file and line; ``duffid
+cosim`` prints them), never dropped silently. One is understood: OMSimulator's
+(:data:`OMSIMULATOR`) fixed-step master on the top-level system gives the step when duffid's
+annotation does not; its variable-step master or solver settings, which duffid cannot
+honour, stop the import. Graphical information
 (geometry, notes) and meta-data are not needed to run and are skipped.
 
 Export writes SSP 1.0 (valid against the schemas FMPy ships; also with FMI 3 components,
@@ -84,7 +88,7 @@ if TYPE_CHECKING:
     from .system import System
 
 __all__ = ["SspError", "SspRun", "read_ssp", "write_ssp", "ANNOTATION", "NS_SSD", "NS_SSC", "NS_SSV", "NS_SSM",
-           "NS_DUFFID", "SSD_VERSIONS", "SSD_MEMBER", "PARAMETER_SET"]
+           "NS_DUFFID", "SSD_VERSIONS", "SSD_MEMBER", "PARAMETER_SET", "OMSIMULATOR"]
 
 NS_SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 NS_SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
@@ -95,6 +99,8 @@ NS_SSB = "http://ssp-standard.org/SSP1/SystemStructureSignalDictionary"
 NS_DUFFID = "https://duffid.github.io/ssp/1.0"
 #: The ``type`` of duffid's annotation (reverse domain notation, as SSP asks).
 ANNOTATION = "io.github.duffid.cosim"
+#: The annotation type of OMSimulator (whose fixed-step master's step duffid takes).
+OMSIMULATOR = "org.openmodelica"
 #: SSD versions read (SSP 2.0 keeps the SSP1 namespaces and adds FMI 3 components).
 SSD_VERSIONS = ("1.0", "2.0")
 #: The default SSD of an archive.
@@ -229,15 +235,16 @@ def _typed_value(xml: XmlFile, element: etree._Element) -> tuple[str, Any, str |
     return kind, text, None
 
 
-def _annotations(xml: XmlFile, element: etree._Element, warnings: list[str]) -> list[etree._Element]:
+def _annotations(xml: XmlFile, element: etree._Element, warnings: list[str], handled: Sequence[str] = ()
+                 ) -> list[etree._Element]:
     """The contents of duffid's annotations inside ``<Annotations>`` ``element``; every other
-    annotation is reported in ``warnings``."""
+    annotation (but those of the ``handled`` types) is reported in ``warnings``."""
     ours = []
     for annotation in _children(xml, element, ("Annotation",)):
         kind = annotation.get("type")
         if kind == ANNOTATION:
             ours += [c for c in annotation if isinstance(c.tag, str)]
-        else:
+        elif kind not in handled:
             warnings.append(f"{xml.where(annotation)}: annotation of type {kind!r} is not understood by duffid "
                             "and was not applied")
     return ours
@@ -424,6 +431,7 @@ class _Reader:
         self.system_connectors: dict[str, _Connector] = {}
         self.system_bindings: list[tuple[XmlFile, etree._Element]] = []
         self.connections: list[tuple[XmlFile, etree._Element]] = []
+        self.tool_step: float | None = None
 
     # -- the SSD
     def read(self) -> SspRun:
@@ -453,6 +461,8 @@ class _Reader:
             if system is None:
                 raise SspError(f"{xml.where(root)}: no <System>")
             self._system(xml, system)
+            if self.run.step is None:
+                self.run.step = self.tool_step
             self._build()
         finally:
             self.package.close()
@@ -497,7 +507,31 @@ class _Reader:
             elif name == "SignalDictionaries":
                 raise SspError(f"{xml.where(child)}: signal dictionaries are not supported by duffid")
             else:
-                _annotations(xml, child, self.run.warnings)
+                self._system_annotations(xml, child)
+
+    def _system_annotations(self, xml: XmlFile, element: etree._Element) -> None:
+        """The top-level system's annotations: OMSimulator's fixed-step master gives the step
+        (when duffid's annotation does not); a variable-step master or solver settings cannot
+        be honoured (an error); everything else is reported."""
+        for annotation in _children(xml, element, ("Annotation",)):
+            if annotation.get("type") != OMSIMULATOR:
+                continue
+            found = [f"{xml.where(annotation)}: annotation of type {OMSIMULATOR!r}: only its fixed-step master is "
+                     "understood by duffid, the rest was not applied"]
+            for item in annotation.iter():
+                name = local_name(item) if isinstance(item.tag, str) else ""
+                if name in ("VariableStepMaster", "VariableStepSolver", "FixedStepSolver"):
+                    raise SspError(f"{xml.where(item)}: OMSimulator's <{name}> cannot be honoured: duffid runs the "
+                                   "co-simulation components at a fixed communication step")
+                if name == "FixedStepMaster":
+                    step = _number(xml, item, "stepSize")
+                    if step is None or step <= 0:
+                        raise SspError(f"{xml.where(item)}: stepSize must be a positive number")
+                    self.tool_step = step
+                    found.append(f"{xml.where(item)}: the communication step {step!r} s is taken from OMSimulator's "
+                                 "fixed-step master (unless duffid's annotation or --step gives one)")
+            self.run.warnings += found
+        _annotations(xml, element, self.run.warnings, handled=(OMSIMULATOR,))
 
     def _connectors(self, xml: XmlFile, element: etree._Element) -> dict[str, _Connector]:
         out: dict[str, _Connector] = {}
