@@ -718,32 +718,10 @@ class System:
 
     def to_ssp(self, path: str | os.PathLike[str], *, stop_time: float, step: float, start_time: float = 0.0,
                ordering: str = "jacobi", order: Sequence[str] | None = None) -> Path:
-        """Write the system as an SSP 1.0 archive (:func:`duffid.cosim.ssp.write_ssp`): the
-        FMUs, the connections, the parameter values and constant inputs (one ``.ssv`` per
-        component), the default experiment and duffid's run annotation.
-
-        Parameters
-        ----------
-        path : str or os.PathLike
-            The ``.ssp`` file.
-        stop_time, step, start_time : float
-            The run's grid (default experiment; the step in duffid's annotation).
-        ordering : {"jacobi", "gauss-seidel"}
-            The master, in duffid's annotation.
-        order : sequence of str, optional
-            The Gauss-Seidel order, in duffid's annotation.
-
-        Returns
-        -------
-        Path
-            The archive written.
-
-        Raises
-        ------
-        WiringError
-            An input driven by a function or by samples (an SSP carries constants), bad
-            times or ordering.
-        """
+        """Write the system as an SSP 1.0 archive: the FMUs, the connections, the parameter
+        values and constant inputs (one ``.ssv`` per component), the default experiment and
+        duffid's run annotation. See :func:`duffid.cosim.ssp.write_ssp` for the parameters
+        and limits; returns the archive's path."""
         return write_ssp(self, path, stop_time=stop_time, step=step, start_time=start_time, ordering=ordering,
                          order=order)
 
