@@ -97,7 +97,7 @@ def test_identify_buffered_method(capsys, tmp_path, request):
     for name, value in Duffing1().parameters.items():
         assert data["parameters"][name] == pytest.approx(value, rel=1e-3)
     code, _, err = _run(capsys, "identify", str(csv), "--method", "legendre", "--window", "auto")
-    assert code == 2 and "--window auto" in err
+    assert code == 2 and "--window auto" in err and "legendre" in err
 
 
 def test_identify_equation_json(capsys, case_a_csv):

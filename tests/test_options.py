@@ -144,3 +144,42 @@ def test_the_python_fmu_parameters_are_the_schema():
 
     table = _option_parameters()
     assert list(table) == [o.name for o in schema.fmu_parameters()]
+
+
+def test_buffered_options_come_from_the_schema():
+    from duffid import Duffing1
+    from duffid.identification.buffered import BufferedIdentifier
+
+    for method in schema.BUFFERED_METHODS:
+        ident = BufferedIdentifier(Duffing1(), 1e-3, method, n_terms=16)
+        defaults = schema.default_options(method)
+        assert {k: v for k, v in ident.options.items() if k != "n_terms"} == \
+            {k: v for k, v in defaults.items() if k != "n_terms"}
+    with pytest.raises(OptionError, match="no option"):
+        BufferedIdentifier(Duffing1(), 1e-3, "legendre", window_periods=2.0)
+    with pytest.raises(ValueError, match="window"):
+        BufferedIdentifier(Duffing1(), 1e-3, "legendre", window=0.0)
+
+
+def test_shared_flags_state_every_family_and_check_per_method():
+    import argparse
+
+    parser = argparse.ArgumentParser()
+    schema.add_shared_arguments(parser, ("window", "max_uncertainty"), schema.ONLINE_METHODS + schema.BUFFERED_METHODS)
+    schema.add_arguments(parser, "legendre", ("n_terms",))
+    helps = {a.dest: a.help for a in parser._actions}
+    for method in ("robust", "legendre"):
+        for name in ("window", "max_uncertainty"):
+            option = next(o for o in schema.options_of(method) if o.name == name)
+            assert f"default {option.default_text or option.default}" in helps[name]
+    args = parser.parse_args(["--window", "auto", "--terms", "12"])
+    assert schema.options_from_arguments(args, "robust")["window"] == "auto"
+    assert args.n_terms == 12
+    with pytest.raises(InputError, match="--window auto: the legendre method takes"):
+        schema.options_from_arguments(args, "legendre")
+
+
+def test_the_assessment_threshold_is_the_schema_default():
+    from duffid.identification.trust import ASSESSMENT_UNCERTAINTY
+
+    assert ASSESSMENT_UNCERTAINTY == schema.default_options("robust")["max_uncertainty"]

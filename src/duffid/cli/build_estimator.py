@@ -29,7 +29,7 @@ def unit_assignments(text: str) -> dict[str, str]:
 def add_parser(sub: Any) -> argparse.ArgumentParser:
     """Add the ``build-estimator`` subcommand."""
     from ..cbuild import PLATFORMS
-    from ..fmu.estimator import BACKENDS
+    from ..identification.options import ENGINES
 
     p = sub.add_parser("build-estimator", help="build an estimator FMU for your own equation (C, FMI 2.0 or 3.0)",
                        description="Write the online identifier of your equations (the robust method by default, "
@@ -57,7 +57,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                    help="units of the signals (x=m,f=N): the parameters' units follow from the equation; "
                         "give a parameter's unit too where they do not (k=N.m for k*sin(x))")
     p.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2; 3 needs the C backend)")
-    p.add_argument("--backend", choices=BACKENDS, default="auto",
+    p.add_argument("--engine", "--backend", dest="backend", choices=ENGINES, default="auto",
                    help="c: the C estimator core; python: pythonfmu (FMI 2.0, a Python host); auto (default): "
                         "C when a C compiler is found, else python (one line says why)")
     p.add_argument("--platforms", default="all", metavar="LIST",

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..identification.engine import METHODS
-from ..identification.options import ONLINE_METHODS, add_arguments, options_from_arguments
+from ..identification.options import BUFFERED_METHODS, add_arguments, add_shared_arguments, options_from_arguments
 from ..identification.trust import OFFSETS, identify
 from ..models.chain import model_from_name
 from .common import (
@@ -18,9 +18,7 @@ from .common import (
     add_file_arguments,
     add_model_arguments,
     model_from_arguments,
-    positive_float,
     read_record,
-    window_value,
 )
 
 __all__ = ["add_parser", "run", "equation_text", "result_text", "bare_offset"]
@@ -39,52 +37,30 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                         "columns of the file are signals, all other names unknown parameters; a model name ("
                         + ", ".join(m for m in MODELS if m != "circuit") + ") stands for that model's "
                         "equations (--n-dof, --orders, --coulomb as for --model), printed with the results")
+    g = p.add_argument_group("options of several methods (each method reads its own meaning and default)")
+    add_shared_arguments(g, ("window", "max_uncertainty", "max_condition", "quadrature", "deadband"),
+                         METHODS)
     g = p.add_argument_group("robust method options")
-    g.add_argument("--window", type=window_value, default=None,
-                   help="window length in s (robust: or auto, the default; buffered: default 0.25)")
     add_arguments(g, "robust", ("window_periods", "max_window", "forgetting", "rows", "n_rows", "settle"))
-    g.add_argument("--max-uncertainty", type=positive_float, default=None,
-                   help="largest relative standard error of a published parameter (default 0.01)")
     g.add_argument("--no-refine", action="store_true",
                    help="do not refine by output-error least squares when the algebraic estimate leaves "
                         "excited parameters undetermined (faster; fewer values published)")
     g = p.add_argument_group("paper method options")
-    add_arguments(g, "paper", ("gamma",))
-    g.add_argument("--quadrature", choices=("adams3", "trapezoid", "gauss", "simpson"), default=None,
-                   help="paper: adams3 (default) or trapezoid; buffered coefficients: gauss (default), "
-                        "simpson or trapezoid")
-    add_arguments(g, "paper", ("sign_in_numerator",))
+    add_arguments(g, "paper", ("gamma", "sign_in_numerator"))
     g = p.add_argument_group("options of both online methods (robust and paper)")
-    add_arguments(g, "robust", ("max_condition", "min_time"))
-    g = p.add_argument_group("buffered methods (legendre, chebyshev, block-pulse, haar)")
-    g.add_argument("--terms", type=int, default=None, help="basis functions per window")
-    g.add_argument("--every", type=int, default=None, help="samples between re-identifications (default: a window)")
-    g.add_argument("--form", choices=("per-dof", "matrix"), default=None, help="per-DOF or matrix form (eqs. 36-37)")
-    g.add_argument("--repeated", choices=("power", "exact"), default=None,
-                   help="repeated integration: powers of P (paper) or the exact matrix")
-    g.add_argument("--accumulate", action="store_true", help="least squares over all windows so far")
+    add_arguments(g, "robust", ("min_time",))
+    g = p.add_argument_group("buffered methods (" + ", ".join(BUFFERED_METHODS) + ")")
+    add_arguments(g, BUFFERED_METHODS[0], ("n_terms", "every", "form", "repeated", "accumulate"))
     add_file_arguments(p)
-    p.add_argument("--deadband", type=float, default=None, help="Coulomb: |dx| below which the velocity sign is held")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", type=Path, default=None, help="write estimates vs time to this PNG")
 
     return p
 
 
-_BUFFERED_NAMES = {"window": "window", "terms": "n_terms", "every": "every", "quadrature": "quadrature",
-                   "form": "form", "repeated": "repeated", "max_uncertainty": "max_uncertainty", "deadband": "deadband"}
-
-
 def _method_options(args: argparse.Namespace, method: str) -> dict[str, Any]:
-    """The options given on the command line that ``method`` takes."""
-    if method in ONLINE_METHODS:
-        return options_from_arguments(args, method)
-    options = {option: getattr(args, arg) for arg, option in _BUFFERED_NAMES.items() if getattr(args, arg) is not None}
-    if options.get("window") == "auto":
-        raise InputError("--window auto applies to the robust method; give the buffered window in seconds")
-    if args.accumulate:
-        options["accumulate"] = True
-    return options
+    """The options given on the command line that ``method`` takes (the schema's names)."""
+    return options_from_arguments(args, method)
 
 
 def run(args: argparse.Namespace) -> int:

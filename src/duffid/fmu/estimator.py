@@ -56,6 +56,7 @@ from typing import Mapping, Sequence
 from ..assets import fmu_sources
 from ..cbuild import Platform, find_compiler
 from ..errors import CompilerNotFoundError, InputError
+from ..identification.options import ENGINES
 from .c_model import build_c_model_fmu
 from .estimator_table import (
     C_FMU_NAMES,
@@ -69,7 +70,7 @@ from .estimator_table import (
 )
 from .python_estimator import FMU_NAMES, build_python_fmu
 
-__all__ = ["build_estimator_fmus", "build_estimator_fmu", "build_equation_fmu", "build_chain_fmu", "BACKENDS",
+__all__ = ["build_estimator_fmus", "build_estimator_fmu", "build_equation_fmu", "build_chain_fmu",
            "GENERATED_MODEL_FILE"]
 
 _CORE_FILES = ("duffid_estimator.c", "duffid_estimator.h", "duffid_model.h", "duffid_build.h", "duffid_options.h", "duffid_facts.h",
@@ -77,7 +78,6 @@ _CORE_FILES = ("duffid_estimator.c", "duffid_estimator.h", "duffid_model.h", "du
 #: File of an FMU's ``sources/`` that holds the generated model (chains, equations).
 GENERATED_MODEL_FILE = "estimator_model.c"
 #: Backends of :func:`build_equation_fmu` and :func:`build_chain_fmu`.
-BACKENDS = ("auto", "c", "python")
 
 
 def build_estimator_fmu(model: str | EstimatorInterface, out_dir: str | Path, fmi_version: int = 2,
@@ -133,8 +133,8 @@ def build_estimator_fmu(model: str | EstimatorInterface, out_dir: str | Path, fm
 def _use_c(backend: str, fmi_version: int, what: str) -> bool:
     """Whether to build the C FMU: ``backend`` "c", or "auto" with a C compiler (else one line
     on stderr says why the pythonfmu FMU is built)."""
-    if backend not in BACKENDS:
-        raise InputError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
+    if backend not in ENGINES:
+        raise InputError(f"backend must be one of {', '.join(ENGINES)}, got {backend!r}")
     if fmi_version not in (2, 3):
         raise InputError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
     if backend == "python":

@@ -57,7 +57,8 @@ from ..models.chain import Chain, Channel
 from ..models.regression import LinearTerm, Regression
 from .engine import Estimate, Identification, check_record, combine_equations, solve_factor, triangular_factor
 from .identifier import Identifier
-from .orthogonal import BASES, QUADRATURES, make_basis, projection_matrix
+from .options import BUFFERED_METHODS, check_options
+from .orthogonal import make_basis, projection_matrix
 
 __all__ = [
     "METHODS",
@@ -71,49 +72,16 @@ __all__ = [
 ]
 
 #: Method names (one per basis).
-METHODS = BASES
+METHODS = BUFFERED_METHODS
 #: Default number of basis functions per method.
 DEFAULT_TERMS = {"legendre": 24, "chebyshev": 24, "block-pulse": 128, "haar": 128}
 
-_DEFAULTS: dict[str, Any] = {
-    "window": 0.25,          # seconds of the window (a natural period of the paper's plant)
-    "n_terms": None,         # basis functions; None: DEFAULT_TERMS[method]
-    "every": None,           # samples between re-identifications; None: the window's samples
-    "quadrature": "gauss",   # coefficient integrals, see duffid.identification.orthogonal
-    "form": "per-dof",       # or "matrix" (eqs. 36-37)
-    "repeated": "power",     # m-fold integrals: "power" (P^m, the paper) or "exact" (see orthogonal)
-    "accumulate": False,     # stack the equations of all windows so far instead of the last one
-    "max_condition": 1e8,    # identified when the scaled condition number is at most this
-    "max_uncertainty": 0.05,  # and every unknown's relative standard error is at most this
-    "deadband": 0.0,         # |dx| <= deadband keeps the previous sign of velocity
-}
-
-
 def _options(method: str, options: Mapping[str, Any]) -> dict[str, Any]:
+    """The method's options checked and merged with their defaults (the schema:
+    :data:`duffid.identification.options.BUFFERED_OPTIONS`)."""
     if method not in METHODS:
         raise InputError(f"unknown buffered method {method!r}; choose one of {', '.join(METHODS)}")
-    unknown = set(options) - set(_DEFAULTS)
-    if unknown:
-        raise OptionError(f"method {method!r} has no option(s) {sorted(unknown)}; its options are {sorted(_DEFAULTS)}")
-    o = {**_DEFAULTS, **options}
-    w = o["window"]
-    if not (isinstance(w, (int, float)) and not isinstance(w, bool) and np.isfinite(w) and w > 0):
-        raise InputError(f"option window must be a positive number of seconds, got {w!r}")
-    for key in ("n_terms", "every"):
-        v = o[key]
-        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1):
-            raise InputError(f"option {key} must be an integer >= 1, got {v!r}")
-    if o["repeated"] not in ("power", "exact"):
-        raise InputError(f"option repeated must be 'power' or 'exact', got {o['repeated']!r}")
-    if o["quadrature"] not in QUADRATURES:
-        raise InputError(f"option quadrature must be one of {', '.join(QUADRATURES)}, got {o['quadrature']!r}")
-    if o["form"] not in ("per-dof", "matrix"):
-        raise InputError(f"option form must be 'per-dof' or 'matrix', got {o['form']!r}")
-    for key in ("max_condition", "max_uncertainty", "deadband"):
-        if not (isinstance(o[key], (int, float)) and np.isfinite(o[key]) and o[key] >= 0):
-            raise InputError(f"option {key} must be a finite number >= 0, got {o[key]!r}")
-    o["accumulate"] = bool(o["accumulate"])
-    return o
+    return check_options(method, options)
 
 
 # ---------------------------------------------------------------------- structure
@@ -285,17 +253,12 @@ class BufferedIdentifier(Identifier):
     method : {"legendre", "chebyshev", "block-pulse", "haar"}
         Orthogonal basis.
     **options
-        ``window`` (s, 0.25), ``n_terms`` (basis functions; 24 for the polynomial bases,
-        128 for block-pulse and Haar, at most the window's samples; Haar: a power of two),
-        ``every`` (samples between
-        re-identifications, default: the window's samples, i.e. back-to-back buffers),
-        ``quadrature`` ("gauss", "simpson" or "trapezoid"), ``form`` ("per-dof" or
-        "matrix", chain models only), ``repeated`` ("power": ``P^m`` as the paper, the
-        corrupted coefficients left out; "exact": the exact matrices of repeated
-        integration, 4-5 times smaller errors for block-pulse and Haar), ``accumulate``
-        (False: each window alone, as the paper; True: least squares over the equations of
-        all windows so far), ``max_condition`` (1e8), ``max_uncertainty`` (0.05),
-        ``deadband`` (m).
+        The buffered methods' options (:data:`duffid.identification.options.BUFFERED_OPTIONS`:
+        names, defaults, ranges and meanings in one place): ``window`` [s], ``n_terms`` (basis
+        functions, at most the window's samples; Haar: a power of two), ``every``,
+        ``quadrature``, ``form`` (``"matrix"``: chain models only), ``repeated`` (``"exact"``:
+        4-5 times smaller errors for block-pulse and Haar), ``accumulate`` (False: each window
+        alone, as the paper), ``max_condition``, ``max_uncertainty``, ``deadband`` [m].
 
     Notes
     -----

@@ -41,7 +41,7 @@ from .engine import STATUSES, Estimate, Identification, check_record, prior_size
 from .identifier import Identifier
 from .c_facts import C_HEADER_NAME as FACTS_HEADER_NAME
 from .c_facts import LIMITS, RETURN_CODES, limit, return_code
-from .options import C_HEADER_NAME, check_options, ctypes_fields, to_c
+from .options import C_HEADER_NAME, check_online_options, ctypes_fields, to_c
 
 __all__ = [
     "CIdentifier",
@@ -280,9 +280,9 @@ def _check_limits(d: ModelDescription) -> None:
               "linear": max(len(d.mass or ()), len(d.stiffness or ())),
               "name": max(len(n.encode()) for n in [p.name for p in d.parameters] + [q[0] for q in d.public])}
     for key, value in counts.items():
-        what, limit = _LIMITS[key]
-        if value > limit:
-            raise InputError(f"{d.name}: the C estimator core supports at most {limit} {what}, the model has {value}")
+        what, most = _LIMITS[key]
+        if value > most:
+            raise InputError(f"{d.name}: the C estimator core supports at most {most} {what}, the model has {value}")
     if d.max_order > limit("max_derivative"):
         raise InputError(f"{d.name}: the C estimator core supports derivatives up to order "
                          f"{limit('max_derivative')}, the model has {d.max_order}")
@@ -464,7 +464,7 @@ class CIdentifier(Identifier):
         if method not in _METHODS:
             raise InputError(f"unknown method {method!r}; the C core supports {', '.join(_METHODS)}")
         check_precision(precision)
-        super().__init__(_resolve_model(model), dt, method, check_options(method, options))
+        super().__init__(_resolve_model(model), dt, method, check_online_options(method, options))
         builtin = _builtin(self.model) and not generated
         self.generated = not builtin
         self.precision = precision

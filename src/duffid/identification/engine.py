@@ -33,7 +33,7 @@ from ..data.record import Record
 from ..errors import InputError, RecordError
 from ..models.chain import Chain, Channel, Equation
 from .identifier import Identifier
-from .options import ONLINE_METHODS, check_options
+from .options import ONLINE_METHODS, check_online_options, check_options
 from .orthogonal import BASES
 from .regressors import KernelBank, SlidingMoments, row_exponents
 
@@ -476,7 +476,7 @@ class OnlineIdentifier(Identifier):
     """
 
     def __init__(self, model: Chain, dt: float, method: str = "robust", **options: Any) -> None:
-        super().__init__(model, dt, method, check_options(method, options))
+        super().__init__(model, dt, method, check_online_options(method, options))
         self.equations = model.equations()
         self._prior = prior_sizes(model, self.options.get("nominal"))
         # robust: samples a parameter's error must stay small before it is published

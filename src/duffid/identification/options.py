@@ -1,8 +1,11 @@
-"""The options of the online estimator: one declarative schema, everything else from it.
+"""The options of the identifiers: one declarative schema, everything else from it.
 
-:data:`OPTIONS` lists every option of the robust and paper methods once: its name, the
-methods that take it, its type and default, its valid range, its unit and what it
-means, and how the C core codes it. From it come
+:data:`OPTIONS` lists every option of the online methods (robust and paper) once: its name,
+the methods that take it, its type and default, its valid range, its unit and what it
+means, and how the C core codes it. :data:`BUFFERED_OPTIONS` does the same for the buffered
+methods (one per orthogonal basis, paper section 4; Python only). An option name that both
+families use (``window``, ``quadrature``, ``max_condition``, ``max_uncertainty``) is one
+command-line flag whose help states each family's meaning and default. From the schema come
 
 - the Python defaults and validation (:func:`default_options`, :func:`check_options`);
 - the C header ``fmus/estimator/duffid_options.h`` (:func:`c_header`): the fields of
@@ -12,7 +15,9 @@ means, and how the C core codes it. From it come
 - the ctypes fields of :class:`duffid.identification.c_core.CConfig` (:func:`ctypes_fields`)
   and the Python-to-C coding (:func:`to_c`);
 - the estimator FMUs' parameter tables (:func:`fmu_parameters`), C and pythonfmu;
-- the ``duffid identify`` flags of the robust and paper methods (:func:`add_arguments`).
+- the ``duffid identify`` flags of every method (:func:`add_arguments`,
+  :func:`add_shared_arguments`) and the options a parsed command line gives a method
+  (:func:`options_from_arguments`).
 """
 from __future__ import annotations
 
@@ -24,13 +29,18 @@ from dataclasses import dataclass
 from typing import Any, Mapping
 
 from ..errors import InputError, OptionError
+from .orthogonal import BASES, QUADRATURES
 
-__all__ = ["Option", "OPTIONS", "ONLINE_METHODS", "default_options", "check_options", "to_c", "from_c",
-           "ctypes_fields", "c_header", "fmu_parameters", "add_arguments", "options_from_arguments",
-           "C_HEADER_NAME"]
+__all__ = ["Option", "OPTIONS", "BUFFERED_OPTIONS", "ONLINE_METHODS", "BUFFERED_METHODS", "ENGINES",
+           "default_options", "check_options", "check_online_options", "options_of", "to_c", "from_c", "ctypes_fields", "c_header",
+           "fmu_parameters", "add_arguments", "add_shared_arguments", "options_from_arguments", "C_HEADER_NAME"]
 
 #: The online methods (OnlineIdentifier, the C core, the estimator FMUs).
 ONLINE_METHODS = ("robust", "paper")
+#: The buffered methods (BufferedIdentifier): one per orthogonal basis.
+BUFFERED_METHODS = BASES
+#: Implementations of the online methods: the C core where it runs the model (auto), or one of them.
+ENGINES = ("auto", "c", "python")
 #: File name of the generated C header (in ``fmus/estimator``).
 C_HEADER_NAME = "duffid_options.h"
 
@@ -67,6 +77,10 @@ class Option:
         A parameter of the estimator FMUs.
     default_text : str
         What the default means, where its value does not say it (CLI help).
+    above : bool
+        A real option must exceed ``minimum`` (not only reach it).
+    alias : str
+        Another command-line flag of the option (an older name kept for compatibility).
     """
 
     name: str
@@ -80,6 +94,8 @@ class Option:
     minimum: float = 0.0
     fmu: bool = True
     default_text: str = ""
+    above: bool = False
+    alias: str = ""
 
     @property
     def has_unset(self) -> bool:
@@ -126,7 +142,7 @@ class Option:
         if self.has_unset:
             head = f"0 ({self.unset or 'none'})" if c else repr(self.unset)
             return f"{head} or a positive number" + (" of seconds" if self.unit == "s" else unit)
-        return f"a finite number >= {_number(self.minimum)}{unit}"
+        return f"a finite number {'>' if self.above else '>='} {_number(self.minimum)}{unit}"
 
 
 def _number(value: float) -> str:
@@ -163,13 +179,46 @@ OPTIONS: tuple[Option, ...] = (
 )
 _BY_NAME = {o.name: o for o in OPTIONS}
 
+_BUF = BUFFERED_METHODS
+#: Every option of the buffered methods (Python only: no C coding, no FMU parameter).
+BUFFERED_OPTIONS: tuple[Option, ...] = (
+    Option("window", _BUF, "real", 0.25, "buffered: window length", unit="s", above=True, fmu=False,
+           default_text="0.25, a natural period of the paper's plant"),
+    Option("n_terms", _BUF, "count", None, "buffered: basis functions per window", unset=None, fmu=False,
+           default_text="24 for legendre and chebyshev, 128 for block-pulse and haar, at most the window's "
+                        "samples", alias="terms"),
+    Option("every", _BUF, "count", None, "buffered: samples between re-identifications", unset=None, fmu=False,
+           default_text="the window's samples: back-to-back windows"),
+    Option("quadrature", _BUF, "choice", "gauss", "buffered: quadrature of the coefficient integrals",
+           choices=QUADRATURES, fmu=False),
+    Option("form", _BUF, "choice", "per-dof", "buffered: per-DOF equations or the matrix form (eqs. 36-37)",
+           choices=("per-dof", "matrix"), fmu=False),
+    Option("repeated", _BUF, "choice", "power", "buffered: repeated integration: powers of P (the paper's) "
+           "or the exact matrices", choices=("power", "exact"), fmu=False),
+    Option("accumulate", _BUF, "bool", False, "buffered: least squares over all windows so far", fmu=False),
+    Option("max_condition", _BUF, "real", 1e8, "buffered: largest scaled condition number of an identified window",
+           fmu=False),
+    Option("max_uncertainty", _BUF, "real", 0.05,
+           "buffered: largest relative standard error of an identified window's unknowns", fmu=False),
+    Option("deadband", _BUF, "real", 0.0,
+           "|dx| <= deadband (displacement units) keeps the previous sign of velocity", fmu=False),
+)
 
-def _of(method: str) -> list[Option]:
-    return [o for o in OPTIONS if method in o.methods]
+
+def options_of(method: str) -> list[Option]:
+    """The options of ``method`` (online or buffered), in schema order."""
+    if method in ONLINE_METHODS:
+        return [o for o in OPTIONS if method in o.methods]
+    if method in BUFFERED_METHODS:
+        return [o for o in BUFFERED_OPTIONS if method in o.methods]
+    raise InputError(f"unknown method {method!r}; choose one of {', '.join(ONLINE_METHODS + BUFFERED_METHODS)}")
+
+
+_of = options_of
 
 
 def default_options(method: str) -> dict[str, Any]:
-    """A copy of the default options of the online ``method`` ("robust" or "paper")."""
+    """A copy of the default options of ``method`` (online or buffered)."""
     return check_options(method, {})
 
 
@@ -182,7 +231,7 @@ def _check_value(option: Option, value: Any) -> Any:
     if option.kind == "real":
         if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
             raise bad()
-        if value < option.minimum or (option.has_unset and value <= option.minimum):
+        if value < option.minimum or ((option.has_unset or option.above) and value <= option.minimum):
             raise bad()
         return value
     if option.kind == "count":
@@ -206,12 +255,12 @@ def _check_value(option: Option, value: Any) -> Any:
 
 
 def check_options(method: str, options: Mapping[str, Any]) -> dict[str, Any]:
-    """Validate ``options`` of the online ``method`` and merge them with its defaults.
+    """Validate ``options`` of ``method`` and merge them with its defaults.
 
     Parameters
     ----------
-    method : {"robust", "paper"}
-        The online method.
+    method : str
+        An online method (:data:`ONLINE_METHODS`) or a buffered one (:data:`BUFFERED_METHODS`).
     options : mapping
         Option values by name (:data:`OPTIONS`).
 
@@ -227,15 +276,21 @@ def check_options(method: str, options: Mapping[str, Any]) -> dict[str, Any]:
     OptionError
         An option the method does not have (the message lists those it has).
     """
-    if method not in ONLINE_METHODS:
-        raise InputError(f"unknown online method {method!r}; choose one of {', '.join(ONLINE_METHODS)} "
-                         "(the buffered bases run through identify() or "
-                         "duffid.identification.buffered.BufferedIdentifier)")
-    mine = {o.name: o for o in _of(method)}
+    mine = {o.name: o for o in options_of(method)}
     unknown = set(options) - set(mine)
     if unknown:
         raise OptionError(f"method {method!r} has no option(s) {sorted(unknown)}; its options are {sorted(mine)}")
     return {name: _check_value(o, options[name]) if name in options else o.default for name, o in mine.items()}
+
+
+def check_online_options(method: str, options: Mapping[str, Any]) -> dict[str, Any]:
+    """:func:`check_options` for the online identifiers (OnlineIdentifier, the C core), which
+    refuse the buffered methods by name."""
+    if method not in ONLINE_METHODS:
+        raise InputError(f"unknown online method {method!r}; choose one of {', '.join(ONLINE_METHODS)} "
+                         "(the buffered bases run through identify() or "
+                         "duffid.identification.buffered.BufferedIdentifier)")
+    return check_options(method, options)
 
 
 def to_c(option: Option | str, value: Any) -> float | int:
@@ -274,7 +329,7 @@ def from_c(option: Option | str, code: float) -> Any:
 
 
 def c_options() -> list[Option]:
-    """The options the C core has (every kind but ``prior``), FMU parameters first."""
+    """The options the C core has (the online methods', every kind but ``prior``), FMU parameters first."""
     return [o for o in OPTIONS if o.kind != "prior"]
 
 
@@ -347,6 +402,18 @@ def _flag(option: Option) -> str:
     return "--" + option.name.replace("_", "-")
 
 
+def _find(method: str, name: str) -> Option:
+    for o in options_of(method):
+        if o.name == name:
+            return o
+    raise InputError(f"option {name} is not an option of the {method} method")
+
+
+def _shown(o: Option) -> str:
+    unit = f" [{o.unit}]" if o.unit else ""
+    return f"{o.description}{unit} (default {o.default_text or o.default})"
+
+
 def add_arguments(parser: argparse.ArgumentParser | Any, method: str, names: tuple[str, ...],
                   defaults_from: str | None = None) -> None:
     """Add the flags of ``names`` (options of ``method``) to ``parser`` (or an argument group).
@@ -355,41 +422,75 @@ def add_arguments(parser: argparse.ArgumentParser | Any, method: str, names: tup
     the option's range (``--window auto`` for the unset value of ``window``).
     """
     for name in names:
-        o = _BY_NAME[name]
-        if method not in o.methods:
-            raise InputError(f"option {name} is not an option of the {method} method")
-        shown = f" (default {o.default_text or o.default})"
-        if o.kind == "bool":
-            parser.add_argument(_flag(o), action="store_true", default=None, help=f"{o.description}{shown}")
-        elif o.kind == "choice":
-            parser.add_argument(_flag(o), choices=o.choices, default=None, help=f"{o.description}{shown}")
-        else:
-            parser.add_argument(_flag(o), type=_parser_of(o), default=None, metavar=name.upper(),
-                                help=f"{o.description}{shown}")
+        _add_flag(parser, [_find(method, name)])
 
 
-def _parser_of(option: Option):
+def add_shared_arguments(parser: argparse.ArgumentParser | Any, names: tuple[str, ...],
+                         methods: tuple[str, ...]) -> None:
+    """One flag per name for every variant of that option among ``methods`` (e.g. ``--window``
+    of the robust and the buffered methods): its help states each variant's meaning and
+    default, its type accepts what any variant accepts; the method's own check applies when the
+    options are built (:func:`options_from_arguments`, :func:`check_options`)."""
+    for name in names:
+        variants: list[Option] = []
+        for method in methods:
+            o = next((o for o in options_of(method) if o.name == name), None)
+            if o is not None and o not in variants:
+                variants.append(o)
+        if not variants:
+            raise InputError(f"option {name} is not an option of the methods {', '.join(methods)}")
+        _add_flag(parser, variants)
+
+
+def _add_flag(parser: Any, variants: list[Option]) -> None:
+    o = variants[0]
+    names = [_flag(o)] + ([f"--{o.alias.replace('_', '-')}"] if o.alias else [])
+    shown = "; ".join(dict.fromkeys(_shown(v) for v in variants))
+    kinds = {v.kind for v in variants}
+    if kinds == {"bool"}:
+        parser.add_argument(*names, dest=o.name, action="store_true", default=None, help=shown)
+    elif kinds == {"choice"}:
+        choices = tuple(dict.fromkeys(c for v in variants for c in v.choices))
+        parser.add_argument(*names, dest=o.name, choices=choices, default=None, help=shown)
+    else:
+        parser.add_argument(*names, dest=o.name, type=_parser_of(variants), default=None,
+                            metavar=o.name.upper(), help=shown)
+
+
+def _parser_of(variants: Option | list[Option]):
+    variants = [variants] if isinstance(variants, Option) else variants
+
     def parse(text: str) -> Any:
-        if option.has_unset and option.unset is not None and text == option.unset:
-            return option.unset
-        try:
-            value: Any = int(text) if option.kind == "count" else float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not {option.valid_values()}") from None
-        try:
-            return _check_value(option, value)
-        except InputError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not {option.valid_values()}") from None
-    parse.__name__ = option.name
+        errors = []
+        for option in variants:
+            if option.has_unset and option.unset is not None and text == option.unset:
+                return option.unset
+            try:
+                value: Any = int(text) if option.kind == "count" else float(text)
+                return _check_value(option, value)
+            except (ValueError, InputError):
+                errors.append(option.valid_values())
+        raise argparse.ArgumentTypeError(f"{text!r} is not {' or '.join(dict.fromkeys(errors))}")
+    parse.__name__ = variants[0].name
     return parse
 
 
 def options_from_arguments(args: argparse.Namespace, method: str) -> dict[str, Any]:
-    """The options of ``method`` given as flags (those left unset are not included)."""
+    """The options of ``method`` given as flags (those left unset are not included), each
+    checked against the method's own variant of the option.
+
+    Raises
+    ------
+    InputError
+        A value the method does not take (a shared flag such as ``--window auto`` given to a
+        buffered method): the message names the flag, the value and what the method takes.
+    """
     out = {}
-    for o in _of(method):
+    for o in options_of(method):
         value = getattr(args, o.name, None)
         if value is not None:
-            out[o.name] = value
+            try:
+                out[o.name] = _check_value(o, value)
+            except InputError:
+                raise InputError(f"{_flag(o)} {value}: the {method} method takes {o.valid_values()}") from None
     return out
-

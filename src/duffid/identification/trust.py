@@ -97,11 +97,11 @@ from .engine import (
     Identification,
     check_record,
 )
-from .options import ONLINE_METHODS, check_options
+from .options import ENGINES, ONLINE_METHODS, check_options, default_options
 from .refine import OdeSimulator, canonical_from_public, fit_initial_state, refine, stretches, upsample
 
 __all__ = [
-    "identify", "run_estimator", "ENGINES", "STATUSES", "SAMPLES_PER_PERIOD", "SIMULATION_TOLERANCE", "MIN_SHARE", "REPLICATES",
+    "identify", "run_estimator", "ENGINES", "ASSESSMENT_UNCERTAINTY", "STATUSES", "SAMPLES_PER_PERIOD", "SIMULATION_TOLERANCE", "MIN_SHARE", "REPLICATES",
     "Assessment", "assess", "noise_level", "content_frequency", "samples_per_period", "upsampling_factor",
     "upsampling_needed", "upsampled", "natural_frequency", "term_shares", "isolated_outliers",
     "OFFSETS", "DISPLACEMENT_OFFSET", "displacement_offset_values",
@@ -602,7 +602,9 @@ def _public_shares(model: Chain, shares: Mapping[str, float]) -> dict[str, float
 
 #: Engines of the online methods: the C core when it supports the model (Duffing1, Duffing2)
 #: and a C compiler is available, else Python ("auto"); or one of them.
-ENGINES = ("auto", "c", "python")
+#: Largest relative uncertainty of a published value, unless the call gives ``max_uncertainty``:
+#: the robust method's default (the options schema), for every method's assessment.
+ASSESSMENT_UNCERTAINTY = default_options("robust")["max_uncertainty"]
 
 
 def run_estimator(record: Record, model: Chain, method: str = "robust", *, engine: str = "auto",
@@ -811,7 +813,7 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
         if not cubic_share >= MIN_SHARE:  # x0 is a constant force like a force bias: not separable
             mode["shifted"] = False
             result = run(upsampled(record, factor), opts)
-    max_uncertainty = float(opts.get("max_uncertainty", 0.01))
+    max_uncertainty = float(opts.get("max_uncertainty", ASSESSMENT_UNCERTAINTY))
 
     def rerun(noisy: Record) -> Mapping[str, float]:
         return run(upsampled(noisy, factor), opts).estimates
@@ -856,7 +858,7 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
 
 
 def assess(record: Record, model: Chain, estimates: Mapping[str, float],
-           rerun: Callable[[Record], Mapping[str, float]], *, max_uncertainty: float = 0.01,
+           rerun: Callable[[Record], Mapping[str, float]], *, max_uncertainty: float | None = None,
            replicates: int = REPLICATES, upsampled: int = 1, seed: int = 0,
            with_offsets: Callable[[], Mapping[str, float]] | None = None,
            at_half_rate: Callable[[], Mapping[str, float]] | None = None,
@@ -875,8 +877,9 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
         Identifies a record (as measured) the way ``estimates`` were found (upsampling
         included) and returns its final estimates (public names): the bootstrap calls it
         on noisy copies of ``record``.
-    max_uncertainty : float
-        Largest relative standard error of a published value.
+    max_uncertainty : float, optional
+        Largest relative standard error of a published value (default
+        :data:`ASSESSMENT_UNCERTAINTY`).
     replicates : int
         Noisy copies behind the standard errors.
     upsampled : int
@@ -920,6 +923,8 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
     content = content_frequency(record.x, record.dt, noise=noise)
     canonical = _canonical(model, values)
     natural = natural_frequency(model, canonical) if canonical is not None else math.nan
+    if max_uncertainty is None:
+        max_uncertainty = ASSESSMENT_UNCERTAINTY
     spp = samples_per_period(record.fs * upsampled, content, natural)
     fit: dict[str, Any] = {"samples_per_period": spp, "content_hz": content, "natural_hz": natural,
                            "upsampled": int(upsampled), "noise": [float(s) for s in noise]}
