@@ -81,7 +81,8 @@ KEYS: dict[str, dict[str, str]] = {
     "nonlinearity": {"model": "model name", "amplitude": "positive number", "rate": "positive number",
                      "f_max": "positive number", "dt": "positive number", "ring_down": "positive number",
                      "band": "band", "n_modes": "positive integer"},
-    "cosim": {"system": "cosim file", "stop_time": "number", "step": "positive number"},
+    "cosim": {"system": "cosim file", "stop_time": "number", "step": "positive number",
+              "parameter_set": "SSV file"},
 }
 _REQUIRED = {"identification": ("model",), "nonlinearity": ("model", "amplitude"), "cosim": ("system",)}
 _PREFIXED = {"identification": ("plant", "options"), "nonlinearity": ("plant",), "cosim": ()}

@@ -20,7 +20,7 @@ import tomllib
 from pathlib import Path
 from typing import Any, Mapping
 
-from ..cosim.config import CosimConfig, load_config
+from ..cosim.config import CosimConfig, load_config, load_ssp
 from ..errors import ConfigError, WiringError
 
 __all__ = ["worker_folder", "remove_worker_folder", "configured_system"]
@@ -92,10 +92,13 @@ def configured_system(system: str | os.PathLike[str], overrides: Mapping[str, An
     Parameters
     ----------
     system : str or os.PathLike
-        A JSON or TOML configuration (:func:`duffid.cosim.config.load_config`).
+        A JSON or TOML configuration (:func:`duffid.cosim.config.load_config`), or an SSP
+        archive / SSD file (:func:`duffid.cosim.config.load_ssp`).
     overrides : mapping
         ``"component.parameter"`` -> value (FMU parameters, merged into the file's
-        ``parameters``), ``"stop_time"`` and ``"step"`` (the file's ``run`` section).
+        ``parameters``; an SSP's bindings are overridden), ``"stop_time"`` and ``"step"``
+        (the file's ``run`` section, an SSP's default experiment and annotation), and for an
+        SSP ``"parameter_set"`` (an ``.ssv`` file of values, below the overrides).
 
     Raises
     ------
@@ -104,6 +107,11 @@ def configured_system(system: str | os.PathLike[str], overrides: Mapping[str, An
         unknown component or parameter).
     """
     path = Path(system)
+    if path.suffix.lower() in (".ssp", ".ssd"):
+        return _configured_ssp(path, overrides)
+    if "parameter_set" in overrides:
+        raise ConfigError(f"{path}: parameter_set (an .ssv file) applies to an SSP system, not to a "
+                          f"{path.suffix or 'plain'} configuration: give the values as overrides")
     try:
         raw = path.read_bytes()
         data = tomllib.loads(raw.decode()) if path.suffix.lower() == ".toml" else json.loads(raw)
@@ -136,6 +144,16 @@ def configured_system(system: str | os.PathLike[str], overrides: Mapping[str, An
         except (ConfigError, WiringError) as exc:
             raise type(exc)(str(exc).replace(str(derived), f"{path} (with {dict(overrides)})")) from None
     return _LOADED[key]
+
+
+def _configured_ssp(path: Path, overrides: Mapping[str, Any]) -> CosimConfig:
+    """An SSP system with a campaign's overrides: run settings, a parameter set, values."""
+    values = {k: v for k, v in overrides.items() if k not in ("stop_time", "step", "parameter_set")}
+    try:
+        return load_ssp(path, overrides.get("step"), stop_time=overrides.get("stop_time"),
+                        parameter_set=overrides.get("parameter_set"), parameters=values or None)
+    except (ConfigError, WiringError) as exc:
+        raise type(exc)(f"{exc} (with {dict(overrides)})") from None
 
 
 def _stamp(fmu: Any) -> tuple[Any, ...]:
