@@ -165,15 +165,18 @@ def raw(chain_fmu, tmp_path, capfd):
 
 
 # ------------------------------------------------------------------------------ equality
+@pytest.mark.parametrize("container", [2, 3])
 @pytest.mark.parametrize("versions", [(2, 2, 2), (3, 3, 3), (3, 2, 3)])
-def test_container_equals_jacobi(fmus, tmp_path, versions):
-    """FMI 2 and FMI 3 components: states equal the orchestrator's (Jacobi), the fed-through
-    gain shows its input's newest value, fmpy validates and simulates the container."""
+def test_container_equals_jacobi(fmus, tmp_path, versions, container):
+    """FMI 2 and FMI 3 components in an FMI 2 or FMI 3 container: states equal the
+    orchestrator's (Jacobi), the fed-through gain shows its input's newest value, fmpy validates
+    and simulates the container."""
     system = _chain(fmus, versions)
     path = system.export_container(tmp_path / "chain.fmu", outputs={"y": "i1.y", "g": "gain.y", "r": "ramp.y"},
-                                   step=H)
+                                   step=H, fmi_version=container)
     assert validate_fmu(str(path)) == []
     md = fmpy.read_model_description(str(path))
+    assert md.fmiVersion == f"{container}.0"
     assert md.coSimulation.canGetAndSetFMUstate is False and md.generationTool.startswith("duffid.cosim.container")
     variables = {v.name: v for v in md.modelVariables}
     assert variables["y"].description.startswith("output i1.y: ")  # the component's own description follows
@@ -434,6 +437,36 @@ def test_a_component_asking_to_end_ends_the_container_there(fmus, stoppers, tmp_
     by_fmpy = fmpy.simulate_fmu(str(path), stop_time=1.0, step_size=5 * H, output_interval=5 * H)
     assert by_fmpy["time"][-1] == pytest.approx(reached, abs=1e-12) and by_fmpy["y"][-1] == pytest.approx(reached)
     assert "asked to end the simulation" in capfd.readouterr().out
+
+
+def test_an_fmi3_container_ends_where_a_component_asks(fmus, stoppers, tmp_path):
+    """The FMI 3 container's doStep reports terminateSimulation (and earlyReturn inside a step)
+    at the time a component reached: the orchestrator and fmpy end there, as with FMI 2."""
+    system = _stopping(fmus, stoppers, 3, 0.355)
+    path = system.export_container(tmp_path / "stops3.fmu", outputs={"y": "stop.y", "z": "i1.y"}, step=H,
+                                   fmi_version=3)
+    assert validate_fmu(str(path)) == []
+    inner = System().add("c", path).run(1.0, 5 * H)
+    assert inner.failure is None and "component 'c'" in inner.ended and "t = 0.355" in inner.ended
+    direct = system.run(1.0, H, ordering="jacobi")
+    np.testing.assert_allclose(inner.time[-1], 0.35, rtol=0, atol=1e-12)
+    row = int(np.argmin(np.abs(direct.time - inner.time[-1])))
+    np.testing.assert_allclose(inner["c.z"][-1], direct["i1.y"][row], rtol=1e-12, atol=1e-15)
+    # no FMU state, as declared: the call fails, the process lives
+    from fmpy import extract
+    from fmpy.fmi3 import FMU3Slave
+
+    md = fmpy.read_model_description(str(path))
+    assert md.coSimulation.canGetAndSetFMUstate is False
+    slave = FMU3Slave(guid=md.instantiationToken, unzipDirectory=extract(str(path), str(tmp_path / "x")),
+                      modelIdentifier=md.coSimulation.modelIdentifier)
+    slave.instantiate()
+    slave.enterInitializationMode(startTime=0.0)
+    slave.exitInitializationMode()
+    with pytest.raises(Exception):
+        slave.getFMUState()
+    slave.terminate()
+    slave.freeInstance()
 
 
 def test_export_is_reproducible(fmus, tmp_path):

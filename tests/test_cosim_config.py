@@ -132,6 +132,14 @@ def test_cli_exports_the_container(loop_fmus, folder, capsys):
     assert (units["r"], units["x"], units["f"], units["controller.force_limit"]) == ("m", "m", "N", "N")
     assert {"m", "N"} <= {u.name for u in md.unitDefinitions}
     assert md.coSimulation.canHandleVariableCommunicationStepSize is False  # whole multiples of its step only
+    # the same loop as an FMI 3 container, run by fmpy as the FMI 2 one
+    fmu3 = folder / "loop3.fmu"
+    assert main(["cosim", str(path), "--export-container", str(fmu3), "--fmi", "3"]) == 0
+    assert capsys.readouterr().out.startswith(f"wrote {fmu3}: container FMU (FMI 3.0 co-simulation")
+    assert fmpy.validation.validate_fmu(str(fmu3)) == []
+    runs = [fmpy.simulate_fmu(str(f), stop_time=0.2, step_size=1e-3, output=["x", "f"], start_values={"r": 1e-3})
+            for f in (fmu, fmu3)]
+    assert np.array_equal(runs[0]["x"], runs[1]["x"]) and np.array_equal(runs[0]["f"], runs[1]["f"])
 
 
 def test_export_container_needs_an_interface(loop_fmus, folder, capsys):

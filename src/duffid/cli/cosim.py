@@ -33,6 +33,9 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("--export-container", type=Path, default=None, metavar="FMU",
                    help="write the system as one container FMU (its interface: the file's container section; for an "
                         "SSP, its system's input and output connectors) and exit")
+    p.add_argument("--fmi", type=int, choices=(2, 3), default=2,
+                   help="--export-container: the container's FMI version (default 2; its components may be "
+                        "FMI 2 or 3 either way)")
     p.add_argument("--step", type=float, default=None,
                    help="communication step [s], overriding the file's (needed for an SSP without duffid's annotation)")
     p.add_argument("--parameter-set", type=Path, default=None, metavar="SSV",
@@ -95,7 +98,7 @@ def _run(args: argparse.Namespace) -> int:
                   f"at step {config.step:g} s ({config.ordering})")
             return 0
         if args.export_container is not None:
-            print(_exported(config.export_container(args.export_container)))
+            print(_exported(config.export_container(args.export_container, fmi_version=args.fmi)))
             return 0
         result = config.run(progress=args.progress, ordering=args.ordering, loop=args.loop)
     except CosimError as exc:

@@ -107,8 +107,9 @@ class CosimConfig:
                                order=self.order if ordering == "gauss-seidel" else None, record=self.record,
                                progress=progress, loop=loop or self.loop)
 
-    def export_container(self, path: str | os.PathLike[str]) -> Path:
-        """Write the system as one container FMU described by the ``container`` section.
+    def export_container(self, path: str | os.PathLike[str], fmi_version: int = 2) -> Path:
+        """Write the system as one container FMU (FMI ``fmi_version``: 2 or 3) described by the
+        ``container`` section.
 
         Raises
         ------
@@ -121,7 +122,7 @@ class CosimConfig:
                               "(e.g. {\"x\": \"plant.x\"}); without it the FMU would have no inputs")
         return self.system.export_container(path, inputs=self.container.get("inputs"),
                                             outputs=self.container.get("outputs"), step=self.step,
-                                            parameters=self.container.get("parameters"))
+                                            parameters=self.container.get("parameters"), fmi_version=fmi_version)
 
 
 def _read(path: Path) -> dict[str, Any]:

@@ -1,6 +1,6 @@
 """Export a :class:`duffid.cosim.system.System` as one container FMU on duffid's own runtime.
 
-The container is an FMI 2.0 Co-Simulation FMU whose binary is duffid's container runtime
+The container is an FMI 2.0 or 3.0 Co-Simulation FMU whose binary is duffid's container runtime
 (``fmus/container``) on the shared FMI glue (``fmus/common``), compiled for this container:
 its description (variables, components, connections, the container variables' mapping,
 the internal step) is a generated C header, so nothing is parsed when it runs. The
@@ -83,7 +83,7 @@ from ..cbuild import (
 )
 from ..errors import WiringError
 from ..fmu.c_model import TYPE_CODES, config_header, retype
-from ..fmu.fmi_xml import FmuInfo, model_description_fmi2
+from ..fmu.fmi_xml import FmuInfo, model_description_fmi2, model_description_fmi3
 from ..fmu.package import COMMON_FILES, fmi_include_dir, token_from, write_zip
 from ..fmu.variables import FmuVariable
 from .elements import VARIABLE_KINDS, with_article
@@ -332,23 +332,28 @@ def _unit_elements(system: System) -> dict[str, ET.Element]:
             root = ET.fromstring(z.read("modelDescription.xml"))
         for unit in root.iter("Unit"):
             for display in unit.iter("DisplayUnit"):
-                display.attrib.pop("inverse", None)  # FMI 3 only
+                display.attrib.pop("inverse", None)  # FMI 3 only: dropped, so both versions read it
             units.setdefault(unit.get("name", ""), unit)
     return units
 
 
 def _model_description(system: System, identifier: str, token: str, table: list[FmuVariable], step: float,
-                       sources: tuple[str, ...], types: Mapping[str, str]) -> bytes:
+                       sources: tuple[str, ...], types: Mapping[str, str], fmi_version: int = 2) -> bytes:
     info = FmuInfo(model_name=identifier, model_identifier=identifier, token=token,
                    description=f"duffid co-simulation container: {', '.join(system._components)} "
                                f"(Jacobi, fixed step {step!r} s)",
                    sources=sources, model_exchange=False, co_simulation=True,
                    experiment={"StartTime": 0.0, "Interval": float(step)}, variable_step=False,
                    generation_tool=CONTAINER_GENERATION_TOOL)
-    root = ET.fromstring(retype(model_description_fmi2(info, table), 2, types))
+    describe = model_description_fmi2 if fmi_version == 2 else model_description_fmi3
+    root = ET.fromstring(retype(describe(info, table), fmi_version, types))
     cs = root.find("CoSimulation")
-    cs.set("canGetAndSetFMUstate", "false")
-    cs.set("canSerializeFMUstate", "false")
+    state = "FMUstate" if fmi_version == 2 else "FMUState"  # FMI 3 spells it with a capital S
+    for attribute in list(cs.attrib):
+        if attribute.lower() in ("cangetandsetfmustate", "canserializefmustate"):
+            del cs.attrib[attribute]
+    cs.set(f"canGetAndSet{state}", "false")
+    cs.set(f"canSerialize{state}", "false")
     definitions = root.find("UnitDefinitions")
     if definitions is not None:
         own = _unit_elements(system)
@@ -387,8 +392,8 @@ def _platforms(system: System) -> list[Platform]:
 def export_container(system: System, path: str | os.PathLike[str],
                      inputs: Mapping[str, str | Sequence[str]] | None = None,
                      outputs: Mapping[str, str] | None = None, step: float = 1e-3,
-                     parameters: Mapping[str, str | Sequence[str]] | None = None) -> Path:
-    """Write ``system`` as one FMI 2.0 co-simulation container FMU.
+                     parameters: Mapping[str, str | Sequence[str]] | None = None, fmi_version: int = 2) -> Path:
+    """Write ``system`` as one co-simulation container FMU (FMI 2.0 or 3.0).
 
     Parameters
     ----------
@@ -408,6 +413,9 @@ def export_container(system: System, path: str | os.PathLike[str],
     parameters : mapping, optional
         Container parameter name -> component parameter(s), in addition to the
         ``"comp.param"`` parameters made for the values given to ``add()``.
+    fmi_version : {2, 3}
+        The container's own interface (its components may be FMI 2 or 3 either way): the
+        same runtime on the shared glue's FMI 2 or FMI 3 functions.
 
     Returns
     -------
@@ -425,6 +433,8 @@ def export_container(system: System, path: str | os.PathLike[str],
     """
     if not system._components:
         raise WiringError("the system has no components")
+    if fmi_version not in (2, 3):
+        raise WiringError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
     transformed = [str(c) for c in system._connections if c.transformed]
     if transformed:
         raise WiringError(f"the connection {transformed[0]} has a factor or offset (an SSP linear transformation "
@@ -439,15 +449,16 @@ def export_container(system: System, path: str | os.PathLike[str],
     types = {v.name: _GLUE_TYPE[v.kind] for v in variables if v.kind != "Real"}
     runtime = {name: (fmu_sources(folder) / name).read_bytes() for folder, names in RUNTIME_FILES.items()
                for name in names}
-    runtime.update({name: (fmu_sources("common") / name).read_bytes() for name in COMMON_FILES[2]})
+    runtime.update({name: (fmu_sources("common") / name).read_bytes() for name in COMMON_FILES[fmi_version]})
     components = {name: comp.path.read_bytes() for name, comp in system._components.items()}
-    token = token_from("duffid-container", identifier, repr(float(step)), *runtime.values(), *components.values(),
+    token = token_from(f"duffid-container-fmi{fmi_version}", identifier, repr(float(step)), *runtime.values(), *components.values(),
                        *[f"{v.name}|{v.kind}|{v.causality}|{v.start}|{v.unit}|{v.links}" for v in variables],
                        *[f"{c.source}>{c.target}" for c in system._connections])
     sources = dict(runtime)
     sources[_CONFIG] = _header(system, variables, table, identifier, token, step).encode()
     c_files = tuple(sorted(n for n in sources if n.endswith(".c")))
-    files = {"modelDescription.xml": _model_description(system, identifier, token, table, step, c_files, types)}
+    files = {"modelDescription.xml": _model_description(system, identifier, token, table, step, c_files, types,
+                                                        fmi_version)}
     files.update({f"sources/{name}": data for name, data in sources.items()})
     for name, comp in system._components.items():
         with zipfile.ZipFile(comp.path) as z:
@@ -460,7 +471,7 @@ def export_container(system: System, path: str | os.PathLike[str],
         for name, data in sources.items():
             (src / name).write_bytes(data)
         for platform in platforms:
-            inside = fmu_binary_path(identifier, 2, platform)
+            inside = fmu_binary_path(identifier, fmi_version, platform)
             binary = Path(tmp) / inside
             compile_shared_library([src / n for n in c_files], binary, include_dirs=[src, fmi_include_dir()],
                                    flags=FMU_FLAGS, platform=platform)

@@ -728,11 +728,12 @@ class System:
     # ---------------------------------------------------------------- container
     def export_container(self, path: str | os.PathLike[str], inputs: Mapping[str, str | Sequence[str]] | None = None,
                          outputs: Mapping[str, str] | None = None, step: float = 1e-3,
-                         parameters: Mapping[str, str | Sequence[str]] | None = None) -> Path:
-        """Write the system as one FMI 2.0 co-simulation container FMU (duffid's container runtime).
+                         parameters: Mapping[str, str | Sequence[str]] | None = None, fmi_version: int = 2) -> Path:
+        """Write the system as one co-simulation container FMU, FMI 2.0 or 3.0 (duffid's
+        container runtime).
 
         See :func:`duffid.cosim.container.export_container` for the parameters and
         limits.
         """
-
-        return export_container(self, path, inputs=inputs, outputs=outputs, step=step, parameters=parameters)
+        return export_container(self, path, inputs=inputs, outputs=outputs, step=step, parameters=parameters,
+                                fmi_version=fmi_version)
