@@ -345,11 +345,12 @@ def test_outliers_are_excluded_as_in_python(case_b_exact):
 
 
 def test_the_c_constants_are_pythons():
-    """Status codes and the trust and outlier constants: one fact, two languages."""
+    """Status codes and the trust and outlier constants: one fact, two languages (the C side
+    generated from Python into duffid_facts.h, included by every header of the core)."""
     import re
 
     from duffid.identification import engine as ident
-    header = (source_dir() / "duffid_estimator.h").read_text()
+    header = (source_dir() / "duffid_facts.h").read_text()
     defines = dict(re.findall(r"^#define (DUFFID_\w+) (\S+)", header, flags=re.M))
     assert [int(defines[f"DUFFID_STATUS_{name.upper().replace(' ', '_')}"]) for name in ident.STATUSES] == \
         list(range(len(ident.STATUSES)))

@@ -27,6 +27,11 @@
 #define DUFFID_ERR_CONFIG (-2) /* invalid configuration, see the message buffer */
 #define DUFFID_ERR_SAMPLE (-3) /* a NaN or infinite sample; the state is unchanged */
 
+/* Models (duffid.models.registry). */
+#define DUFFID_DUFFING1 1 /* model duffing1: 1-DOF hardening oscillator m x'' + b x' + k x + kp x^3 = f */
+#define DUFFID_DUFFING2 2 /* model duffing2: 2-DOF chain of the paper (force on m1) */
+#define DUFFID_GENERATED 3 /* a model described by the generated file compiled in */
+
 /* Statuses of a parameter and the publication rules' constants (duffid.identification.engine). */
 #define DUFFID_STATUS_UNCERTAIN 0 /* status: uncertain */
 #define DUFFID_STATUS_PUBLISHED 1 /* status: published */

@@ -19,7 +19,8 @@ from .data.signals import Chirp, Multisine, Step, from_spec
 from .errors import CosimError, RecordError, SimulationError
 from .identification.engine import METHODS, Estimate, Identification, OnlineIdentifier
 from .identification.trust import identify
-from .models.chain import Chain, Duffing1, Duffing2, DuffingCircuit, model_from_name
+from .models.chain import Chain, Duffing1, Duffing2, DuffingCircuit
+from .models.registry import model_from_name
 from .models.simulation import measure, simulate
 
 __version__ = "0.1.0"

@@ -34,7 +34,8 @@ from ..data.record import Record
 from ..data.signals import from_spec
 from ..errors import InputError, SimulationError
 from ..identification.trust import identify
-from ..models.chain import Chain, Duffing1, Duffing2, DuffingCircuit
+from ..models.chain import Chain
+from ..models.registry import PLANT_NAMES, REGISTRY
 from ..models.simulation import measure, simulate
 from .metrics import resolve_metric
 from .systems import configured_system
@@ -46,8 +47,9 @@ __all__ = ["run_task", "plant_model", "RESERVED", "PLANTS"]
 
 #: Columns every row has (a factor may not use these names).
 RESERVED = ("task", "kind", "status", "error", "seconds", "worker")
-#: Plants a task can simulate (``model`` key) -> their class (``plant.<p>``: its parameters).
-PLANTS = {"duffing1": Duffing1, "duffing2": Duffing2, "circuit": DuffingCircuit}
+#: Plants a task can simulate (``model`` key) -> their class (``plant.<p>``: its parameters): the
+#: registry's models of fixed structure.
+PLANTS = {name: REGISTRY[name].cls for name in PLANT_NAMES}
 
 
 def plant_model(settings: Mapping[str, Any]) -> Chain:

@@ -14,12 +14,13 @@ from ..data.formats import FORMATS, detect_format
 from ..data.record import Record
 from ..errors import RecordError
 from ..identification.trust import OFFSETS
-from ..models.chain import model_from_name
+from ..models.registry import MODEL_NAMES, model_from_name
 
 __all__ = ["MODELS", "positive_float", "window_value", "role_pairs", "columns_value", "scales_value",
            "delimiter_value", "add_file_arguments", "add_model_arguments", "model_from_arguments", "read_record"]
 
-MODELS = ("duffing1", "duffing2", "chain", "circuit")
+#: The --model choices (duffid.models.registry).
+MODELS = MODEL_NAMES
 
 
 def positive_float(text: str) -> float:

@@ -12,7 +12,7 @@ from ..errors import InputError
 from ..identification.engine import METHODS
 from ..identification.options import BUFFERED_METHODS, add_arguments, add_shared_arguments, options_from_arguments
 from ..identification.trust import OFFSETS, identify
-from ..models.chain import model_from_name
+from ..models.registry import model_from_name
 from .common import (
     MODELS,
     add_file_arguments,

@@ -24,7 +24,7 @@ from typing import Any, Mapping, Sequence
 from ..errors import InputError
 from ..identification.engine import status_codes
 from ..identification.options import ONLINE_METHODS, fmu_parameters
-from ..models.chain import Duffing1, Duffing2, DuffingCircuit
+from ..models.registry import GENERATED_MODEL_CODE, REGISTRY
 from .variables import FmuVariable
 
 __all__ = ["C_FMU_NAMES", "MODELS", "MODEL_CODES", "GENERATED_MODEL_CODE", "INPUTS", "PARAMETER_UNITS",
@@ -32,20 +32,17 @@ __all__ = ["C_FMU_NAMES", "MODELS", "MODEL_CODES", "GENERATED_MODEL_CODE", "INPU
            "TYPES", "EstimatorInterface", "builtin_interface", "equation_interface", "chain_interface",
            "interface_from_spec", "variable_types", "variable_units", "estimator_variables"]
 
+# The named models with a C estimator FMU (duffid.models.registry), as this module's tables:
+_NAMED = {name: e for name, e in REGISTRY.items() if e.fmu_name is not None}
 #: Model name -> model identifier of the C FMUs (FMI 3 files get a ``_fmi3`` suffix).
-C_FMU_NAMES = {"duffing1": "DuffingEstimator1", "duffing2": "DuffingEstimator2", "circuit": "DuffingCircuitEstimator"}
+C_FMU_NAMES = {name: e.fmu_name for name, e in _NAMED.items()}
 #: Model name -> the model (a :class:`~duffid.models.chain.Chain`) estimated.
-MODELS = {"duffing1": Duffing1, "duffing2": Duffing2, "circuit": DuffingCircuit}
-#: Model name -> the C core's model code (DUFFID_DUFFING1, DUFFID_DUFFING2; the circuit is the
-#: Duffing1 equation with L = m, R = b, 1/C = k, a = kp).
-MODEL_CODES = {"duffing1": 1, "duffing2": 2, "circuit": 1}
-#: The C core's code of a model described by generated code (DUFFID_GENERATED): chains and equations.
-GENERATED_MODEL_CODE = 3
+MODELS = {name: e.cls for name, e in _NAMED.items()}
+#: Model name -> the C core's model code (the circuit is the Duffing1 equation with L = m,
+#: R = b, 1/C = k, a = kp).
+MODEL_CODES = {name: e.c_code for name, e in _NAMED.items()}
 #: Model name -> the inputs (name, unit, description): displacements, then forces.
-INPUTS = {"duffing1": (("x", "m", "displacement of the mass"), ("f", "N", "force on the mass")),
-           "duffing2": (("x1", "m", "displacement of m1"), ("x2", "m", "displacement of m2"),
-                        ("f1", "N", "force on m1")),
-           "circuit": (("q", "C", "charge of the capacitor"), ("u", "V", "source voltage"))}
+INPUTS = {name: tuple((s.name, s.unit, s.description) for s in e.signals) for name, e in _NAMED.items()}
 #: Unit of a parameter by its name without the index.
 PARAMETER_UNITS = {"m": "kg", "b": "N.s/m", "k": "N/m", "kp": "N/m3", "L": "H", "R": "Ohm", "C": "F", "a": "V/C3"}
 #: Parameters in value-reference order (name, unit, description): the method, then the
@@ -113,7 +110,7 @@ class EstimatorInterface:
         if self.kind == "builtin":
             return MODELS[self.spec["model"]]()
         if self.kind == "chain":
-            from ..models.chain import model_from_name
+            from ..models.registry import model_from_name
 
             return model_from_name("chain", int(self.spec["n_dof"]), orders=self.spec["orders"],
                                    coulomb=bool(self.spec["coulomb"]))
@@ -153,7 +150,7 @@ def chain_parameter_unit(name: str) -> str:
 def chain_interface(n_dof: int, *, orders: Sequence[int] = (1, 3), coulomb: bool = False,
                     name: str | None = None) -> EstimatorInterface:
     """The interface of the estimator of a chain of ``n_dof`` masses from a wall
-    (:func:`duffid.models.chain.model_from_name` ``"chain"``: springs of the stiffness
+    (:func:`duffid.models.registry.model_from_name` ``"chain"``: springs of the stiffness
     ``orders``, optionally Coulomb friction per mass, force on mass 1): inputs ``x1 .. x<n>``
     [m] and ``f1`` [N]; parameters in kg, N.s/m, N/m^j and N (:func:`chain_parameter_unit`).
 
@@ -162,7 +159,7 @@ def chain_interface(n_dof: int, *, orders: Sequence[int] = (1, 3), coulomb: bool
     InputError
         A chain of fewer than 1 mass, no positive stiffness order, or a name that is not an identifier.
     """
-    from ..models.chain import model_from_name
+    from ..models.registry import model_from_name
 
     try:
         orders = sorted({int(o) for o in orders})

@@ -459,7 +459,7 @@ def build_equation_fmu(equation: str | Sequence[str], out_dir: str | Path, *, na
 def build_chain_fmu(n_dof: int, out_dir: str | Path, *, orders: Sequence[int] = (1, 3), coulomb: bool = False,
                     name: str | None = None, needs_execution_tool: bool = True) -> Path:
     """Build ``ChainEstimator<n>.fmu``: the online identifier of a chain of ``n_dof`` masses
-    from a wall (:func:`duffid.models.chain.model_from_name` ``"chain"``: springs of the
+    from a wall (:func:`duffid.models.registry.model_from_name` ``"chain"``: springs of the
     stiffness ``orders`` and optionally Coulomb friction per mass, force on mass 1), pythonfmu,
     FMI 2.0 co-simulation, the interface of the module documentation: inputs ``x1 .. x<n>``
     [m] and ``f1`` [N]; outputs ``<param>_hat`` (``m<i>`` kg, ``b<i>`` N.s/m, ``k<i>_<j>``

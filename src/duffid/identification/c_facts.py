@@ -11,9 +11,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..models.registry import GENERATED_MODEL_CODE, REGISTRY
 from . import engine
 
-__all__ = ["Fact", "LIMITS", "RETURN_CODES", "PUBLICATION", "C_HEADER_NAME", "c_header", "limit", "return_code"]
+__all__ = ["Fact", "LIMITS", "RETURN_CODES", "MODEL_CODES", "PUBLICATION", "C_HEADER_NAME", "c_header", "limit", "return_code"]
 
 #: File name of the generated header (in ``fmus/estimator``).
 C_HEADER_NAME = "duffid_facts.h"
@@ -54,6 +55,15 @@ RETURN_CODES: dict[str, Fact] = {f.macro.removeprefix("DUFFID_").lower(): f for 
     Fact("DUFFID_ERR_CONFIG", -2, "invalid configuration, see the message buffer"),
     Fact("DUFFID_ERR_SAMPLE", -3, "a NaN or infinite sample; the state is unchanged"),
 )}
+
+#: The models the core describes itself, and the code of a generated description (from the
+#: model registry; a code shared by several models is named after the first, e.g. the circuit
+#: runs DUFFID_DUFFING1's description).
+MODEL_CODES: tuple[Fact, ...] = (
+    *{e.c_code: Fact(f"DUFFID_{name.upper()}", e.c_code, f"model {name}: {e.description}")
+      for name, e in reversed(list(REGISTRY.items())) if e.c_code is not None}.values(),
+    Fact("DUFFID_GENERATED", GENERATED_MODEL_CODE, "a model described by the generated file compiled in"),
+)
 
 #: The publication rules' constants of the online identifier (their home is the engine).
 PUBLICATION: tuple[Fact, ...] = (
@@ -105,6 +115,7 @@ def c_header() -> str:
         *block("Fixed maxima of a model description (every array of the engine is sized by them).",
                LIMITS.values()),
         *block("Return codes: every function that can fail returns one of these.", RETURN_CODES.values()),
+        *block("Models (duffid.models.registry).", sorted(MODEL_CODES, key=lambda f: f.value)),
         *block("Statuses of a parameter and the publication rules' constants "
                "(duffid.identification.engine).", PUBLICATION),
         "#endif /* DUFFID_FACTS_H */",

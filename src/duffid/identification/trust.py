@@ -87,6 +87,7 @@ import numpy as np
 from ..data.record import Record
 from ..errors import BuildError, InputError, RecordError
 from ..models.chain import Chain, Duffing1, Duffing2
+from ..models.registry import IdentifiableModel
 from .batch import estimate
 from .c_core import CIdentifier
 from .engine import (
@@ -662,7 +663,7 @@ def _c_model(model: Any) -> Any:
         if structure in ((1, True, (0,), (1, 3)), (2, True, (0,), (1, 3))):
             core = Duffing1 if model.n_dof == 1 else Duffing2
             return _chain_like(core(offset=model.offset), model.canonical_parameters())
-    return model if hasattr(model, "equations") else None
+    return model if isinstance(model, IdentifiableModel) else None
 
 
 def _chain_like(template: Chain, canonical: Mapping[str, float]) -> Chain:

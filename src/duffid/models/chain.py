@@ -43,7 +43,6 @@ __all__ = [
     "Duffing1",
     "Duffing2",
     "DuffingCircuit",
-    "model_from_name",
     "PAPER_DUFFING1",
     "PAPER_DUFFING2",
 ]
@@ -741,40 +740,3 @@ class DuffingCircuit(_Named):
     @property
     def name(self) -> str:
         return "circuit"
-
-
-def model_from_name(name: str, n_dof: int = 1, *, orders: Sequence[int] = (1, 3),
-                    coulomb: bool = False, offset: bool = False,
-                    forced: Sequence[int] = (0,)) -> Chain:
-    """Build a model (structure with nominal parameter values) from its CLI name.
-
-    Parameters
-    ----------
-    name : {"duffing1", "duffing2", "circuit", "chain"}
-        Model name.
-    n_dof : int
-        Number of masses of a ``chain``.
-    orders : sequence of int
-        Stiffness orders of a ``chain``.
-    coulomb : bool
-        Coulomb friction terms in a ``chain``.
-    offset : bool
-        Add an unknown constant offset per equation.
-    forced : sequence of int
-        0-based DOFs carrying force inputs (``chain`` only).
-    """
-    if name == "duffing1":
-        return Duffing1(offset=offset)
-    if name == "duffing2":
-        return Duffing2(offset=offset)
-    if name == "circuit":
-        return DuffingCircuit(offset=offset)
-    if name == "chain":
-        if n_dof < 1:
-            raise InputError(f"a chain needs n_dof >= 1, got {n_dof}")
-        orders = tuple(sorted(set(int(o) for o in orders)))
-        stiffness = tuple({1: 1000.0} for _ in range(n_dof))
-        return Chain(masses=(1.0,) * n_dof, damping=(1.0,) * n_dof, stiffness=stiffness,
-                     coulomb=(0.0,) * n_dof if coulomb else None, forced=tuple(forced), offset=offset,
-                     orders=orders)
-    raise InputError(f"unknown model {name!r}; choose duffing1, duffing2, chain or circuit")
