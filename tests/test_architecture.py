@@ -54,15 +54,15 @@ def _is_type_checking(node: ast.If) -> bool:
     return isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING"
 
 
-def _imports(module: str, path: Path) -> list[tuple[str, list[str], int]]:
+def _imports(module: str, path: Path, type_checking: bool = False) -> list[tuple[str, list[str], int]]:
     """(imported module, names, line) of every import of duffid in ``path``, deferred ones
-    included, annotations-only (``if TYPE_CHECKING:``) ones excluded."""
+    included, annotations-only (``if TYPE_CHECKING:``) ones only with ``type_checking``."""
     tree = ast.parse(path.read_text())
     package = module if path.name == "__init__.py" else module.rpartition(".")[0]
     found = []
 
     def visit(node: ast.AST) -> None:
-        if isinstance(node, ast.If) and _is_type_checking(node):
+        if isinstance(node, ast.If) and _is_type_checking(node) and not type_checking:
             for child in node.orelse:
                 visit(child)
             return
@@ -113,9 +113,11 @@ def test_imports_only_point_down_the_layers():
 
 
 def test_no_import_cycles():
+    """Not even through annotations-only imports (a module that needs another's type only for
+    its annotations takes a Protocol of a lower module instead)."""
     graph = {m: set() for m in MODULES}
     for module, path in MODULES.items():
-        for target, _, _ in _imports(module, path):
+        for target, _, _ in _imports(module, path, type_checking=True):
             while target not in MODULES:  # "duffid.x.y" where y is a name
                 target = target.rpartition(".")[0]
             if target != module and not (module == "duffid" or target == "duffid"):
@@ -134,6 +136,54 @@ def test_no_private_name_is_imported_from_another_module():
             if private:
                 wrong.append(f"{path.relative_to(PACKAGE)}:{line}: {', '.join(private)} from {target}")
     assert not wrong, "private names imported across modules:\n" + "\n".join(wrong)
+
+
+def _private_attributes(tree: ast.AST) -> set[str]:
+    """The underscore names a module defines: functions, classes, module names, attributes it
+    assigns."""
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+        elif isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store):
+            names.add(node.attr)
+        elif isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+            names.add(node.id)
+    return {n for n in names if n.startswith("_") and not n.startswith("__")}
+
+
+def _third_party_names(tree: ast.AST) -> set[str]:
+    """Names bound by imports of other packages (their underscore attributes are their business)."""
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update((a.asname or a.name).split(".")[0] for a in node.names if not a.name.startswith("duffid"))
+        elif isinstance(node, ast.ImportFrom) and not node.level and not (node.module or "").startswith("duffid"):
+            names.update(a.asname or a.name for a in node.names)
+    return names
+
+
+def test_no_module_reads_another_modules_underscore_attributes():
+    """``obj._x`` where ``_x`` is defined by another duffid module (not this one): a private
+    member read across modules (python's convention; a public view belongs in the owner)."""
+    trees = {path: ast.parse(path.read_text()) for path in MODULES.values()}
+    defined = {path: _private_attributes(tree) for path, tree in trees.items()}
+    wrong = []
+    for path, tree in trees.items():
+        foreign = _third_party_names(tree)
+        for node in ast.walk(tree):
+            if not (isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__")):
+                continue
+            base = node.value
+            while isinstance(base, ast.Attribute):
+                base = base.value
+            if isinstance(node.value, ast.Name) and node.value.id in ("self", "cls"):
+                continue
+            if isinstance(base, ast.Name) and base.id in foreign:
+                continue
+            if node.attr not in defined[path] and any(node.attr in d for p, d in defined.items() if p != path):
+                wrong.append(f"{path.relative_to(PACKAGE)}:{node.lineno}: {ast.unparse(node)}")
+    assert not wrong, "underscore attributes of other modules read:\n" + "\n".join(sorted(wrong))
 
 
 @pytest.mark.parametrize("module, heavy", [

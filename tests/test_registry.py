@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from duffid.campaign.tasks import PLANTS
+from duffid.campaign.plants import PLANTS
 from duffid.cli import common
 from duffid.errors import InputError
 from duffid.fmu import estimator_table

@@ -64,7 +64,7 @@ from ..identification.options import ONLINE_METHODS, check_options
 from ..identification.trust import ENGINES
 from .metrics import resolve_metric
 from .systems import configured_system
-from .tasks import PLANTS, RESERVED, plant_model
+from .plants import PLANTS, RESERVED, plant_model
 
 __all__ = ["KINDS", "KEYS", "MODELS", "Task", "CampaignSpec", "load_spec"]
 

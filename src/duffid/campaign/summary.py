@@ -27,7 +27,7 @@ from matplotlib.ticker import NullFormatter
 
 from ..analysis.nonlinearity import LINEARITY_THRESHOLD
 from .spec import CampaignSpec
-from .tasks import RESERVED
+from .plants import RESERVED
 
 __all__ = ["summary_lines", "write_plots", "group_rows"]
 

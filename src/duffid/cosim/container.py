@@ -71,7 +71,7 @@ import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from ..assets import fmu_sources
 from ..cbuild import (
@@ -86,10 +86,7 @@ from ..fmu.c_model import TYPE_CODES, config_header, retype
 from ..fmu.fmi_xml import FmuInfo, model_description_fmi2, model_description_fmi3
 from ..fmu.package import COMMON_FILES, fmi_include_dir, token_from, write_zip
 from ..fmu.variables import FmuVariable
-from .elements import VARIABLE_KINDS, with_article
-
-if TYPE_CHECKING:
-    from .system import System
+from .elements import VARIABLE_KINDS, WiredSystem, with_article
 
 __all__ = ["CONTAINER_GENERATION_TOOL", "RUNTIME_FILES", "export_container"]
 
@@ -174,10 +171,10 @@ def _identifier(stem: str) -> str:
     return ident if not ident[0].isdigit() else "_" + ident
 
 
-def _plan(system: System, inputs: Mapping[str, str | Sequence[str]] | None, outputs: Mapping[str, str] | None,
+def _plan(system: WiredSystem, inputs: Mapping[str, str | Sequence[str]] | None, outputs: Mapping[str, str] | None,
           parameters: Mapping[str, str | Sequence[str]] | None) -> list[_Variable]:
     """The container variables, checked (WiringError for anything the container cannot carry)."""
-    order = {name: i for i, name in enumerate(system._components)}
+    order = {name: i for i, name in enumerate(system.wiring.components)}
     variables: list[_Variable] = []
     used: set[str] = {"time"}
 
@@ -189,14 +186,14 @@ def _plan(system: System, inputs: Mapping[str, str | Sequence[str]] | None, outp
         return var
 
     def resolve(full: str, role: str) -> tuple[Any, Any, str]:
-        comp, var = system._lookup(full, role)
+        comp, var = system.wiring.lookup(full, role)
         return comp, var, comp.kind(var, "exported")
 
-    connected = {c.target for c in system._connections}
+    connected = {c.target for c in system.wiring.connections}
     for name, targets in (inputs or {}).items():
         entries = []
         for full in _as_list(targets, f"container input {name!r}"):
-            comp, var = system._lookup(full, "container input target")
+            comp, var = system.wiring.lookup(full, "container input target")
             if var.causality != "input":
                 raise WiringError(f"container input {name!r}: {full} is {with_article(var.causality)}, not an input")
             if full in connected:
@@ -213,18 +210,18 @@ def _plan(system: System, inputs: Mapping[str, str | Sequence[str]] | None, outp
                             _one_unit([e[1] for e in entries], f"container input {name!r}") if kind == "Real" else None))
         var.links = [(order[c.name], v.valueReference, full) for (c, v, _), full in zip(entries, full_names)]
     exported = {full for targets in (inputs or {}).values() for full in _as_list(targets, "container input")}
-    lost = sorted(set(system._externals) - exported)
+    lost = sorted(set(system.wiring.externals) - exported)
     if lost:
         raise WiringError(f"{', '.join(lost)} {'is' if len(lost) == 1 else 'are'} driven by the system's external "
                           "inputs (set_input, inputs_from_csv), which a container cannot hold: map "
                           f"{'it' if len(lost) == 1 else 'them'} to container inputs")
     if outputs is None:
-        outputs = {f"{c.name}.{v.name}": f"{c.name}.{v.name}" for c in system._components.values()
+        outputs = {f"{c.name}.{v.name}": f"{c.name}.{v.name}" for c in system.wiring.components.values()
                    for v in c.outputs()}
     for name, source in outputs.items():
         if not isinstance(source, str):
             raise WiringError(f"container output {name!r} must map to one 'component.output'")
-        comp, var = system._lookup(source, "container output source")
+        comp, var = system.wiring.lookup(source, "container output source")
         if var.causality != "output":
             raise WiringError(f"container output {name!r}: {source} is {with_article(var.causality)}, not an output")
         comp, var, kind = resolve(source, "container output source")
@@ -234,7 +231,7 @@ def _plan(system: System, inputs: Mapping[str, str | Sequence[str]] | None, outp
     exposed: dict[str, list[str]] = {name: _as_list(t, f"container parameter {name!r}")
                                     for name, t in (parameters or {}).items()}
     covered = {full for targets in exposed.values() for full in targets}
-    for comp in system._components.values():
+    for comp in system.wiring.components.values():
         for pname in comp.parameters:
             full = f"{comp.name}.{pname}"
             if full not in covered:
@@ -242,7 +239,7 @@ def _plan(system: System, inputs: Mapping[str, str | Sequence[str]] | None, outp
     for name, targets in exposed.items():
         entries, starts = [], []
         for full in targets:
-            comp, var = system._lookup(full, "container parameter target")
+            comp, var = system.wiring.lookup(full, "container parameter target")
             if var.causality != "parameter" or var.variability not in ("fixed", "tunable"):
                 raise WiringError(f"container parameter {name!r}: {full} is {with_article(var.causality)} "
                                   f"({var.variability}), not a settable parameter")
@@ -280,10 +277,10 @@ def _table(variables: list[_Variable]) -> list[FmuVariable]:
     return table
 
 
-def _header(system: System, variables: list[_Variable], table: list[FmuVariable], identifier: str, token: str,
+def _header(system: WiredSystem, variables: list[_Variable], table: list[FmuVariable], identifier: str, token: str,
             step: float) -> str:
     """The generated container_fmu_config.h: the glue's tables and the container's description."""
-    comps = list(system._components.values())
+    comps = list(system.wiring.components.values())
     order = {c.name: i for i, c in enumerate(comps)}
     types = {v.name: _GLUE_TYPE[v.kind] for v in variables}
     text = config_header("container", table, types, {"IDENTIFIER": identifier, "TOKEN": token})
@@ -298,17 +295,17 @@ def _header(system: System, variables: list[_Variable], table: list[FmuVariable]
                       f"{_c_string(c.md.guid if c.version == 2 else c.md.instantiationToken)}}}" for c in comps]
     # connection sources: unique, sorted by (component, type); slots per buffer (Float64 / int32)
     kinds = {}
-    for conn in system._connections:
+    for conn in system.wiring.connections:
         for full in (conn.source, conn.target):
-            comp, var = system._lookup(full, "connection")
+            comp, var = system.wiring.lookup(full, "connection")
             kinds[full] = (order[comp.name], var.valueReference, TYPE_CODES[_GLUE_TYPE[comp.kind(var, "connected")]])
-    sources = sorted({kinds[c.source] for c in system._connections}, key=lambda s: (s[0], s[2], s[1]))
+    sources = sorted({kinds[c.source] for c in system.wiring.connections}, key=lambda s: (s[0], s[2], s[1]))
     slots, counts = {}, {0: 0, 1: 0}
     for s in sources:
         buffer = 0 if s[2] == TYPE_CODES["Float64"] else 1
         slots[s] = counts[buffer]
         counts[buffer] += 1
-    targets = sorted(((kinds[c.target], slots[kinds[c.source]]) for c in system._connections),
+    targets = sorted(((kinds[c.target], slots[kinds[c.source]]) for c in system.wiring.connections),
                      key=lambda t: (t[0][0], t[0][2], t[0][1]))
     links = [(vr, comp, cvr, full) for vr, var in enumerate(variables, start=1) for comp, cvr, full in var.links]
     text += (f"\n/* The container's description (duffid_container.h). */\n#define CONTAINER_STEP {float(step)!r}\n"
@@ -324,10 +321,10 @@ def _header(system: System, variables: list[_Variable], table: list[FmuVariable]
     return text + "\n#endif\n"
 
 
-def _unit_elements(system: System) -> dict[str, ET.Element]:
+def _unit_elements(system: WiredSystem) -> dict[str, ET.Element]:
     """The components' own unit definitions, by unit name (the first component's wins)."""
     units: dict[str, ET.Element] = {}
-    for comp in system._components.values():
+    for comp in system.wiring.components.values():
         with zipfile.ZipFile(comp.path) as z:
             root = ET.fromstring(z.read("modelDescription.xml"))
         for unit in root.iter("Unit"):
@@ -337,10 +334,10 @@ def _unit_elements(system: System) -> dict[str, ET.Element]:
     return units
 
 
-def _model_description(system: System, identifier: str, token: str, table: list[FmuVariable], step: float,
+def _model_description(system: WiredSystem, identifier: str, token: str, table: list[FmuVariable], step: float,
                        sources: tuple[str, ...], types: Mapping[str, str], fmi_version: int = 2) -> bytes:
     info = FmuInfo(model_name=identifier, model_identifier=identifier, token=token,
-                   description=f"duffid co-simulation container: {', '.join(system._components)} "
+                   description=f"duffid co-simulation container: {', '.join(system.wiring.components)} "
                                f"(Jacobi, fixed step {step!r} s)",
                    sources=sources, model_exchange=False, co_simulation=True,
                    experiment={"StartTime": 0.0, "Interval": float(step)}, variable_step=False,
@@ -365,7 +362,7 @@ def _model_description(system: System, identifier: str, token: str, table: list[
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
 
 
-def _platforms(system: System) -> list[Platform]:
+def _platforms(system: WiredSystem) -> list[Platform]:
     """The platforms with a compiler on which every component has a binary.
 
     Raises
@@ -375,11 +372,11 @@ def _platforms(system: System) -> list[Platform]:
     """
     available, _ = resolve_platforms()
     present: dict[str, set[str]] = {}
-    for comp in system._components.values():
+    for comp in system.wiring.components.values():
         with zipfile.ZipFile(comp.path) as z:
             present[comp.name] = set(z.namelist())
     chosen = [p for p in available if all(fmu_binary_path(c.md.coSimulation.modelIdentifier, c.version, p)
-                                          in present[c.name] for c in system._components.values())]
+                                          in present[c.name] for c in system.wiring.components.values())]
     if not chosen:
         folders = {name: sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") == 2})
                    for name, names in present.items()}
@@ -389,7 +386,7 @@ def _platforms(system: System) -> list[Platform]:
     return chosen
 
 
-def export_container(system: System, path: str | os.PathLike[str],
+def export_container(system: WiredSystem, path: str | os.PathLike[str],
                      inputs: Mapping[str, str | Sequence[str]] | None = None,
                      outputs: Mapping[str, str] | None = None, step: float = 1e-3,
                      parameters: Mapping[str, str | Sequence[str]] | None = None, fmi_version: int = 2) -> Path:
@@ -397,7 +394,7 @@ def export_container(system: System, path: str | os.PathLike[str],
 
     Parameters
     ----------
-    system : System
+    system : System (or any WiredSystem)
         Components and connections to export.
     path : str or os.PathLike
         The ``.fmu`` file to write (overwritten).
@@ -431,11 +428,11 @@ def export_container(system: System, path: str | os.PathLike[str],
     CompilerNotFoundError, BuildError
         Without a C compiler, or if the runtime does not compile (see :mod:`duffid.cbuild`).
     """
-    if not system._components:
+    if not system.wiring.components:
         raise WiringError("the system has no components")
     if fmi_version not in (2, 3):
         raise WiringError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
-    transformed = [str(c) for c in system._connections if c.transformed]
+    transformed = [str(c) for c in system.wiring.connections if c.transformed]
     if transformed:
         raise WiringError(f"the connection {transformed[0]} has a factor or offset (an SSP linear transformation "
                           "or unit conversion), which the container runtime cannot apply (it copies values)")
@@ -450,17 +447,17 @@ def export_container(system: System, path: str | os.PathLike[str],
     runtime = {name: (fmu_sources(folder) / name).read_bytes() for folder, names in RUNTIME_FILES.items()
                for name in names}
     runtime.update({name: (fmu_sources("common") / name).read_bytes() for name in COMMON_FILES[fmi_version]})
-    components = {name: comp.path.read_bytes() for name, comp in system._components.items()}
+    components = {name: comp.path.read_bytes() for name, comp in system.wiring.components.items()}
     token = token_from(f"duffid-container-fmi{fmi_version}", identifier, repr(float(step)), *runtime.values(), *components.values(),
                        *[f"{v.name}|{v.kind}|{v.causality}|{v.start}|{v.unit}|{v.links}" for v in variables],
-                       *[f"{c.source}>{c.target}" for c in system._connections])
+                       *[f"{c.source}>{c.target}" for c in system.wiring.connections])
     sources = dict(runtime)
     sources[_CONFIG] = _header(system, variables, table, identifier, token, step).encode()
     c_files = tuple(sorted(n for n in sources if n.endswith(".c")))
     files = {"modelDescription.xml": _model_description(system, identifier, token, table, step, c_files, types,
                                                         fmi_version)}
     files.update({f"sources/{name}": data for name, data in sources.items()})
-    for name, comp in system._components.items():
+    for name, comp in system.wiring.components.items():
         with zipfile.ZipFile(comp.path) as z:
             for info in z.infolist():
                 if not info.is_dir():

@@ -9,7 +9,7 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Union
+from typing import Any, Callable, Iterable, Mapping, Protocol, Union, runtime_checkable
 
 import numpy as np
 
@@ -18,7 +18,7 @@ from ..errors import CosimError, InputError, WiringError
 __all__ = ["InputSource", "VARIABLE_KINDS", "STATUS_NAMES", "NAME_RE", "N_MESSAGES", "N_REPORTED", "DTYPES",
            "WiringError", "Connection", "Failure", "CosimError", "Result", "with_article", "suggest", "unit_of",
            "Component", "typed_parameter", "External", "check_external_value", "sampled_on_grid",
-           "INTERPOLATIONS", "ORDERINGS"]
+           "INTERPOLATIONS", "ORDERINGS", "Wiring", "WiredSystem", "SystemLike"]
 
 #: Source of an external input: a constant, a function of time, or samples ``(t, values)``.
 InputSource = Union[float, Callable[[float], float], tuple]
@@ -358,3 +358,60 @@ def sampled_on_grid(ext: External, grid: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------------- system
+
+
+@dataclass(frozen=True)
+class Wiring:
+    """A read-only view of a system's wiring, for the code that runs or exports it (the
+    runner, the container export): its components by name, its connections in the order they
+    were made, what drives each input from outside, and the lookup of ``"comp.var"``.
+
+    The mappings are read-only views of the system's own (no copy: build it when needed).
+    """
+
+    components: Mapping[str, Component]
+    connections: tuple[Connection, ...]
+    externals: Mapping[str, External]
+    lookup: Callable[[str, str], tuple[Component, Any]]
+
+
+@runtime_checkable
+class WiredSystem(Protocol):
+    """What the runner and the container export need of a system: its :class:`Wiring`."""
+
+    @property
+    def wiring(self) -> Wiring: ...
+
+
+@runtime_checkable
+class SystemLike(WiredSystem, Protocol):
+    """What the SSP reader and writer need of a system (:class:`duffid.cosim.system.System`
+    follows it): building by name and reading its components back."""
+
+    def add(self, name: str, path: str | os.PathLike[str], parameters: Mapping[str, Any] | None = None, *,
+            logging: bool = False) -> Any: ...
+
+    def connect(self, source: str, target: str, *, check_units: bool = True, factor: float = 1.0,
+                offset: float = 0.0) -> Any: ...
+
+    def set_input(self, target: str, source: Any, interpolation: str | None = None) -> Any: ...
+
+    @property
+    def components(self) -> list[str]: ...
+
+    @property
+    def connections(self) -> list[Connection]: ...
+
+    @property
+    def external_inputs(self) -> dict[str, str]: ...
+
+    @property
+    def constant_inputs(self) -> dict[str, float]: ...
+
+    def fmu(self, component: str) -> Path: ...
+
+    def parameter_values(self, component: str) -> dict[str, Any]: ...
+
+    def variable(self, full: str) -> Any: ...
+
+    def model_description(self, component: str) -> Any: ...

@@ -19,7 +19,7 @@ import tempfile
 import threading
 from collections import deque
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterator
+from typing import Any, Iterator
 
 import numpy as np
 
@@ -37,11 +37,9 @@ from .elements import (
     External,
     Failure,
     Result,
+    WiredSystem,
     check_external_value,
 )
-
-if TYPE_CHECKING:
-    from .system import System
 
 __all__ = ["Runner", "signals_held"]
 
@@ -80,6 +78,15 @@ class _Terminated(Exception):
 
 class _Interrupted(Exception):
     """SIGTERM during a run (handled as Ctrl-C is)."""
+
+
+def _succeeds(call: Any) -> bool:
+    """Whether an fmpy binding's call returned OK or Warning (fmpy raises on the others)."""
+    try:
+        call()
+    except Exception:  # fmpy's FMICallException, or a crash reported as an error
+        return False
+    return True
 
 
 @contextlib.contextmanager
@@ -129,7 +136,7 @@ class _Instance:
 class Runner:
     """Runs a system once (see :meth:`duffid.cosim.system.System.run`)."""
 
-    def __init__(self, system: System, grid: np.ndarray, step: float, ordering: str, sequence: list[str],
+    def __init__(self, system: WiredSystem, grid: np.ndarray, step: float, ordering: str, sequence: list[str],
                  delayed: list[Connection], names: list[str], sampled: dict[str, np.ndarray],
                  progress: bool, loop: str = "auto") -> None:
         self.system, self.grid, self.step = system, grid, step
@@ -137,7 +144,7 @@ class Runner:
         self.n = len(grid) - 1
         self.ordering, self.sequence, self.delayed, self.names = ordering, sequence, delayed, names
         self.sampled, self.progress = sampled, progress
-        comps = list(system._components.values())
+        comps = list(system.wiring.components.values())
         self.instances = [_Instance(c, i) for i, c in enumerate(comps)]
         self.index = {c.name: i for i, c in enumerate(comps)}
         self.rows = 0
@@ -148,8 +155,8 @@ class Runner:
     def _layout(self) -> None:
         """Slots of every needed value in the per-type buffers; no FMU is touched."""
         system = self.system
-        externals = system._externals
-        sources = {c.source for c in system._connections}
+        externals = system.wiring.externals
+        sources = {c.source for c in system.wiring.connections}
         wanted = set(sources) | {n for n in self.names if n not in externals}
         self.slots: dict[str, tuple[str, int]] = {}
         counts = {k: 0 for k in DTYPES}
@@ -197,13 +204,13 @@ class Runner:
         # entries (value reference, slot, set every step, (factor, offset) of a transformed connection or None)
         self.inputs: list[dict[str, list[tuple[int, int, bool, tuple[float, float] | None]]]] = [
             dict() for _ in self.instances]
-        for conn in system._connections:
-            comp, var = system._lookup(conn.target, "target")
+        for conn in system.wiring.connections:
+            comp, var = system.wiring.lookup(conn.target, "target")
             kind, slot = self.slots[conn.source]
             affine = (conn.factor, conn.offset) if conn.transformed else None
             self.inputs[self.index[comp.name]].setdefault(kind, []).append((var.valueReference, slot, True, affine))
         for ext in externals.values():
-            comp, var = system._lookup(ext.target, "target")
+            comp, var = system.wiring.lookup(ext.target, "target")
             kind, slot = self.slots[ext.target]
             self.inputs[self.index[comp.name]].setdefault(kind, []).append(
                 (var.valueReference, slot, ext.mode != "constant", None))
@@ -564,7 +571,7 @@ class Runner:
         FMU (not pythonfmu, which runs Python inside its calls), no input function to call in
         Python, and a C compiler (else None: the Python loop)."""
         if self.loop_mode == "python" or compiled_loop.obstacles(
-                [inst.comp for inst in self.instances], self.system._externals.values(), self.system._connections):
+                [inst.comp for inst in self.instances], self.system.wiring.externals.values(), self.system.wiring.connections):
             return None  # System.run refused loop="compiled" for these
         moves = [(view, table, None, 0, table.strides[0]) for view, table in self.tables.values()]
         moves += [(rec, self.g[kind], None if identity else idx, rec.strides[0], 0)
@@ -707,7 +714,6 @@ class Runner:
                 slave = inst.slave
                 if slave is None or inst.state in ("new", "freed"):
                     continue
-                version = inst.comp.version
                 try:
                     if inst.state == "failed" and inst.failed_status >= 4:  # Fatal: no further calls
                         inst.state = "freed"
@@ -715,9 +721,9 @@ class Runner:
                     healthy = inst.state == "stepping"
                     discarded = inst.state == "failed" and inst.failed_status == 2
                     if healthy or discarded:
-                        status = slave._functions["fmi2Terminate" if version == 2 else "fmi3Terminate"](slave.component)
-                        if keep and healthy and pool is not None and inst.pool_key is not None and status <= 1 and \
-                                slave._functions["fmi2Reset" if version == 2 else "fmi3Reset"](slave.component) <= 1:
+                        terminated = _succeeds(slave.terminate)
+                        if keep and healthy and pool is not None and inst.pool_key is not None and terminated and \
+                                _succeeds(slave.reset):
                             pool.give(inst.pool_key, slave, inst.callbacks, inst.holder)
                             inst.state, inst.slave, inst.callbacks = "freed", None, None
                             continue

@@ -76,16 +76,14 @@ import weakref
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Iterator, Mapping, Sequence
+from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from lxml import etree
 
 from ..errors import WiringError
-from .elements import NAME_RE, ORDERINGS, unit_of
+from .elements import NAME_RE, ORDERINGS, SystemLike, unit_of
 from .ssp_xml import SspArchive, SspError, XmlFile, local_name, parse_xml, resolve, where
 
-if TYPE_CHECKING:
-    from .system import System
 
 __all__ = ["SspError", "SspRun", "read_ssp", "write_ssp", "ANNOTATION", "NS_SSD", "NS_SSC", "NS_SSV", "NS_SSM",
            "NS_DUFFID", "SSD_VERSIONS", "SSD_MEMBER", "PARAMETER_SET", "OMSIMULATOR"]
@@ -137,7 +135,7 @@ class SspRun:
     ----------
     path : Path
         The ``.ssp`` (or ``.ssd``) file.
-    system : System
+    system : SystemLike
         The system, filled.
     start_time : float
         ``DefaultExperiment/@startTime`` (0 when absent).
@@ -160,7 +158,7 @@ class SspRun:
     """
 
     path: Path
-    system: System
+    system: SystemLike
     start_time: float = 0.0
     stop_time: float | None = None
     step: float | None = None
@@ -309,7 +307,7 @@ class _Package:
     """Where the SSD and its references live: an archive (members extracted on demand into a
     folder deleted with the system) or a folder holding a bare ``.ssd``."""
 
-    def __init__(self, path: Path, system: System) -> None:
+    def __init__(self, path: Path, system: SystemLike) -> None:
         self.path = path
         self.archive: SspArchive | None = None
         self.folder: Path | None = None
@@ -418,7 +416,7 @@ class _Element:
 
 
 class _Reader:
-    def __init__(self, path: Path, system: System, parameter_set: Path | None = None,
+    def __init__(self, path: Path, system: SystemLike, parameter_set: Path | None = None,
                  parameters: Mapping[str, Any] | None = None) -> None:
         self.path, self.system, self.parameter_set = path, system, parameter_set
         self.overrides = {name: _python_value(name, value) for name, value in (parameters or {}).items()}
@@ -898,7 +896,7 @@ def _python_value(name: str, value: Any) -> _Value:
     raise SspError(f"{place}: {value!r} is not a finite number, a bool or a string")
 
 
-def read_ssp(path: str | os.PathLike[str], system: System, *, parameter_set: str | os.PathLike[str] | None = None,
+def read_ssp(path: str | os.PathLike[str], system: SystemLike, *, parameter_set: str | os.PathLike[str] | None = None,
              parameters: Mapping[str, Any] | None = None) -> SspRun:
     """Fill ``system`` (empty) from an SSP archive or a bare ``.ssd`` file.
 
@@ -906,7 +904,7 @@ def read_ssp(path: str | os.PathLike[str], system: System, *, parameter_set: str
     ----------
     path : str or os.PathLike
         ``.ssp`` archive (``SystemStructure.ssd`` at its root) or ``.ssd`` file.
-    system : System
+    system : SystemLike
         An empty system, filled in place (FMUs inside an archive are extracted into a
         temporary folder deleted with the system).
     parameter_set : str or os.PathLike, optional
@@ -953,7 +951,7 @@ def _value_kind(variable: Any) -> str:
     return _FMI_KIND.get(variable.type, variable.type)
 
 
-def _resources(system: System) -> dict[str, str]:
+def _resources(system: SystemLike) -> dict[str, str]:
     """Component -> archive member of its FMU (one member per FMU file)."""
     members: dict[str, str] = {}
     by_file: dict[Path, str] = {}
@@ -972,7 +970,7 @@ def _resources(system: System) -> dict[str, str]:
     return members
 
 
-def _parameter_sets(system: System) -> dict[str, etree._Element]:
+def _parameter_sets(system: SystemLike) -> dict[str, etree._Element]:
     """Component -> the ``ssv:ParameterSet`` of its parameter values and constant inputs
     (names relative to the component; components without values have none)."""
     sets: dict[str, etree._Element] = {}
@@ -992,7 +990,7 @@ def _parameter_sets(system: System) -> dict[str, etree._Element]:
     return sets
 
 
-def _ssd(system: System, name: str, members: Mapping[str, str], parameter_files: Mapping[str, str],
+def _ssd(system: SystemLike, name: str, members: Mapping[str, str], parameter_files: Mapping[str, str],
          start_time: float, stop_time: float, step: float, ordering: str, order: Sequence[str] | None
          ) -> etree._Element:
     root = etree.Element(_q(NS_SSD, "SystemStructureDescription"), nsmap={"ssd": NS_SSD, "ssc": NS_SSC},
@@ -1063,13 +1061,13 @@ def _bytes(root: etree._Element) -> bytes:
     return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
 
 
-def write_ssp(system: System, path: str | os.PathLike[str], *, stop_time: float, step: float,
+def write_ssp(system: SystemLike, path: str | os.PathLike[str], *, stop_time: float, step: float,
               start_time: float = 0.0, ordering: str = "jacobi", order: Sequence[str] | None = None) -> Path:
     """Write ``system`` as an SSP 1.0 archive (see the module documentation).
 
     Parameters
     ----------
-    system : System
+    system : SystemLike
         The system: its external inputs must be constants (SSP carries values, not signals).
     path : str or os.PathLike
         The ``.ssp`` file to write (its stem names the SSD and the system).

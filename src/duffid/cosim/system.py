@@ -65,6 +65,7 @@ import csv
 import math
 import numbers
 import os
+from types import MappingProxyType
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
@@ -95,6 +96,7 @@ from .elements import (
     sampled_on_grid,
     suggest,
     typed_parameter,
+    Wiring,
     unit_of,
     with_article,
 )
@@ -498,6 +500,13 @@ class System:
     def model_description(self, component: str) -> Any:
         """fmpy's model description of ``component``'s FMU (read-only use)."""
         return self._component(component).md
+
+    @property
+    def wiring(self) -> Wiring:
+        """A read-only view of the components, connections, external inputs and the variable
+        lookup (what the runner and the container export read)."""
+        return Wiring(MappingProxyType(self._components), tuple(self._connections),
+                      MappingProxyType(self._externals), self._lookup)
 
     @property
     def external_inputs(self) -> dict[str, str]:

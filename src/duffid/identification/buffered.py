@@ -304,6 +304,14 @@ class BufferedIdentifier(Identifier):
         self.reset()
 
     @property
+    def kernels(self) -> np.ndarray:
+        """The window's kernels ``W[d]`` (orders x kept coefficients x samples), read-only:
+        ``W[d] @ G`` gives the row entries of order ``d`` (before the ``T^-d`` scale)."""
+        view = self._W.view()
+        view.flags.writeable = False
+        return view
+
+    @property
     def window(self) -> float:
         """Window length [s]."""
         return round(self.n_intervals * self.dt, 12)

@@ -146,7 +146,7 @@ def tables_source(ident: BufferedIdentifier, model: Chain, symbol: str = TABLES_
             index += rows.tolist()
             value += P[rows, col].tolist()
         starts.append(len(index))
-    w_norm = np.linalg.norm(ident._W, axis=2)  # (n+1) x kept
+    w_norm = np.linalg.norm(ident.kernels, axis=2)  # (n+1) x kept
     terms = []
     for e, eq_terms in enumerate(reg.terms):
         for t in eq_terms:
