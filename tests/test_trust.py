@@ -73,15 +73,15 @@ def test_the_output_error_refinement_determines_what_the_algebraic_estimate_left
 
 
 def test_a_refinement_that_disagrees_with_the_algebraic_estimate_is_not_used(lab, monkeypatch):
-    import duffid.identification.trust
-    genuine = duffid.identification.trust.refine
+    import duffid.identification.assessment
+    genuine = duffid.identification.assessment.refine
 
     def shifted(*args, **kwargs):  # a refinement 30 % off in the mass, with a small stated error
         out = genuine(*args, **kwargs)
         out.parameters["m"] *= 1.3
         return out
 
-    monkeypatch.setattr(duffid.identification.trust, "refine", shifted)
+    monkeypatch.setattr(duffid.identification.assessment, "refine", shifted)
     result = identify(lab, Duffing1())
     a = result.assessment
     assert a.fit["refinement"]["accepted"] is False

@@ -66,7 +66,7 @@ from ..data.record import Record
 from ..errors import RecordError
 from ..identification.engine import Identification, OnlineIdentifier
 from ..identification.refine import Refinement, refine, rms_error, simulate_record, upsample
-from ..identification.trust import SAMPLES_PER_PERIOD, upsampling_factor
+from ..identification.sampling import SAMPLES_PER_PERIOD, upsampling_factor
 from ..models.chain import Chain
 
 __all__ = [

@@ -60,8 +60,7 @@ import numpy as np
 from ..data.signals import from_spec
 from ..errors import ConfigError, DuffidError
 from ..identification.engine import METHODS
-from ..identification.options import ONLINE_METHODS, check_options
-from ..identification.trust import ENGINES
+from ..identification.options import ENGINES, ONLINE_METHODS, check_options
 from .metrics import resolve_metric
 from .systems import configured_system
 from .plants import PLANTS, RESERVED, plant_model

@@ -13,7 +13,7 @@ from ..data.channels import ROLE_PATTERN
 from ..data.formats import FORMATS, detect_format
 from ..data.record import Record
 from ..errors import RecordError
-from ..identification.trust import OFFSETS
+from ..identification.offsets import OFFSETS
 from ..models.registry import MODEL_NAMES, model_from_name
 
 __all__ = ["MODELS", "positive_float", "window_value", "role_pairs", "columns_value", "scales_value",

@@ -11,7 +11,8 @@ import numpy as np
 from ..errors import InputError
 from ..identification.engine import METHODS
 from ..identification.options import BUFFERED_METHODS, add_arguments, add_shared_arguments, options_from_arguments
-from ..identification.trust import OFFSETS, identify
+from ..identification.offsets import OFFSETS
+from ..identification.trust import identify
 from ..models.registry import model_from_name
 from .common import (
     MODELS,
