@@ -78,7 +78,7 @@ that is zero is then published as zero within its standard error.
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -212,26 +212,9 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
     """
     kind = offset_kind(model, offsets)
     physical = with_force_offsets(model) if kind is not None else model
-    # a displacement offset: the chain of orders (1, 2, 3) with a constant is identified and
-    # mapped back; `shifted` is cleared when the record cannot separate x0 from a force bias
-    mode = {"shifted": kind in ("displacement", "both")}
-    extended = displacement_chain(physical) if mode["shifted"] else None
-    if extended is not None and engine == "c" and method in ONLINE_METHODS:
-        raise InputError("the C core runs stiffness orders 1 and 3 only; a displacement offset needs the x^2 "
-                         "term: use engine 'auto' or 'python'")
-
-    measured_coordinate: dict[str, float] = {}  # the last run's values of `extended`
-
-    def run(rec: Record, opts: Mapping[str, Any]) -> Identification:
-        if mode["shifted"] and extended is not None:
-            raw = run_estimator(rec, extended, method, engine="python", **opts)
-            measured_coordinate.clear()
-            measured_coordinate.update(raw.estimates)
-            return mapped_to(raw, physical)
-        return run_estimator(rec, physical, method, engine=engine, **opts)
-
+    estimation = _Estimation(model, physical, kind, method, engine)
     if not check:
-        return run(record, options)
+        return estimation.run(record, options)
     check_record(record, model)
     outliers = isolated_outliers(record.x)
     if outliers:  # excluded: replaced by what their neighbours give, and reported
@@ -240,7 +223,8 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
             x[i, j] = value
         measured, record = record, Record(record.t, record.f, x, source=record.source,
                                           sampling_rtol=record.sampling_rtol)
-    opts = dict(options)
+    estimation.record = record
+    opts = estimation.options = dict(options)
     # the robust method's window from the data, in natural periods (never the default
     # seconds, which belong to the paper's 3.6 Hz plant): first from the displacement's
     # main frequency, then from the identified natural frequency
@@ -252,52 +236,32 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
     if auto and "min_time" not in options:  # 10 ms is 20 periods of a 2 kHz resonator
         opts["min_time"] = min(check_options(method, {})["min_time"], 0.5 * record.duration,
                                0.5 * periods / content if np.isfinite(content) and content > 0 else math.inf)
-    factor = upsampling_needed(record, content=content)
-    result = run(upsampled(record, factor), opts)
+    estimation.factor = upsampling_needed(record, content=content)
+    result = estimation.run(estimation.sampled(), opts)
     slowest = natural_frequency(physical, canonical_of(physical, result.estimates) or {}, lowest=True)
     again = upsampling_needed(record, result.estimates, physical, content=content)
     window = opts.get("window")
     if auto and np.isfinite(slowest) and slowest > 0:  # periods of the slowest mode
         window = data_window(record, slowest, periods)
-    if again > factor or window != opts.get("window"):
-        factor = max(factor, again)
+    if again > estimation.factor or window != opts.get("window"):
+        estimation.factor = max(estimation.factor, again)
         if window is not None:
             opts["window"] = window
-        result = run(upsampled(record, factor), opts)
+        result = estimation.run(estimation.sampled(), opts)
     cubic_share = math.nan
-    if mode["shifted"] and extended is not None:
-        cubic_share = cubic_share_of(record, measured_coordinate)
+    if estimation.shifted:
+        cubic_share = cubic_share_of(record, estimation.measured_coordinate)
         if not cubic_share >= MIN_SHARE:  # x0 is a constant force like a force bias: not separable
-            mode["shifted"] = False
-            result = run(upsampled(record, factor), opts)
+            estimation.shifted = False
+            result = estimation.run(estimation.sampled(), opts)
+    estimation.result = result
     max_uncertainty = float(opts.get("max_uncertainty", ASSESSMENT_UNCERTAINTY))
-
-    def rerun(noisy: Record) -> Mapping[str, float]:
-        return run(upsampled(noisy, factor), opts).estimates
-
-    with_offsets = None
-    if not physical.offset:
-        offset_model = with_force_offsets(model)
-
-        def with_offsets() -> Mapping[str, float]:
-            return run_estimator(upsampled(record, factor), offset_model, method, engine=engine, **opts).estimates
-    elif kind == "force" and carries_displacement_offset(physical):
-        # a force bias is modelled: check that a displacement offset would not move the values
-        def with_offsets() -> Mapping[str, float]:
-            raw = run_estimator(upsampled(record, factor), displacement_chain(physical), method,
-                                engine="python", **opts).estimates
-            if not cubic_share_of(record, raw) >= MIN_SHARE:
-                return dict(result.estimates)  # without the cubic, x0 is the force bias already modelled
-            return displacement_offset_values(physical, raw)
-
-    def at_half_rate() -> Mapping[str, float]:
-        return run(every_second(upsampled(record, factor)), opts).estimates
-
-    result.assessment = assess(record, physical, result.estimates, rerun, max_uncertainty=max_uncertainty,
-                               upsampled=factor, with_offsets=with_offsets, at_half_rate=at_half_rate,
-                               progress=progress, displacement_offset=mode["shifted"], refine=refine)
+    result.assessment = assess(record, physical, result.estimates, estimation.estimates,
+                               max_uncertainty=max_uncertainty, upsampled=estimation.factor,
+                               with_offsets=estimation.offset_check(), at_half_rate=estimation.at_half_rate,
+                               progress=progress, displacement_offset=estimation.shifted, refine=refine)
     if kind in ("displacement", "both"):
-        report_displacement_offset(result, kind, separable=mode["shifted"], cubic_share=cubic_share)
+        report_displacement_offset(result, kind, separable=estimation.shifted, cubic_share=cubic_share)
     if outliers:
         listed = ", ".join(f"x{j + 1} = {measured.x[i, j]:.4g} at t = {measured.t[i]:.6g} s" for i, j, _ in outliers[:5])
         result.assessment.notes.insert(0, f"{len(outliers)} isolated outlier{'s' if len(outliers) > 1 else ''} in "
@@ -312,3 +276,73 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
         # the estimator integrated the whole record in one window: it needed all of it
         result.t_identified = float(result.t[-1])
     return result
+
+
+class _Estimation:
+    """The estimator runs of one checked identification: the model with its offsets, the
+    method, engine and options, at the sampling decided for the record (its upsampled copy is
+    made once per factor). Its methods are what :func:`assess` re-runs: on noisy copies
+    (:meth:`estimates`), with the offsets the model lacks (:meth:`offset_check`), at half the
+    rate (:meth:`at_half_rate`)."""
+
+    def __init__(self, model: Chain, physical: Chain, kind: str | None, method: str, engine: str) -> None:
+        self.model, self.physical, self.kind = model, physical, kind
+        self.method, self.engine = method, engine
+        # a displacement offset: the chain of orders (1, 2, 3) with a constant is identified and
+        # mapped back; `shifted` is cleared when the record cannot separate x0 from a force bias
+        self.shifted = kind in ("displacement", "both")
+        self.extended = displacement_chain(physical) if self.shifted else None
+        if self.extended is not None and engine == "c" and method in ONLINE_METHODS:
+            raise InputError("the C core runs stiffness orders 1 and 3 only; a displacement offset needs the x^2 "
+                             "term: use engine 'auto' or 'python'")
+        self.measured_coordinate: dict[str, float] = {}  # the last run's values of `extended`
+        self.record: Record | None = None
+        self.options: dict[str, Any] = {}
+        self.factor = 1
+        self.result: Identification | None = None
+        self._sampled: tuple[int, Record] | None = None
+
+    def run(self, record: Record, options: Mapping[str, Any]) -> Identification:
+        """The estimator on ``record`` (the displacement-offset chain mapped back when it applies)."""
+        if self.shifted and self.extended is not None:
+            raw = run_estimator(record, self.extended, self.method, engine="python", **options)
+            self.measured_coordinate.clear()
+            self.measured_coordinate.update(raw.estimates)
+            return mapped_to(raw, self.physical)
+        return run_estimator(record, self.physical, self.method, engine=self.engine, **options)
+
+    def sampled(self) -> Record:
+        """The record upsampled by the current factor (made once per factor)."""
+        if self._sampled is None or self._sampled[0] != self.factor:
+            self._sampled = (self.factor, upsampled(self.record, self.factor))
+        return self._sampled[1]
+
+    def estimates(self, noisy: Record) -> Mapping[str, float]:
+        """The final estimates from a noisy copy of the record, identified as the record was."""
+        return self.run(upsampled(noisy, self.factor), self.options).estimates
+
+    def at_half_rate(self) -> Mapping[str, float]:
+        """The final estimates from every second sample."""
+        return self.run(every_second(self.sampled()), self.options).estimates
+
+    def offset_check(self) -> Callable[[], Mapping[str, float]] | None:
+        """The run that checks the offsets the model lacks (None when none applies): a force
+        bias added to a model without one; a displacement offset where a force bias is
+        modelled and the model can carry one."""
+        if not self.physical.offset:
+            offset_model = with_force_offsets(self.model)
+
+            def with_offsets() -> Mapping[str, float]:
+                return run_estimator(self.sampled(), offset_model, self.method, engine=self.engine,
+                                     **self.options).estimates
+            return with_offsets
+        if self.kind == "force" and carries_displacement_offset(self.physical):
+            def with_displacement_offset() -> Mapping[str, float]:
+                raw = run_estimator(self.sampled(), displacement_chain(self.physical), self.method,
+                                    engine="python", **self.options).estimates
+                if not cubic_share_of(self.record, raw) >= MIN_SHARE:
+                    # without the cubic, x0 is the force bias already modelled
+                    return dict(self.result.estimates)
+                return displacement_offset_values(self.physical, raw)
+            return with_displacement_offset
+        return None
