@@ -21,8 +21,9 @@
 #define MAX_ORD (DUFFID_MAX_DERIVATIVE + 1)
 #define MAX_UNK DUFFID_MAX_UNKNOWNS
 #define MAX_AUG (MAX_UNK + 1)
-#define ALIGNMENT 8u
-#define ALIGN_UP(n) (((n) + (ALIGNMENT - 1u)) & ~(size_t)(ALIGNMENT - 1u))
+#define ALIGNMENT DUFFID_LA_ALIGNMENT
+#define ALIGN_UP DUFFID_LA_ALIGN_UP
+#define CARVE DUFFID_LA_CARVE
 
 struct duffid_buffered {
     duffid_buffered_config cfg;
@@ -65,20 +66,6 @@ struct duffid_buffered {
     duffid_real condition, uncertainty;
     duffid_real current[DUFFID_MAX_PARAMS];
 };
-
-typedef struct {
-    char *base;
-    size_t used;
-} carver_t;
-
-static void *carve(carver_t *c, size_t count, size_t item)
-{
-    void *p = c->base != NULL ? (void *)(c->base + c->used) : NULL;
-    c->used += ALIGN_UP(count * item);
-    return p;
-}
-
-#define CARVE(c, ptr, count) ((ptr) = carve((c), (size_t)(count), sizeof *(ptr)))
 
 static int is_finite(duffid_real v)
 {
@@ -154,7 +141,7 @@ static size_t layout(const duffid_buffered_config *cfg, duffid_buffered *est, ch
     const int p = max_unknowns_of(tb) + 1, n_eq = tb->n_equations;
     (void)kept;
     duffid_buffered scratch;
-    carver_t c;
+    duffid_la_carver c;
     if (est == NULL) {
         est = &scratch;
     }

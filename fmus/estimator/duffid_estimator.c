@@ -782,23 +782,10 @@ int duffid_check_config(const duffid_config *cfg, char *msg, size_t size)
 }
 
 /* ------------------------------------------------------------------ memory layout */
-#define ALIGNMENT 8u /* doubles and 64-bit integers */
-#define ALIGN_UP(v) (((v) + (ALIGNMENT - 1u)) & ~(size_t)(ALIGNMENT - 1u))
-
-/* Carves the arrays of a memory block one after the other (base NULL: only counts). */
-typedef struct {
-    char *base;
-    size_t used;
-} carver_t;
-
-static void *carve(carver_t *c, size_t count, size_t item)
-{
-    void *p = c->base != NULL ? (void *)(c->base + c->used) : NULL;
-    c->used += ALIGN_UP(count * item);
-    return p;
-}
-
-#define CARVE(c, ptr, count) ((ptr) = carve((c), (size_t)(count), sizeof *(ptr)))
+#define ALIGNMENT DUFFID_LA_ALIGNMENT
+#define ALIGN_UP DUFFID_LA_ALIGN_UP
+#define CARVE DUFFID_LA_CARVE
+typedef duffid_la_carver carver_t; /* the arrays of a block one after the other (duffid_linalg.h) */
 
 /* The arrays of the block after the estimator structure, in order: first the structure (the
  * model's tables and everything init derives from the configuration, never written after),

@@ -648,3 +648,10 @@ void duffid_la_message(char *msg, size_t size, const char *fmt, ...)
 #endif
     va_end(ap);
 }
+
+void *duffid_la_carve(duffid_la_carver *c, size_t count, size_t item)
+{
+    void *p = c->base != NULL ? (void *)(c->base + c->used) : NULL;
+    c->used += DUFFID_LA_ALIGN_UP(count * item);
+    return p;
+}

@@ -69,6 +69,17 @@ int duffid_la_singular_range(int n, const duffid_real *a, duffid_real *v, int wa
  * n x n, upper triangular. Returns 0, or k > 0 when the k-th diagonal entry is 0. */
 int duffid_la_upper_inverse(int n, const duffid_real *r, int ld, duffid_real *inv);
 
+/* Memory blocks: arrays carved one after the other, each aligned to DUFFID_LA_ALIGNMENT bytes
+ * (base NULL: only counts the bytes). */
+#define DUFFID_LA_ALIGNMENT 8u /* doubles and 64-bit integers */
+#define DUFFID_LA_ALIGN_UP(v) (((v) + (DUFFID_LA_ALIGNMENT - 1u)) & ~(size_t)(DUFFID_LA_ALIGNMENT - 1u))
+typedef struct {
+    char *base;
+    size_t used;
+} duffid_la_carver;
+void *duffid_la_carve(duffid_la_carver *c, size_t count, size_t item);
+#define DUFFID_LA_CARVE(c, ptr, count) ((ptr) = duffid_la_carve((c), (size_t)(count), sizeof *(ptr)))
+
 /* printf-style message into msg[size] (nothing when msg is NULL or size 0); with
  * -DDUFFID_NO_STDIO (targets without vsnprintf) the template only. */
 void duffid_la_message(char *msg, size_t size, const char *fmt, ...);

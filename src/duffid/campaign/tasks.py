@@ -36,7 +36,7 @@ from ..errors import InputError, SimulationError
 from ..identification.trust import identify
 from ..models.simulation import measure, simulate
 from .metrics import resolve_metric
-from .plants import RESERVED, plant_model
+from .plants import plant_model
 from .systems import configured_system
 
 if TYPE_CHECKING:

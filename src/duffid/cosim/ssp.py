@@ -82,7 +82,7 @@ from lxml import etree
 
 from ..errors import WiringError
 from .elements import NAME_RE, ORDERINGS, SystemLike, unit_of
-from .ssp_xml import SspArchive, SspError, XmlFile, local_name, parse_xml, resolve, where
+from .ssp_xml import SspArchive, SspError, XmlFile, local_name, parse_xml, resolve
 
 
 __all__ = ["SspError", "SspRun", "read_ssp", "write_ssp", "ANNOTATION", "NS_SSD", "NS_SSC", "NS_SSV", "NS_SSM",

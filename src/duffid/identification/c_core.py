@@ -40,7 +40,7 @@ from ..models.description import ModelDescription, describe
 from .engine import STATUSES, Estimate, Identification, check_record, prior_sizes
 from .identifier import Identifier
 from .c_facts import C_HEADER_NAME as FACTS_HEADER_NAME
-from .c_facts import LIMITS, RETURN_CODES, limit, return_code
+from .c_facts import RETURN_CODES, limit, return_code
 from .options import C_HEADER_NAME, check_online_options, ctypes_fields, to_c
 
 __all__ = [
@@ -58,6 +58,7 @@ __all__ = [
     "CFLAGS",
     "PRECISIONS",
     "check_precision",
+    "write_generated_source",
     "config_type",
 ]
 
@@ -388,23 +389,30 @@ def build_model_library(model: Any, build_dir: str | os.PathLike[str] | None = N
         As :func:`build_library`.
     """
     check_precision(precision)
-    text = model_source(model)
-    src = source_dir()
+    path, digest, build_dir = write_generated_source(model_source(model), "models", "duffid_model", build_dir)
+    single = precision == "float"
+    return cached_library(f"libduffid_model_{digest}" + ("_float" if single else ""), source_dir(), SOURCES,
+                          HEADERS, flags=(*LIBRARY_FLAGS, GENERATED_MODEL_FLAG, *((_FLOAT_FLAG,) if single else ())),
+                          build_dir=build_dir, compiler=compiler, force=force, extra_sources=[path])
+
+
+def write_generated_source(text: str, folder: str, stem: str,
+                           build_dir: str | os.PathLike[str] | None = None) -> tuple[Path, str, Path]:
+    """Write generated C ``text`` as ``<build_dir>/<folder>/<stem>_<digest>.c`` (atomically,
+    only when it changed); returns the file, the digest of its text and the build folder used
+    (default: :func:`duffid.cbuild.default_build_dir` of the estimator sources)."""
     if build_dir is None:
         build_dir = default_build_dir(fmu_sources("estimator"), "estimator")
     digest = hashlib.sha256(text.encode()).hexdigest()[:16]
-    models = Path(build_dir) / "models"
-    models.mkdir(parents=True, exist_ok=True)
-    path = models / f"duffid_model_{digest}.c"
+    where = Path(build_dir) / folder
+    where.mkdir(parents=True, exist_ok=True)
+    path = where / f"{stem}_{digest}.c"
     if not path.is_file() or path.read_text() != text:
-        fd, tmp = tempfile.mkstemp(prefix=path.stem + ".", suffix=".c", dir=models)
+        fd, tmp = tempfile.mkstemp(prefix=path.stem + ".", suffix=".c", dir=where)
         with os.fdopen(fd, "w") as out:
             out.write(text)
         os.replace(tmp, path)
-    single = precision == "float"
-    return cached_library(f"libduffid_model_{digest}" + ("_float" if single else ""), src, SOURCES, HEADERS,
-                          flags=(*LIBRARY_FLAGS, GENERATED_MODEL_FLAG, *((_FLOAT_FLAG,) if single else ())),
-                          build_dir=build_dir, compiler=compiler, force=force, extra_sources=[path])
+    return path, digest, Path(build_dir)
 
 
 # ---------------------------------------------------------------------- identifier
