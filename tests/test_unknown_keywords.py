@@ -26,13 +26,14 @@ def _functions_with_kwargs() -> list[str]:
             obj = getattr(module, name, None)
             if inspect.isfunction(obj):
                 candidates = [(name, obj)]
-            elif inspect.isclass(obj):
+            elif inspect.isclass(obj) and not getattr(obj, "_is_protocol", False):  # Protocols are not built
                 candidates = [(f"{name}.{k}", v) for k, v in vars(obj).items()
                               if inspect.isfunction(v) and (not k.startswith("_") or k == "__init__")]
             else:
                 continue
             for qualname, fn in candidates:
-                if any(p.kind is p.VAR_KEYWORD for p in inspect.signature(fn).parameters.values()):
+                keywords = any(p.kind is p.VAR_KEYWORD for p in inspect.signature(fn).parameters.values())
+                if fn.__module__.startswith("duffid") and keywords:
                     found.add(f"{fn.__module__}.{qualname}")
     return sorted(found)
 
@@ -81,7 +82,7 @@ def _probes(record):
         "duffid.identification.refine.refine":
             lambda: refine(record, plant, dict(plant.parameters), **{BOGUS: 1}),
         "duffid.identification.trust.identify": lambda: identify(record, plant, **{BOGUS: 1}),
-        "duffid.identification.trust.run_estimator": lambda: run_estimator(record, plant, **{BOGUS: 1}),
+        "duffid.identification.dispatch.run_estimator": lambda: run_estimator(record, plant, **{BOGUS: 1}),
         "duffid.models.chain.Chain.with_parameters": lambda: Chain.with_parameters(plant, **{BOGUS: 1.0}),
     }
 
