@@ -21,10 +21,12 @@ import numpy as np
 from ..errors import RecordError
 from .units import QUANTITY_OF_ROLE, lookup, si_factor
 
-__all__ = ["Channel", "ROLE_PATTERN", "MOTION_NOT_YET", "numeric", "check_roles", "channel_table", "select",
+__all__ = ["Channel", "READ_PART", "ROLE_PATTERN", "MOTION_NOT_YET", "numeric", "check_roles", "channel_table", "select",
            "assemble"]
 
 #: A role of the selection syntax: ``t``, ``f``, ``x``, ``v``, ``a`` or numbered ``f1``, ``x2``, ...
+#: Samples a streaming reader delivers at a time (8 MB of float64).
+READ_PART = 1 << 20
 ROLE_PATTERN = re.compile(r"[tfxva]|[fxva][1-9][0-9]*", re.ASCII)
 #: Why velocity and acceleration channels cannot be identified from yet.
 MOTION_NOT_YET = ("identification from velocity (v) or acceleration (a) is not available yet; select a "
@@ -71,6 +73,9 @@ class Channel:
         values, text): why.
     read : callable, optional
         Returns the values as a 1-D float64 array (the file must still be open).
+    read_part : callable, optional
+        ``read_part(start, stop)`` returns the values ``[start, stop)`` (streaming readers: a
+        large channel is then read in parts of :data:`READ_PART` samples, never whole).
     """
 
     name: str
@@ -82,6 +87,7 @@ class Channel:
     needs_scale: str = ""
     problem: str = ""
     read: Callable[[], np.ndarray] = field(default=lambda: np.empty(0), repr=False, compare=False)
+    read_part: Callable[[int, int], np.ndarray] | None = field(default=None, repr=False, compare=False)
 
     @property
     def quantity(self) -> str | None:
@@ -311,17 +317,29 @@ def assemble(chosen: Mapping[str, Channel], source: str, *, scale: Mapping[str, 
 
     def values(role: str, out: np.ndarray | None = None) -> np.ndarray:
         channel = chosen[role]
-        raw = channel.read()
-        if raw.shape != (channel.length,):
-            raise RecordError(f"{source}, channel {channel.name!r}: read {raw.shape} values, the metadata say "
-                              f"{channel.length}")
-        if out is None:
-            out = np.asarray(raw, dtype=np.float64)
-            if out is raw and not (out.flags.owndata and out.flags.writeable):
-                out = out.copy()  # the reader's buffer (a memory map, a cache) is never written
+
+        def checked(raw: np.ndarray, length: int, where: str = "") -> np.ndarray:
+            if raw.shape != (length,):
+                raise RecordError(f"{source}, channel {channel.name!r}: read {raw.shape} values{where}, the metadata "
+                                  f"say {length}")
+            return raw
+
+        if channel.read_part is not None:  # streamed: at most READ_PART samples beyond the result
+            if out is None:
+                out = np.empty(channel.length, dtype=np.float64)
+            for start in range(0, channel.length, READ_PART):
+                stop = min(start + READ_PART, channel.length)
+                out[start:stop] = checked(channel.read_part(start, stop), stop - start,
+                                          f" from sample {start}")
         else:
-            out[:] = raw
-        del raw
+            raw = checked(channel.read(), channel.length)
+            if out is None:
+                out = np.asarray(raw, dtype=np.float64)
+                if out is raw and not (out.flags.owndata and out.flags.writeable):
+                    out = out.copy()  # the reader's buffer (a memory map, a cache) is never written
+            else:
+                out[:] = raw
+            del raw
         if factors[role] != 1.0:
             out *= factors[role]
         return out

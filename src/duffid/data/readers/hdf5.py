@@ -78,13 +78,14 @@ def _number(path: str, node: Any, names: tuple[str, ...]) -> float | None:
 
 
 def _vector_reader(dataset: Any) -> Any:
+    """``read_part(start, stop)`` of a vector dataset: h5py reads only that slice."""
     shape = dataset.shape
 
-    def read() -> np.ndarray:
+    def read_part(start: int, stop: int) -> np.ndarray:
         if len(shape) == 1:
-            return dataset[()]
-        return dataset[:, 0] if shape[1] == 1 else dataset[0, :]
-    return read
+            return dataset[start:stop]
+        return dataset[start:stop, 0] if shape[1] == 1 else dataset[0, start:stop]
+    return read_part
 
 
 @contextmanager
@@ -111,5 +112,5 @@ def open_channels(path: str) -> Iterator[list[Channel]]:
                                     int(max(ds.shape)) if ds.size else 0,
                                     rate if rate is not None else (1.0 / step if step is not None else None),
                                     _number(path, ds, START_ATTRIBUTES) or 0.0, str(ds.dtype),
-                                    read=_vector_reader(ds)))
+                                    read_part=_vector_reader(ds)))
         yield channels

@@ -23,12 +23,13 @@ EXTENSIONS = (".tdms",)
 
 
 def _reader(path: str, name: str, channel: Any) -> Any:
-    def read() -> np.ndarray:
-        data = channel[:]
+    """``read_part(start, stop)`` of a channel: npTDMS streams only those samples from the file."""
+    def read_part(start: int, stop: int) -> np.ndarray:
+        data = channel[start:stop]
         if not numeric(data.dtype):
             raise RecordError(f"{path}, channel {name!r}: holds {data.dtype} values, not numbers")
         return data
-    return read
+    return read_part
 
 
 @contextmanager
@@ -50,5 +51,5 @@ def open_channels(path: str) -> Iterator[list[Channel]]:
                 rate = 1.0 / float(increment) if increment and float(increment) > 0 else None
                 unit = str(props.get("unit_string", "")).strip() or None
                 channels.append(Channel(name, unit, len(channel), rate, float(props.get("wf_start_offset", 0.0)),
-                                        str(channel.dtype), read=_reader(path, name, channel)))
+                                        str(channel.dtype), read_part=_reader(path, name, channel)))
         yield channels
