@@ -8,19 +8,21 @@ estimator and the robust one, printed next to the paper's Tables 2 and 4, and pl
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any, Callable, TextIO
 
 import numpy as np
 
+from ..data.record import Record
 from ..data.signals import Step
 from ..identification.engine import Identification
 from ..identification.trust import identify
-from ..models.chain import Duffing1, Duffing2
+from ..models.chain import Chain, Duffing1, Duffing2
 from ..models.simulation import measure, simulate
 from .plots import plot_estimates, plot_record
 
-__all__ = ["run_paper_cases", "PAPER_TABLE2", "PAPER_TABLE4", "format_table"]
+__all__ = ["run_paper_cases", "run_case", "PaperCase", "CASES", "PAPER_TABLE2", "PAPER_TABLE4", "format_table"]
 
 #: The paper's Table 2 (1-DOF, 14 N step): estimated values.
 PAPER_TABLE2 = {"m": 2.55, "b": 12.47, "k": 1290.34, "kp": -114.83e4}
@@ -44,21 +46,47 @@ def format_table(truth: dict[str, float], columns: dict[str, dict[str, float]]) 
     return "\n".join(lines)
 
 
-def _case(name: str, model, force: float, t_end: float, out: Path, stream: TextIO,
-          paper_table: dict[str, float], paper_label: str) -> dict[str, Any]:
-    exact = simulate(model, Step(force), t_end, 1e-3)
+@dataclass(frozen=True)
+class PaperCase:
+    """One of the paper's step experiments as duffid simulates it."""
+
+    name: str
+    model: Callable[[], Chain]
+    force: float           # step [N]
+    t_end: float           # record length [s]
+    paper_table: dict[str, float]
+    paper_label: str
+    why: str               # why this force and length (the plant's limits, NOTES.md)
+
+
+#: The paper's two step experiments (sampled at 1 ms, encoder-quantised).
+CASES = {
+    "duffing1": PaperCase("duffing1", Duffing1, 14.0, 0.25, PAPER_TABLE2, "paper Table 2",
+                          "14 N as in the paper; the plant leaves its potential well near 0.3 s (NOTES.md)"),
+    "duffing2": PaperCase("duffing2", Duffing2, 10.0, 1.0, PAPER_TABLE4, "paper Table 4",
+                          "10 N: a large deflection of the second spring (kp2 needs it) while staying below "
+                          "the ~12 N step at which the 2-DOF chain escapes its potential well"),
+}
+
+
+def run_case(case: PaperCase, out: Path) -> tuple[Record, dict[str, Identification]]:
+    """Simulate and quantise one case's record, identify it with both methods, write its
+    record (CSV, PNG) and estimate plots (Figures 7, 8, 12, 13, 14) into ``out``.
+
+    Returns
+    -------
+    (Record, dict)
+        The quantised record and the runs by method (``"robust"``, ``"paper"``).
+    """
+    model = case.model()
+    name = case.name
+    exact = simulate(model, Step(case.force), case.t_end, 1e-3)
     record = measure(exact)  # encoder quantisation, 2266 pulses/cm
     record.to_csv(out / f"{name}_record.csv")
-    plot_record(record, out / f"{name}_record.png", title=f"{name}: {force:g} N step, quantised")
+    plot_record(record, out / f"{name}_record.png", title=f"{name}: {case.force:g} N step, quantised")
     results: dict[str, Identification] = {m: identify(record, model, m) for m in ("robust", "paper")}
     truth = model.parameters
-    print(f"\n== {name}: {model.name}, {force:g} N step, {t_end:g} s, 1 ms, encoder-quantised ==", file=stream)
-    columns = {paper_label: paper_table}
-    columns.update({f"duffid {m}": r.parameters for m, r in results.items()})
-    print(format_table(truth, columns), file=stream)
     for m, r in results.items():
-        t_id = "never" if r.t_identified is None else f"{r.t_identified:.3f} s"
-        print(f"  {m}: identified at {t_id}, window {r.window:.3f} s", file=stream)
         plot_estimates(r, out / f"{name}_{m}_estimates.png", truth=truth,
                        title=f"{name}: estimates vs time ({m})")
     if model.n_dof == 2:  # Figure 13: the normalised parameters of the second DOF
@@ -67,6 +95,21 @@ def _case(name: str, model, force: float, t_end: float, out: Path, stream: TextI
         true_ratios = {f"{p}/m2": truth[p] / truth["m2"] for p in ("b2", "k2", "kp2")}
         plot_estimates(r, out / f"{name}_robust_theta2.png", truth=true_ratios, series=ratios,
                        title=f"{name}: second DOF, normalised by m2 (robust)")
+    return record, results
+
+
+def _case(case: PaperCase, out: Path, stream: TextIO) -> dict[str, Any]:
+    record, results = run_case(case, out)
+    model = case.model()
+    truth = model.parameters
+    print(f"\n== {case.name}: {model.name}, {case.force:g} N step, {case.t_end:g} s, 1 ms, encoder-quantised ==",
+          file=stream)
+    columns = {case.paper_label: case.paper_table}
+    columns.update({f"duffid {m}": r.parameters for m, r in results.items()})
+    print(format_table(truth, columns), file=stream)
+    for m, r in results.items():
+        t_id = "never" if r.t_identified is None else f"{r.t_identified:.3f} s"
+        print(f"  {m}: identified at {t_id}, window {r.window:.3f} s", file=stream)
     return {"truth": truth, **{m: r.to_dict() for m, r in results.items()}}
 
 
@@ -92,12 +135,6 @@ def run_paper_cases(out: str | os.PathLike[str] = "out", stream: TextIO | None =
     out.mkdir(parents=True, exist_ok=True)
     print("duffid demo: algebraic identification of the paper's Duffing oscillators", file=stream)
     print("(paper columns are the published experimental estimates, not simulations)", file=stream)
-    summary = {
-        # 14 N as in the paper; the plant leaves its potential well near 0.3 s (NOTES.md)
-        "duffing1": _case("duffing1", Duffing1(), 14.0, 0.25, out, stream, PAPER_TABLE2, "paper Table 2"),
-        # 10 N: a large deflection of the second spring (kp2 needs it) while staying below
-        # the ~12 N step at which the 2-DOF chain escapes its potential well
-        "duffing2": _case("duffing2", Duffing2(), 10.0, 1.0, out, stream, PAPER_TABLE4, "paper Table 4"),
-    }
+    summary = {name: _case(case, out, stream) for name, case in CASES.items()}
     print(f"\nplots and records written to {out}/", file=stream)
     return summary
