@@ -1,5 +1,5 @@
 """The command-line interface ``duffid``: one module per subcommand (identify, inspect, simulate,
-nonlinearity, silverbox, build-fmus, cosim, campaign, demo, paper-cases), each with ``add_parser``
+nonlinearity, silverbox, build-fmus, cosim, campaign, demo, paper-cases, paper-report), each with ``add_parser``
 and ``run``."""
 from __future__ import annotations
 
@@ -20,6 +20,7 @@ from . import (
     inspect,
     nonlinearity,
     paper_cases,
+    paper_report,
     silverbox,
     simulate,
 )
@@ -29,7 +30,7 @@ __all__ = ["main", "build_parser", "COMMANDS"]
 #: Subcommand -> its module (``add_parser(sub)``, ``run(args)``), in the order of ``duffid --help``.
 COMMANDS = {"identify": identify, "inspect": inspect, "simulate": simulate, "nonlinearity": nonlinearity, "silverbox": silverbox,
             "build-fmus": build_fmus, "build-estimator": build_estimator, "cosim": cosim, "campaign": campaign,
-            "demo": demo, "paper-cases": paper_cases}
+            "demo": demo, "paper-cases": paper_cases, "paper-report": paper_report}
 
 
 def build_parser() -> argparse.ArgumentParser:
