@@ -1,4 +1,5 @@
 """A Monte-Carlo study as a campaign: case B of the paper over noise seeds, on Dask workers.
+=========================================================================================
 
 examples/campaigns/case_b.toml describes the study (the 1-DOF oscillator under a 10 N
 step, quantised + 40 dB noise, the paper and robust online methods); here it runs over 6
@@ -20,7 +21,7 @@ SPEC = Path(__file__).resolve().parent / "campaigns" / "case_b.toml"
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.partition("\n")[0])
     parser.add_argument("--out", type=Path, default=Path("out/campaign_example"))
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)

@@ -1,4 +1,5 @@
 """Wire plant, estimator and adaptive controller FMUs by hand with duffid.cosim.system.
+====================================================================================
 
 The 1-DOF paper plant (Oscillator1DOF.fmu) is driven by AdaptiveController1.fmu, which
 excites it with a 10 N step until DuffingEstimator1.fmu has identified it, then tracks a
@@ -35,7 +36,7 @@ def loop(fmus: dict[str, Path], controller: dict) -> System:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.partition("\n")[0])
     parser.add_argument("--out", type=Path, default=Path("out/cosim_example"))
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)

@@ -1,4 +1,5 @@
 """Identify a series R-L-cubic-capacitor circuit in its own vocabulary (L, R, C, a).
+=================================================================================
 
 ``L q'' + R q' + q/C + a q^3 = u``: the charge q is the "displacement" column and the
 source voltage u the "force" column; the user never translates parameters by hand.

@@ -1,4 +1,5 @@
 """Identify the paper's 1-DOF plant (case A: 14 N step, 0.25 s, encoder-quantised).
+================================================================================
 
 Run: python examples/identify_paper_case_a.py [--out DIR]
 """
@@ -12,7 +13,7 @@ from duffid.apps.plots import plot_estimates
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.partition("\n")[0])
     parser.add_argument("--out", type=Path, default=Path("out"))
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)

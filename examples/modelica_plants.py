@@ -1,4 +1,5 @@
 """Build the Modelica example plants as FMUs and check them against duffid's own simulation.
+=========================================================================================
 
 Every plant of modelica/Duffid/Examples becomes ``<Name>.fmu`` (FMI 2.0) and
 ``<Name>_fmi3.fmu`` (FMI 3.0), each with Model Exchange, Co-Simulation and its C sources.
@@ -29,7 +30,7 @@ PLANTS = {
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.partition("\n")[0])
     parser.add_argument("--out", type=Path, default=Path("build/fmus"), help="output folder")
     args = parser.parse_args()
     paths = build_all(args.out)

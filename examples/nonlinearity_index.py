@@ -1,4 +1,5 @@
 """Is the paper's oscillator dominantly linear at a given force? The Hilbert-transform index.
+==========================================================================================
 
 Simulates the paper's sweep (instantaneous frequency 2.5 t Hz) on the 1-DOF Duffing plant
 and on the same plant without its cubic spring, at three amplitudes, and prints eta with
@@ -21,7 +22,7 @@ from duffid.apps.plots import plot_eta_vs_amplitude, plot_hilbert
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.partition("\n")[0])
     parser.add_argument("--out", type=Path, default=Path("out"))
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)

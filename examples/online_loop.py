@@ -1,4 +1,5 @@
 """Feed samples one at a time to the online identifier, as a real-time loop would.
+===============================================================================
 
 A 2-DOF chain (paper Figure 9) is excited by a 6 N step on the first mass; the
 identifier reports NaN until the estimate is trustworthy, then the parameters.

@@ -1,4 +1,5 @@
 """Identify the Silverbox electronic Duffing oscillator from real measurements.
+============================================================================
 
 ``m y'' + d y' + k y + k2 y^2 + k3 y^3 + offset = u`` is identified on the training part
 of the Silverbox multisine record with the online algebraic estimator (settings chosen
@@ -22,7 +23,7 @@ from duffid.data.record import RecordError
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.partition("\n")[0])
     parser.add_argument("path", nargs="?", type=Path, default=None, help="folder holding SNLS80mV.mat")
     parser.add_argument("--out", type=Path, default=Path("out"), help="folder for the plot (default out/)")
     parser.add_argument("--no-refine", action="store_true", help="algebraic estimate only")

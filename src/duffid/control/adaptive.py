@@ -194,6 +194,8 @@ class AdaptiveController:
     **settings
         See :func:`controller_parameters`.
 
+    Notes
+    -----
     Inputs of :meth:`step` (a mapping): ``r``, ``r_dot``, ``r_ddot`` (the reference's
     derivatives, used by ``reference_model`` "derivatives" only; 0 when absent, their FMU
     start values), ``x`` (2-DOF ``x1``, ``x2``), the estimates ``<name>_hat`` (NaN
