@@ -11,12 +11,12 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from ..data.record import Record
-from ..errors import RecordError
+from ..errors import BuildError, RecordError
 from ..models.chain import Chain
 from .engine import MIN_SHARE
 from .offsets import DISPLACEMENT_OFFSET, canonical_of, inseparable_note, offset_check, offset_scales
 from .options import default_options
-from .refine import OdeSimulator, fit_initial_state, refine, stretches
+from .refine import OdeSimulator, SegmentSimulator, fit_initial_state, refine, stretches
 from .sampling import (
     MIN_SAMPLES_PER_PERIOD,
     SAMPLES_PER_PERIOD,
@@ -174,10 +174,12 @@ def _segment_samples(record: Record, natural: float) -> tuple[int, int]:
     return init, int(min(n, max(SEGMENT_PERIODS * period, 4 * init)))
 
 def _simulation_fit(record: Record, model: Chain, canonical: Mapping[str, float], natural: float,
-                    noise: np.ndarray) -> tuple[dict[str, Any], np.ndarray | None, str | None]:
+                    noise: np.ndarray, spp: float = 0.0) -> tuple[dict[str, Any], np.ndarray | None, str | None]:
     """Simulate the identified model under the measured force, in segments of
     :data:`SEGMENT_PERIODS` natural periods each started from a state fitted to its first
-    half period; the NRMSE of the simulated displacement against the record."""
+    half period; the NRMSE of the simulated displacement against the record. ``spp``: samples
+    per period of the highest frequency at the record's rate, which sets the RK4 steps per
+    sample (steps of at most :data:`REFINE_STEP` radians, at most four per sample)."""
 
     spread = np.std(record.x, axis=0)
     fit: dict[str, Any] = {"simulation_nrmse": math.nan, "noise_nrmse": math.nan, "explained": False}
@@ -186,18 +188,24 @@ def _simulation_fit(record: Record, model: Chain, canonical: Mapping[str, float]
     n = record.n_samples
     init, length = _segment_samples(record, natural)
     try:
-        simulator = OdeSimulator(model, record.dt, free=())
+        substeps = min(4, max(1, math.ceil(2 * math.pi / (spp * REFINE_STEP)))) if spp > 0 else 4
+        simulator = OdeSimulator(model, record.dt, free=(), substeps=substeps)
         simulated = np.empty_like(record.x)
         pieces: list[tuple[float, float, int]] = []  # (mean square error / variance, sum, samples)
+        bounds = stretches(n, length)
         with np.errstate(all="ignore"):  # a trial initial state may make the simulation overflow
-            for start, stop in stretches(n, length):
-                segment = Record(record.t[start:stop], record.f[start:stop], record.x[start:stop],
-                                 source=record.source)
-                response = _segment_response(simulator, canonical, segment, min(init, len(segment.t) // 4))
-                scaled = ((response[init:] - segment.x[init:]) / spread) ** 2
+            fast = _segments_in_c(simulator, canonical, record, bounds, init)
+            for i, (start, stop) in enumerate(bounds):
+                measured = record.x[start:stop]
+                if fast is not None and not fast[1][i]:
+                    response = fast[0][start:stop]
+                else:  # the fitted state escapes (or no C compiler): the Python simulator decides
+                    segment = Record(record.t[start:stop], record.f[start:stop], measured, source=record.source)
+                    response = _segment_response(simulator, canonical, segment, min(init, len(segment.t) // 4))
+                scaled = ((response[init:] - measured[init:]) / spread) ** 2
                 worst = float(np.max(np.mean(scaled, axis=0))) if np.all(np.isfinite(scaled)) else math.inf
                 pieces.append((worst, float(np.max(np.sum(scaled, axis=0))), len(scaled)))
-                simulated[start:stop] = response if np.all(np.isfinite(response)) else segment.x
+                simulated[start:stop] = response if np.all(np.isfinite(response)) else measured
     except (RecordError, ValueError, ArithmeticError) as exc:
         return fit, None, f"the identified model cannot be simulated under the measured force ({exc})"
     # near a softening spring's escape or a lightly damped jump, a noisy initial state can
@@ -222,6 +230,16 @@ def _simulation_fit(record: Record, model: Chain, canonical: Mapping[str, float]
             f"columns (force and displacement swapped?), units, sensor offsets (--offset), and that "
             f"the model fits the plant (friction, other nonlinearities)")
     return fit, simulated, None
+
+def _segments_in_c(simulator: OdeSimulator, canonical: Mapping[str, float], record: Record,
+                   bounds: list[tuple[int, int]], init: int) -> tuple[np.ndarray, list[bool]] | None:
+    """The segments simulated in C (:class:`~duffid.identification.refine.SegmentSimulator`),
+    or None without a C compiler."""
+    try:
+        fast = SegmentSimulator(simulator)
+    except (BuildError, OSError):
+        return None
+    return fast.record_segments(canonical, record, bounds, init)
 
 def _segment_response(simulator: Any, canonical: Mapping[str, float], segment: Record, init: int) -> np.ndarray:
     """The simulated displacement over one segment, from the initial state that best fits its
@@ -405,7 +423,7 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
     shift = values.get(DISPLACEMENT_OFFSET, 0.0) if displacement_offset else 0.0
     physical = record if shift == 0.0 else Record(record.t, record.f, record.x - shift, source=record.source,
                                                   sampling_rtol=record.sampling_rtol)
-    sim_fit, simulated, problem = _simulation_fit(physical, model, canonical, natural, noise)
+    sim_fit, simulated, problem = _simulation_fit(physical, model, canonical, natural, noise, spp / upsampled)
     fit.update(sim_fit)
     if simulated is not None:
         shares = term_shares(model, canonical, simulated, record.f, record.dt)
