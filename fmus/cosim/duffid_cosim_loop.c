@@ -39,25 +39,53 @@ static void convert_values(char *dst, const char *src, size_t n, size_t itemsize
             int32_t v = ((const _Bool *)src)[i] ? 1 : 0;
             memcpy(dst + i * 4, &v, 4);
         }
+    } else if (convert == DUFFID_INT64_TO_INT32) {
+        for (i = 0; i < n; i++) {
+            int64_t v;
+            int32_t w;
+            memcpy(&v, src + i * 8, 8);
+            w = (int32_t)v;
+            memcpy(dst + i * 4, &w, 4);
+        }
+    } else if (convert == DUFFID_INT32_TO_INT64) {
+        for (i = 0; i < n; i++) {
+            int32_t v;
+            int64_t w;
+            memcpy(&v, src + i * 4, 4);
+            w = v;
+            memcpy(dst + i * 8, &w, 8);
+        }
     } else {
         memcpy(dst, src, n * itemsize);
+    }
+}
+
+/* Bytes per converted value written by `convert` (itemsize: bytes per source value). */
+static size_t converted_size(int convert, size_t itemsize)
+{
+    switch (convert) {
+    case DUFFID_INT32_TO_BOOL: return 1;
+    case DUFFID_BOOL_TO_INT32: case DUFFID_INT64_TO_INT32: return 4;
+    case DUFFID_INT32_TO_INT64: return 8;
+    default: return itemsize;
     }
 }
 
 static void gather(char *dst, const char *src, const intptr_t *index, size_t n, size_t itemsize, int convert)
 {
     size_t i;
-    size_t out = convert == DUFFID_INT32_TO_BOOL ? 1 : (convert == DUFFID_BOOL_TO_INT32 ? 4 : itemsize);
+    size_t out = converted_size(convert, itemsize);
     for (i = 0; i < n; i++)
         convert_values(dst + i * out, src + (size_t)index[i] * itemsize, 1, itemsize, convert);
 }
 
 static int io_call(const duffid_io_op *op)
 {
+    const size_t n_values = op->n_values ? op->n_values : op->n;
     if (op->gather_index != NULL)
-        gather((char *)op->value, op->gather_source, op->gather_index, op->n, op->itemsize, op->convert);
+        gather((char *)op->value, op->gather_source, op->gather_index, n_values, op->itemsize, op->convert);
     if (op->fmi3)
-        return ((call5_t)op->function)(op->instance, op->vr, op->n, op->value, op->n);
+        return ((call5_t)op->function)(op->instance, op->vr, op->n, op->value, n_values);
     return ((call4_t)op->function)(op->instance, op->vr, op->n, op->value);
 }
 

@@ -20,6 +20,8 @@
 #define DUFFID_COPY 0          /* same type: bytes */
 #define DUFFID_INT32_TO_BOOL 1 /* a 4-byte integer buffer to 1-byte fmi3Boolean */
 #define DUFFID_BOOL_TO_INT32 2 /* 1-byte fmi3Boolean to a 4-byte integer buffer */
+#define DUFFID_INT64_TO_INT32 3 /* an 8-byte integer buffer to 4-byte integers (FMI 2 Enumeration) */
+#define DUFFID_INT32_TO_INT64 4 /* 4-byte integers (FMI 2 Enumeration) to an 8-byte integer buffer */
 
 #define FMI_WARNING 1
 
@@ -40,6 +42,7 @@ typedef struct {
     const char *gather_source;
     const intptr_t *gather_index;
     size_t itemsize; /* bytes per value of gather_source */
+    size_t n_values; /* FMI 3: values of the n variables (arrays have several); 0: n (scalars) */
 } duffid_io_op;
 
 /* A doStep call; FMI 3 writes its three flags and the last successful time. */

@@ -16,13 +16,14 @@ The library is compiled on first use with the one C build helper
 from __future__ import annotations
 
 import ctypes
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
 from ..assets import fmu_sources
 from ..cbuild import cached_library
 from ..errors import CompilerNotFoundError
+from .value_types import OBJECT_KINDS
 
 __all__ = ["CompiledLoop", "load", "obstacles", "LOOP_MODES", "DONE", "SET_FAILED", "GET_FAILED", "ABORTED", "ENDED"]
 
@@ -32,8 +33,10 @@ LOOP_MODES = ("auto", "compiled", "python")
 
 # duffid_cosim_run's return codes (DUFFID_LOOP_*)
 DONE, SET_FAILED, GET_FAILED, ABORTED, ENDED = range(5)
-# value conversions (DUFFID_COPY, DUFFID_INT32_TO_BOOL, DUFFID_BOOL_TO_INT32)
-_COPY, _INT32_TO_BOOL, _BOOL_TO_INT32 = range(3)
+# value conversions (DUFFID_COPY, DUFFID_INT32_TO_BOOL, DUFFID_BOOL_TO_INT32, DUFFID_INT64_TO_INT32,
+# DUFFID_INT32_TO_INT64), by (source, destination) bytes per value when they differ
+_COPY, _INT32_TO_BOOL, _BOOL_TO_INT32, _INT64_TO_INT32, _INT32_TO_INT64 = range(5)
+_CONVERSIONS = {(4, 1): _INT32_TO_BOOL, (1, 4): _BOOL_TO_INT32, (8, 4): _INT64_TO_INT32, (4, 8): _INT32_TO_INT64}
 
 _P = ctypes.c_void_p
 
@@ -41,7 +44,7 @@ _P = ctypes.c_void_p
 class _IoOp(ctypes.Structure):
     _fields_ = [("function", _P), ("instance", _P), ("vr", _P), ("n", ctypes.c_size_t), ("value", _P),
                 ("fmi3", ctypes.c_int), ("convert", ctypes.c_int), ("gather_source", _P),
-                ("gather_index", _P), ("itemsize", ctypes.c_size_t)]
+                ("gather_index", _P), ("itemsize", ctypes.c_size_t), ("n_values", ctypes.c_size_t)]
 
 
 class _StepOp(ctypes.Structure):
@@ -89,16 +92,21 @@ def load() -> ctypes.CDLL | None:
     return _LIBRARY[0]
 
 
-def obstacles(components: Iterable[Any], externals: Iterable[Any], connections: Iterable[Any] = ()) -> list[str]:
+def obstacles(components: Iterable[Any], externals: Iterable[Any], connections: Iterable[Any] = (),
+              exchanged: Mapping[str, str] | None = None) -> list[str]:
     """Why the compiled loop cannot run a system, in words (empty: it can): a component that
     is a Python FMU (pythonfmu runs Python inside its FMI calls), an input that is a Python
     function (called every step), a connection with a factor or offset (an SSP linear
-    transformation: the C loop only copies values), no C compiler (checked last, by building
-    the loop)."""
+    transformation: the C loop only copies values), a String or Binary value among the
+    ``exchanged`` ones (name -> kind: the FMU owns the memory its getters return, valid until
+    its next call, so the values are copied into Python objects), no C compiler (checked last,
+    by building the loop)."""
     reasons = [f"component {c.name!r} is a Python FMU (pythonfmu)" for c in components
                if (c.md.generationTool or "").startswith("PythonFMU")]
     reasons += [f"the input {e.target} is a Python function" for e in externals if e.mode == "function"]
     reasons += [f"the connection {c} has a factor or offset" for c in connections if c.transformed]
+    reasons += [f"{name} is {kind} (String and Binary values are copied in the Python loop)"
+                for name, kind in (exchanged or {}).items() if kind in OBJECT_KINDS]
     if not reasons and load() is None:
         reasons.append("no C compiler was found to build it")
     return reasons
@@ -120,7 +128,7 @@ def _function(f: Any) -> int:
 def _conversion(source: np.ndarray, target_itemsize: int) -> int:
     if source.itemsize == target_itemsize:
         return _COPY
-    return _INT32_TO_BOOL if source.itemsize == 4 else _BOOL_TO_INT32
+    return _CONVERSIONS[(source.itemsize, target_itemsize)]
 
 
 class CompiledLoop:
@@ -192,6 +200,7 @@ class CompiledLoop:
         handle, vrs, size, ptr = args[:4]
         fmi3 = len(args) == 5
         op = _IoOp(_function(function), handle.value, _address(vrs), size.value, _address(ptr), int(fmi3))
+        op.n_values = args[4].value if fmi3 else size.value
         if index is not None:
             index = np.ascontiguousarray(index, dtype=np.intp)
             self._keep.append(index)

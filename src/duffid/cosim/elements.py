@@ -9,29 +9,27 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping, Protocol, Union, runtime_checkable
+from typing import Any, Callable, Iterable, Mapping, Protocol, Sequence, Union, runtime_checkable
 
 import numpy as np
 
 from ..errors import CosimError, InputError, WiringError
+from .value_types import DTYPES, VARIABLE_KINDS, check_value, csv_text, element_names, flat_index, split_element
 
 __all__ = ["InputSource", "VARIABLE_KINDS", "STATUS_NAMES", "NAME_RE", "N_MESSAGES", "N_REPORTED", "DTYPES",
            "WiringError", "Connection", "Failure", "CosimError", "Result", "with_article", "suggest", "unit_of",
-           "Component", "typed_parameter", "External", "check_external_value", "sampled_on_grid",
+           "Component", "typed_parameter", "typed_parameter_values", "External", "check_external_value", "sampled_on_grid",
            "INTERPOLATIONS", "ORDERINGS", "Wiring", "WiredSystem", "SystemLike"]
 
 #: Source of an external input: a constant, a function of time, or samples ``(t, values)``.
 InputSource = Union[float, Callable[[float], float], tuple]
 
-#: FMI 2 and FMI 3 variable types -> the kind duffid exchanges them as.
-VARIABLE_KINDS = {"Real": "Real", "Float64": "Real", "Integer": "Integer", "Int32": "Integer", "Boolean": "Boolean"}
 STATUS_NAMES = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 #: Accepted values of ``System.run(ordering=...)``.
 ORDERINGS = ("jacobi", "gauss-seidel")
 NAME_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 N_MESSAGES = 200      # log messages kept per component
 N_REPORTED = 8        # log messages quoted in a CosimError
-DTYPES = {"Real": np.float64, "Integer": np.int32, "Boolean": np.int32}
 
 
 
@@ -139,11 +137,12 @@ class Result:
         request: FMI 2 Discard with fmi2Terminated, FMI 3 terminateSimulation); None when
         the run reached the stop time or failed.
     warnings : list of str
-        What the run could not do as a user may expect, in plain words (array outputs not
-        recorded, FMI 3 aliases recorded once, a communication step shorter than an FMU's
-        fixed internal step).
+        What the run could not do as a user may expect, in plain words (FMI 3 aliases
+        recorded once, a communication step shorter than an FMU's fixed internal step).
     loop : str
         The inner loop that ran: ``"compiled"`` (C) or ``"python"`` (see ``System.run(loop=)``).
+    kinds : dict
+        Recorded name -> the kind of its values (:data:`duffid.cosim.value_types.VARIABLE_KINDS`).
     """
 
     time: np.ndarray
@@ -157,10 +156,13 @@ class Result:
     ended: str | None = None
     warnings: list[str] = field(default_factory=list)
     loop: str = "python"
+    kinds: dict[str, str] = field(default_factory=dict)
 
     def __getitem__(self, name: str) -> np.ndarray:
-        """The column of ``"component.variable"`` (float64; int32 for Integer, bool for
-        Boolean variables)."""
+        """The column of ``"component.variable"`` (an array element: ``"component.y[1,2]"``):
+        float64 for Real, float32, int8 .. uint64 for the FMI 3 types of those names, int32
+        for Integer, int64 for Enumeration, bool for Boolean, objects (str, bytes) for String
+        and Binary."""
         try:
             return self._columns[name]
         except KeyError:
@@ -174,14 +176,18 @@ class Result:
 
     def to_csv(self, path: str | os.PathLike[str]) -> None:
         """Write one header line (``time`` and :attr:`names`) and one row per
-        communication point; floats in full precision (``repr``), Integer and Boolean
-        variables as integers (Booleans as 0/1)."""
-        columns = [self.time] + [self._columns[n] for n in self.names]
+        communication point; floats in full precision (``repr``), integer types and
+        Booleans as integers (Booleans as 0/1), Strings as text (quoted where CSV needs it),
+        Binary values as hexadecimal (:func:`duffid.cosim.value_types.csv_text`)."""
+        columns = [[repr(v) for v in self.time.tolist()]]
+        for name in self.names:
+            kind = self.kinds.get(name) or ("Boolean" if self._columns[name].dtype.kind == "b" else
+                                            "Integer" if self._columns[name].dtype.kind in "iu" else "Real")
+            columns.append([csv_text(kind, v) for v in self._columns[name].tolist()])
         with open(os.fspath(path), "w", newline="", encoding="utf-8") as fh:
             writer = csv.writer(fh, lineterminator="\n")
             writer.writerow(["time"] + self.names)
-            lists = [c.astype(np.int64).tolist() if c.dtype.kind in "bi" else c.tolist() for c in columns]
-            writer.writerows(zip(*[[repr(v) for v in col] for col in lists]))
+            writer.writerows(zip(*columns))
 
 
 # --------------------------------------------------------------------------------- model info
@@ -205,7 +211,13 @@ def unit_of(variable: Any) -> str | None:
 
 
 class Component:
-    """A component of a system: FMU file, model description, parameter values."""
+    """A component of a system: FMU file, model description, parameter values.
+
+    Refused when it is read (:class:`WiringError` naming the component, its FMU, the variable
+    and the reason): what the master cannot honour, so that nothing of the FMU is silently
+    ignored: Clock variables and clocked variables (Scheduled Execution and clocked
+    partitions), and variables of a type duffid does not know.
+    """
 
     def __init__(self, name: str, path: Path, logging: bool) -> None:
         import fmpy
@@ -218,13 +230,25 @@ class Component:
         except Exception as exc:  # fmpy raises plain Exceptions for bad archives / XML
             raise WiringError(f"component {name!r}: cannot read {path}: {exc}") from None
         if self.md.coSimulation is None:
-            raise WiringError(f"component {name!r}: {path.name} has no Co-Simulation interface")
+            other = [label for attr, label in (("modelExchange", "Model Exchange"),
+                                               ("scheduledExecution", "Scheduled Execution"))
+                     if getattr(self.md, attr, None) is not None]
+            raise WiringError(f"component {name!r}: {path.name} has no Co-Simulation interface"
+                              + (f" (only {' and '.join(other)}, which duffid's master does not run)" if other else ""))
         self.version = self.md.fmiMajorVersion
         if self.version not in (2, 3):
             raise WiringError(f"component {name!r}: {path.name} is FMI {self.md.fmiVersion}; "
                               "only FMI 2.0 and 3.0 are supported")
         self.variables = {v.name: v for v in self.md.modelVariables}
         self.parameters: dict[str, Any] = {}
+        for v in self.md.modelVariables:
+            if v.type == "Clock" or v.clocks:
+                what = "a Clock" if v.type == "Clock" else "clocked (it belongs to a clocked partition)"
+                raise WiringError(f"{self.where()}: variable {v.name!r} is {what}; duffid's master does not "
+                                  "support clocks (Scheduled Execution, clocked Co-Simulation)")
+            if v.type not in VARIABLE_KINDS:
+                raise WiringError(f"{self.where()}: variable {v.name!r} has type {v.type}, which duffid's master "
+                                  "does not know")
 
     def where(self) -> str:
         return f"component {self.name!r} ({self.path.name})"
@@ -235,68 +259,116 @@ class Component:
         except KeyError:
             raise WiringError(f"{self.where()} has no variable {var!r}{suggest(var, self.variables)}") from None
 
+    def channel(self, name: str) -> tuple[Any, int | None]:
+        """The variable of ``name`` (``"y"`` or an array element ``"y[2,1]"``) and the
+        element's row-major position (None for a whole variable)."""
+        if name in self.variables:
+            return self.variables[name], None
+        base, index = split_element(name)
+        if index is None:
+            return self.variable(name), None
+        var = self.variable(base)
+        shape = self.shape(var)
+        if not shape:
+            raise WiringError(f"{self.where()}: {base} is a scalar; {name!r} names an element")
+        try:
+            return var, flat_index(index, shape, f"{self.where()}: {name}")
+        except ValueError as exc:
+            raise WiringError(str(exc)) from None
+
+    def shape(self, variable: Any) -> tuple[int, ...]:
+        """The dimensions of ``variable`` (empty for a scalar): fixed, or the value of the
+        structural parameter that gives it (its value given to ``System.add``, else its start)."""
+        dims = []
+        for d in variable.dimensions:
+            if d.start is not None and d.valueReference is None:
+                dims.append(int(d.start))
+                continue
+            source = d.variable
+            if source is None:
+                raise WiringError(f"{self.where()}: a dimension of {variable.name} refers to value reference "
+                                  f"{d.valueReference}, which no variable has")
+            value = self.parameters.get(source.name, source.start)
+            if value is None:
+                raise WiringError(f"{self.where()}: the dimension of {variable.name} given by {source.name} "
+                                  "has no value (set it with System.add(parameters=...))")
+            dims.append(int(value))
+        return tuple(dims)
+
+    def size(self, variable: Any) -> int:
+        """The number of values of ``variable`` (1 for a scalar)."""
+        return int(np.prod(self.shape(variable), dtype=np.int64))
+
+    def elements(self, variable: Any) -> list[str]:
+        """The names of the variable's values: ``[name]`` for a scalar, ``name[i,j]`` elements."""
+        return element_names(variable.name, self.shape(variable))
+
     def kind(self, variable: Any, purpose: str) -> str:
-        """Real, Integer or Boolean; other types cannot be connected, driven or recorded."""
+        """The kind of the variable's values (:data:`VARIABLE_KINDS`); ``purpose`` (e.g.
+        "connected") names what was asked in the error for a type duffid does not exchange."""
         kind = VARIABLE_KINDS.get(variable.type)
-        if kind is None or variable.shape or variable.dimensions:
-            raise WiringError(f"{self.where()}: {variable.name} has type {variable.type}"
-                              f"{' (array)' if variable.dimensions else ''}; only scalar Real/Float64, "
-                              f"Integer/Int32 and Boolean variables can be {purpose}")
+        if kind is None:
+            raise WiringError(f"{self.where()}: {variable.name} has type {variable.type}, which cannot be {purpose}")
         return kind
 
     def outputs(self) -> list[Any]:
-        return [v for v in self.md.modelVariables if v.causality == "output" and v.type in VARIABLE_KINDS
-                and not v.dimensions]
+        return [v for v in self.md.modelVariables if v.causality == "output"]
 
 
 def typed_parameter(comp: Component, variable: Any, value: Any) -> Any:
-    """Check and convert a parameter value for ``variable``."""
+    """Check and convert a parameter value for ``variable`` (a structural parameter too): a
+    value of its kind, or for an array a (nested) sequence of its shape, returned flat."""
     where = f"{comp.where()}: parameter {variable.name}"
     if variable.causality == "input":
         raise WiringError(f"{where} is an input; drive it with set_input or connect")
-    if variable.causality != "parameter" or variable.variability not in ("fixed", "tunable") \
-            or variable.initial == "calculated":
+    if variable.causality not in ("parameter", "structuralParameter") or \
+            variable.variability not in ("fixed", "tunable") or variable.initial == "calculated":
         raise WiringError(f"{where} is {with_article(variable.causality)} ({variable.variability}) variable, "
                           "not a settable parameter")
-    kind = variable.type
-    if kind in ("Real", "Float64", "Float32"):
-        if isinstance(value, bool) or not isinstance(value, numbers.Real):
-            raise WiringError(f"{where} is {kind}; got {value!r}")
-        return float(value)
-    if kind in ("Integer", "Enumeration") or kind.startswith(("Int", "UInt")):
-        if isinstance(value, bool) or not isinstance(value, numbers.Real) or value != int(value):
-            raise WiringError(f"{where} is {kind}; got {value!r} (not an integer)")
-        return int(value)
-    if kind == "Boolean":
-        if isinstance(value, (bool, np.bool_)) or (isinstance(value, numbers.Integral) and value in (0, 1)):
-            return bool(value)
-        raise WiringError(f"{where} is Boolean; got {value!r}")
-    if kind == "String":
-        if not isinstance(value, str):
-            raise WiringError(f"{where} is String; got {value!r}")
-        return value
-    raise WiringError(f"{where} has type {kind}, which cannot be set")
+    try:
+        if not comp.shape(variable):
+            return check_value(comp.kind(variable, "set"), value, where)
+        return typed_parameter_values(comp, variable, value, where)
+    except ValueError as exc:
+        raise WiringError(str(exc)) from None
+
+
+def typed_parameter_values(comp: Component, variable: Any, value: Any, where: str) -> list[Any]:
+    """The values of the array ``variable`` from a (nested) sequence of its shape, checked
+    (:func:`duffid.cosim.value_types.check_value`) and flat in row-major order; ValueError
+    naming ``where`` otherwise."""
+    kind, shape = comp.kind(variable, "set"), comp.shape(variable)
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)):
+        raise ValueError(f"{where}: {variable.name} is an array of shape {shape}; got {value!r}")
+    try:
+        values = np.asarray(value, dtype=object)
+    except ValueError:  # ragged nesting
+        values = np.empty(0, dtype=object)
+    if values.shape != shape:
+        raise ValueError(f"{where}: {variable.name} is an array of shape {shape}; got {value!r}")
+    return [check_value(kind, v, f"{where}: {n}") for v, n in zip(values.ravel().tolist(), comp.elements(variable))]
 
 
 # --------------------------------------------------------------------------------- ordering
 @dataclass
 class External:
     target: str
-    kind: str           # Real / Integer / Boolean
+    kind: str           # a kind of VARIABLE_KINDS
     mode: str           # "constant", "function", "sampled"
     value: Any          # float, callable, or (t, values) arrays
     origin: str         # for messages
     interpolation: str = "linear"  # sampled: "linear" or "hold" (the previous sample)
 
 
-def check_external_value(ext: External, v: Any, t: float) -> float:
-    """The value ``v`` of the external input ``ext`` at time ``t``, checked against the input's kind."""
+def check_external_value(ext: External, v: Any, t: float) -> Any:
+    """The value ``v`` of the external input ``ext`` at time ``t``, checked against the input's
+    kind (:func:`duffid.cosim.value_types.check_value`; InputError otherwise)."""
     if ext.kind == "Real":
         return float(v)
-    number = float(v)
-    if number != int(number) or (ext.kind == "Boolean" and number not in (0.0, 1.0)):
-        raise InputError(f"{ext.target} is {ext.kind}; the input gave {v!r} at t = {t!r}")
-    return number
+    try:
+        return check_value(ext.kind, v, f"{ext.target} (at t = {t!r})")
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
 
 
 #: How a sampled input is read between its samples: "linear" (the interpolated value at the
@@ -373,6 +445,9 @@ class Wiring:
     connections: tuple[Connection, ...]
     externals: Mapping[str, External]
     lookup: Callable[[str, str], tuple[Component, Any]]
+    #: ``(name, role) -> (component, variable, element position or None)`` for names that may
+    #: be array elements (``"comp.y[2]"``).
+    channel: Callable[[str, str], tuple[Component, Any, int | None]] | None = None
 
 
 @runtime_checkable

@@ -18,6 +18,7 @@ import signal
 import tempfile
 import threading
 from collections import deque
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -27,11 +28,9 @@ from ..errors import CosimError
 from . import compiled_loop, instances
 from .compiled_loop import CompiledLoop
 from .elements import (
-    DTYPES,
     N_MESSAGES,
     N_REPORTED,
     STATUS_NAMES,
-    VARIABLE_KINDS,
     Component,
     Connection,
     External,
@@ -40,23 +39,40 @@ from .elements import (
     WiredSystem,
     check_external_value,
 )
+from .object_io import object_getter, object_setter
+from .value_types import DTYPES, FMI_FUNCTIONS, OBJECT_KINDS, VARIABLE_KINDS, parse_start
 
 __all__ = ["Runner", "signals_held"]
 
 #: Macro steps per call of the compiled loop: signals (Ctrl-C, SIGTERM) are acted on between calls.
 _COMPILED_CHUNK = 5000
 
-_FUNCS = {  # kind -> (get, set, ctype) per FMI version
-    2: {"Real": ("fmi2GetReal", "fmi2SetReal", ctypes.c_double),
-        "Integer": ("fmi2GetInteger", "fmi2SetInteger", ctypes.c_int),
-        "Boolean": ("fmi2GetBoolean", "fmi2SetBoolean", ctypes.c_int)},
-    3: {"Real": ("fmi3GetFloat64", "fmi3SetFloat64", ctypes.c_double),
-        "Integer": ("fmi3GetInt32", "fmi3SetInt32", ctypes.c_int32),
-        "Boolean": ("fmi3GetBoolean", "fmi3SetBoolean", ctypes.c_bool)},
-}
-_NP = {ctypes.c_double: np.float64, ctypes.c_int: np.int32, ctypes.c_int32: np.int32, ctypes.c_bool: np.bool_}
-_SETTERS = {2: {"Real": "setReal", "Float64": "setReal", "Integer": "setInteger", "Enumeration": "setInteger",
-                "Boolean": "setBoolean", "String": "setString"}}
+@dataclass(eq=False)
+class _Input:
+    """An input variable a run sets: the buffer slot of each of its values (a connection's
+    source, an external input, or a slot holding the start value of an element nothing
+    drives), each value's (factor, offset) of a transformed connection or None, and whether it
+    is set every step (connected or driven by a non-constant) or at initialisation only."""
+
+    variable: Any
+    kind: str
+    size: int
+    slots: list = field(default_factory=list)
+    affine: list = field(default_factory=list)
+    every_step: bool = False
+
+    def __post_init__(self) -> None:
+        self.slots = [None] * self.size
+        self.affine = [None] * self.size
+
+    @property
+    def transformed(self) -> bool:
+        return any(a is not None for a in self.affine)
+
+    @property
+    def contiguous(self) -> bool:
+        """Whether its values' slots follow each other in the buffer."""
+        return self.slots == list(range(self.slots[0], self.slots[0] + self.size))
 
 
 class _StepFailure(Exception):
@@ -138,12 +154,13 @@ class Runner:
 
     def __init__(self, system: WiredSystem, grid: np.ndarray, step: float, ordering: str, sequence: list[str],
                  delayed: list[Connection], names: list[str], sampled: dict[str, np.ndarray],
-                 progress: bool, loop: str = "auto") -> None:
+                 progress: bool, loop: str = "auto", exchanged: dict[str, str] | None = None) -> None:
         self.system, self.grid, self.step = system, grid, step
         self.loop_mode, self.loop_used = loop, "python"
         self.n = len(grid) - 1
         self.ordering, self.sequence, self.delayed, self.names = ordering, sequence, delayed, names
         self.sampled, self.progress = sampled, progress
+        self.exchanged = exchanged or {}
         comps = list(system.wiring.components.values())
         self.instances = [_Instance(c, i) for i, c in enumerate(comps)]
         self.index = {c.name: i for i, c in enumerate(comps)}
@@ -153,27 +170,32 @@ class Runner:
 
     # ------------------------------------------------------------------ layout
     def _layout(self) -> None:
-        """Slots of every needed value in the per-type buffers; no FMU is touched."""
-        system = self.system
-        externals = system.wiring.externals
-        sources = {c.source for c in system.wiring.connections}
-        wanted = set(sources) | {n for n in self.names if n not in externals}
-        self.slots: dict[str, tuple[str, int]] = {}
+        """Slots of every needed value in the per-kind buffers; no FMU is touched. A variable
+        read from an FMU takes one slot per value (an array's in row-major order), an external
+        input one slot, and an element of an array input that nothing drives a slot holding its
+        start value (FMI sets an array whole)."""
+        wiring = self.system.wiring
+        externals = wiring.externals
+        channel = wiring.channel
+        wanted = set()
+        for full in [c.source for c in wiring.connections] + [n for n in self.names if n not in externals]:
+            comp, var, _ = channel(full, "variable")
+            wanted.add((comp.name, var.name))
+        self.slots: dict[str, tuple[str, int]] = {}  # "comp.var" -> first slot; an external's target -> its slot
         counts = {k: 0 for k in DTYPES}
-        self.reads: list[dict[str, list[tuple[str, int]]]] = []   # per component: kind -> [(var, vr)]
+        self.reads: list[dict[str, list[tuple[str, int, int]]]] = []   # per component: kind -> [(var, vr, size)]
         self.read_lo: list[dict[str, int]] = []
         for inst in self.instances:
             comp = inst.comp
-            reads: dict[str, list[tuple[str, int]]] = {}
+            reads: dict[str, list[tuple[str, int, int]]] = {}
             lows: dict[str, int] = {}
             for v in comp.md.modelVariables:
-                full = f"{comp.name}.{v.name}"
-                if full in wanted:
-                    kind = VARIABLE_KINDS[v.type]
+                if (comp.name, v.name) in wanted:
+                    kind, size = VARIABLE_KINDS[v.type], comp.size(v)
                     lows.setdefault(kind, counts[kind])
-                    reads.setdefault(kind, []).append((v.name, v.valueReference))
-                    self.slots[full] = (kind, counts[kind])
-                    counts[kind] += 1
+                    reads.setdefault(kind, []).append((v.name, v.valueReference, size))
+                    self.slots[f"{comp.name}.{v.name}"] = (kind, counts[kind])
+                    counts[kind] += size
             self.reads.append(reads)
             self.read_lo.append(lows)
         # external inputs: constants, then sampled, then functions (per kind)
@@ -189,37 +211,60 @@ class Runner:
                     elif mode == "function":
                         self.ext_functions.append((ext.kind, counts[ext.kind], ext))
                     counts[ext.kind] += 1
-        self.g = {k: np.zeros(max(counts[k], 1), dtype=DTYPES[k]) for k in DTYPES}
+        # per component inputs: kind -> [_Input], set every step when connected or driven by a non-constant
+        self.inputs: list[dict[str, list[_Input]]] = [dict() for _ in self.instances]
+        plans: dict[tuple[str, str], _Input] = {}
+
+        def plan(full: str) -> tuple[_Input, int | None]:
+            comp, var, index = channel(full, "target")
+            entry = plans.get((comp.name, var.name))
+            if entry is None:
+                entry = plans[(comp.name, var.name)] = _Input(var, VARIABLE_KINDS[var.type], comp.size(var))
+                self.inputs[self.index[comp.name]].setdefault(entry.kind, []).append(entry)
+            return entry, index
+
+        for conn in wiring.connections:
+            entry, index = plan(conn.target)
+            scomp, svar, sindex = channel(conn.source, "source")
+            first = self.slots[f"{scomp.name}.{svar.name}"][1] + (sindex or 0)
+            positions = range(entry.size) if index is None and sindex is None else [index or 0]
+            for i, p in enumerate(positions):
+                entry.slots[p] = first + i
+                if conn.transformed:
+                    entry.affine[p] = (conn.factor, conn.offset)
+            entry.every_step = True
+        for ext in externals.values():
+            entry, index = plan(ext.target)
+            entry.slots[index or 0] = self.slots[ext.target][1]
+            entry.every_step |= ext.mode != "constant"
+        fills: list[tuple[str, int, Any]] = []
+        for entry in plans.values():
+            starts = parse_start(entry.kind, entry.variable.start, entry.size)
+            for p, slot in enumerate(entry.slots):
+                if slot is None:
+                    entry.slots[p] = counts[entry.kind]
+                    fills.append((entry.kind, counts[entry.kind], starts[p]))
+                    counts[entry.kind] += 1
+        # zero, and for String and Binary the empty value: what a connected input gets during initialisation
+        self.g = {k: np.full(max(counts[k], 1), parse_start(k, None, 1)[0], dtype=DTYPES[k]) for k in DTYPES}
         for ext in externals.values():
             if ext.mode == "constant":
                 kind, slot = self.slots[ext.target]
                 self.g[kind][slot] = ext.value
+        for kind, slot, value in fills:
+            self.g[kind][slot] = value
         self.tables = {}
         for kind, exts in self.ext_sampled.items():
             if exts:
                 lo = self.ext_lo[kind] + sum(1 for e in externals.values() if e.mode == "constant" and e.kind == kind)
                 table = np.column_stack([self.sampled[e.target] for e in exts]).astype(DTYPES[kind])
                 self.tables[kind] = (self.g[kind][lo:lo + len(exts)], table)
-        # per component inputs: connected (every step), external (every step unless constant)
-        # entries (value reference, slot, set every step, (factor, offset) of a transformed connection or None)
-        self.inputs: list[dict[str, list[tuple[int, int, bool, tuple[float, float] | None]]]] = [
-            dict() for _ in self.instances]
-        for conn in system.wiring.connections:
-            comp, var = system.wiring.lookup(conn.target, "target")
-            kind, slot = self.slots[conn.source]
-            affine = (conn.factor, conn.offset) if conn.transformed else None
-            self.inputs[self.index[comp.name]].setdefault(kind, []).append((var.valueReference, slot, True, affine))
-        for ext in externals.values():
-            comp, var = system.wiring.lookup(ext.target, "target")
-            kind, slot = self.slots[ext.target]
-            self.inputs[self.index[comp.name]].setdefault(kind, []).append(
-                (var.valueReference, slot, ext.mode != "constant", None))
         # recording
         self.records = {}
         self.columns: dict[str, tuple[str, int]] = {}
         by_kind: dict[str, list[int]] = {k: [] for k in DTYPES}
         for name in self.names:
-            kind, slot = self.slots[name]
+            kind, slot = self._slot(name)
             self.columns[name] = (kind, len(by_kind[kind]))
             by_kind[kind].append(slot)
         for kind, slots in by_kind.items():
@@ -227,6 +272,14 @@ class Runner:
                 idx = np.array(slots, dtype=np.intp)
                 identity = len(slots) == len(self.g[kind]) and np.array_equal(idx, np.arange(len(slots)))
                 self.records[kind] = (np.zeros((self.n + 1, len(slots)), dtype=DTYPES[kind]), idx, identity)
+
+    def _slot(self, name: str) -> tuple[str, int]:
+        """The kind and slot of a recorded value (an external input, a variable or an element)."""
+        if name in self.system.wiring.externals:
+            return self.slots[name]
+        comp, var, index = self.system.wiring.channel(name, "recorded variable")
+        kind, first = self.slots[f"{comp.name}.{var.name}"]
+        return kind, first + (index or 0)
 
     # ------------------------------------------------------------------ instances
     def _instantiate(self, inst: _Instance) -> None:
@@ -325,14 +378,27 @@ class Runner:
             raise _StepFailure(inst.index, exc.function, exc.status, self.grid[0]) from None
 
     def _set_parameters(self, inst: _Instance) -> None:
+        """The parameter values given to ``System.add``, through fmpy's setters; FMI 3 structural
+        parameters first, in Configuration Mode."""
         comp = inst.comp
-        for name, value in comp.parameters.items():
-            var = comp.variables[name]
-            if comp.version == 2:
-                method = _SETTERS[2][var.type]
-            else:
-                method = "set" + ("Int64" if var.type == "Enumeration" else var.type)
-            self._call(inst, method, [var.valueReference], [value])
+        given = [(comp.variables[name], value) for name, value in comp.parameters.items()]
+        structural = [(v, value) for v, value in given if v.causality == "structuralParameter"]
+        if structural:
+            self._call(inst, "enterConfigurationMode")
+            for var, value in structural:
+                self._set_value(inst, var, value)
+            self._call(inst, "exitConfigurationMode")
+        for var, value in given:
+            if var.causality != "structuralParameter":
+                self._set_value(inst, var, value)
+
+    def _set_value(self, inst: _Instance, var: Any, value: Any) -> None:
+        """Set ``var`` (an array: its values, flat) with fmpy's setter of its type."""
+        if inst.comp.version == 2:
+            method = {"Real": "setReal", "Enumeration": "setInteger"}.get(var.type, "set" + var.type)
+        else:
+            method = "set" + ("Int64" if var.type == "Enumeration" else var.type)
+        self._call(inst, method, [var.valueReference], value if isinstance(value, list) else [value])
 
     def _build_ops(self) -> None:
         """ctypes arrays and bound raw functions of the inner loop."""
@@ -356,65 +422,79 @@ class Runner:
 
             self._keep.append(handle)
             sets, inits, gets, posts = [], [], [], []
+
+            def call_args(vrs: Any, ptr: Any, n_values: int) -> tuple:
+                size = ctypes.c_size_t(len(vrs))
+                return (handle, vrs, size, ptr) + ((ctypes.c_size_t(n_values),) if version == 3 else ())
+
             for kind, entries in self.inputs[ci].items():
-                _, set_name, ctype = _FUNCS[version][kind]
+                _, set_name, ctype = FMI_FUNCTIONS[version][kind]
                 setf = raw(set_name)
                 g = self.g[kind]
-                for subset, target in ((entries, inits), ([e for e in entries if e[2]], sets)):
+                for subset, target in ((entries, inits), ([e for e in entries if e.every_step], sets)):
+                    if kind in OBJECT_KINDS:
+                        if subset:
+                            vrs = (ctypes.c_uint * len(subset))(*[e.variable.valueReference for e in subset])
+                            self._keep.append(vrs)
+                            call = object_setter(setf, handle, vrs, kind, version, g,
+                                                 [s for e in subset for s in e.slots])
+                            target.append((g, None, None, call, (), ci, set_name, None))
+                        continue
                     # a transformed connection is gathered, scaled and shifted in its own buffer (one set call),
                     # every step; during initialisation its input keeps its start value (no output is read yet)
-                    transformed = [e for e in subset if e[3] is not None] if target is sets else []
+                    transformed = [e for e in subset if e.transformed] if target is sets else []
                     if transformed:
-                        vrs = (ctypes.c_uint * len(transformed))(*[e[0] for e in transformed])
-                        idx = np.array([e[1] for e in transformed], dtype=np.intp)
-                        buf = np.zeros(len(transformed), dtype=_NP[ctype])
-                        affine = (np.array([e[3][0] for e in transformed]), np.array([e[3][1] for e in transformed]))
+                        vrs = (ctypes.c_uint * len(transformed))(*[e.variable.valueReference for e in transformed])
+                        idx = np.array([s for e in transformed for s in e.slots], dtype=np.intp)
+                        buf = np.zeros(len(idx), dtype=np.dtype(ctype))
+                        pairs = [a or (1.0, 0.0) for e in transformed for a in e.affine]
+                        affine = (np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs]))
                         ptr = buf.ctypes.data_as(ctypes.POINTER(ctype))
-                        size = ctypes.c_size_t(len(transformed))
-                        args = (handle, vrs, size, ptr) + ((size,) if version == 3 else ())
                         self._keep += [vrs, buf, ptr]
-                        target.append((g, idx, buf, setf, args, ci, set_name, affine))
-                    subset = sorted((e for e in subset if e[3] is None), key=lambda e: e[1])  # by source slot
-                    runs: list[list[tuple[int, int, bool]]] = []
-                    for e in subset:
-                        if runs and runs[-1][-1][1] + 1 == e[1]:
+                        target.append((g, idx, buf, setf, call_args(vrs, ptr, len(idx)), ci, set_name, affine))
+                    plain = sorted((e for e in subset if not e.transformed), key=lambda e: e.slots[0])
+                    runs: list[list[_Input]] = []   # inputs whose sources follow each other in the buffer
+                    for e in plain:
+                        if runs and runs[-1][-1].contiguous and e.contiguous and \
+                                runs[-1][-1].slots[-1] + 1 == e.slots[0]:
                             runs[-1].append(e)
                         else:
                             runs.append([e])
-                    if _NP[ctype] == g.dtype and len(runs) <= 2:
+                    if np.dtype(ctype) == g.dtype and len(runs) <= 2 and all(e.contiguous for e in plain):
                         # the sources are contiguous in the value buffer: set straight from it
                         for run in runs:
-                            vrs = (ctypes.c_uint * len(run))(*[e[0] for e in run])
-                            ptr = ctypes.cast(g.ctypes.data + run[0][1] * g.itemsize, ctypes.POINTER(ctype))
-                            size = ctypes.c_size_t(len(run))
-                            args = (handle, vrs, size, ptr) + ((size,) if version == 3 else ())
+                            vrs = (ctypes.c_uint * len(run))(*[e.variable.valueReference for e in run])
+                            ptr = ctypes.cast(g.ctypes.data + run[0].slots[0] * g.itemsize, ctypes.POINTER(ctype))
                             self._keep += [vrs, ptr]
-                            target.append((g, None, None, setf, args, ci, set_name, None))
-                    elif subset:  # gather with np.take into a buffer, one set call
-                        vrs = (ctypes.c_uint * len(subset))(*[e[0] for e in subset])
-                        idx = np.array([e[1] for e in subset], dtype=np.intp)
-                        buf = np.zeros(len(subset), dtype=_NP[ctype])
+                            target.append((g, None, None, setf, call_args(vrs, ptr, sum(e.size for e in run)), ci,
+                                           set_name, None))
+                    elif plain:  # gather with np.take into a buffer, one set call
+                        vrs = (ctypes.c_uint * len(plain))(*[e.variable.valueReference for e in plain])
+                        idx = np.array([s for e in plain for s in e.slots], dtype=np.intp)
+                        buf = np.zeros(len(idx), dtype=np.dtype(ctype))
                         ptr = buf.ctypes.data_as(ctypes.POINTER(ctype))
-                        size = ctypes.c_size_t(len(subset))
-                        args = (handle, vrs, size, ptr) + ((size,) if version == 3 else ())
                         self._keep += [vrs, buf, ptr]
-                        target.append((g, idx, buf, setf, args, ci, set_name, None))
+                        target.append((g, idx, buf, setf, call_args(vrs, ptr, len(idx)), ci, set_name, None))
             for kind, entries in self.reads[ci].items():
-                get_name, _, ctype = _FUNCS[version][kind]
+                get_name, _, ctype = FMI_FUNCTIONS[version][kind]
                 g = self.g[kind]
                 lo = self.read_lo[ci][kind]
+                n_values = sum(e[2] for e in entries)
                 vrs = (ctypes.c_uint * len(entries))(*[e[1] for e in entries])
-                if _NP[ctype] == g.dtype:
+                self._keep.append(vrs)
+                if kind in OBJECT_KINDS:
+                    gets.append((object_getter(raw(get_name), handle, vrs, n_values, kind, version, g, lo), (), ci,
+                                 get_name))
+                    continue
+                if np.dtype(ctype) == g.dtype:
                     ptr = ctypes.cast(g.ctypes.data + lo * g.itemsize, ctypes.POINTER(ctype))
-                else:  # FMI 3 Boolean (1 byte): read into staging, then copy
-                    staging = np.zeros(len(entries), dtype=np.bool_)
+                else:  # FMI 3 Boolean (1 byte), FMI 2 Enumeration (4 bytes): read into staging, then copy
+                    staging = np.zeros(n_values, dtype=np.dtype(ctype))
                     ptr = staging.ctypes.data_as(ctypes.POINTER(ctype))
-                    posts.append((g[lo:lo + len(entries)], staging))
+                    posts.append((g[lo:lo + n_values], staging))
                     self._keep.append(staging)
-                size = ctypes.c_size_t(len(entries))
-                args = (handle, vrs, size, ptr) + ((size,) if version == 3 else ())
-                self._keep += [vrs, ptr]
-                gets.append((raw(get_name), args, ci, get_name))
+                self._keep.append(ptr)
+                gets.append((raw(get_name), call_args(vrs, ptr, n_values), ci, get_name))
             if version == 2:
                 term = ctypes.c_bool(False)
                 args = (handle, self.t_arg, self.h_arg, ctypes.c_int(1))
@@ -571,7 +651,8 @@ class Runner:
         FMU (not pythonfmu, which runs Python inside its calls), no input function to call in
         Python, and a C compiler (else None: the Python loop)."""
         if self.loop_mode == "python" or compiled_loop.obstacles(
-                [inst.comp for inst in self.instances], self.system.wiring.externals.values(), self.system.wiring.connections):
+                [inst.comp for inst in self.instances], self.system.wiring.externals.values(),
+                self.system.wiring.connections, self.exchanged):
             return None  # System.run refused loop="compiled" for these
         moves = [(view, table, None, 0, table.strides[0]) for view, table in self.tables.values()]
         moves += [(rec, self.g[kind], None if identity else idx, rec.strides[0], 0)
@@ -748,4 +829,5 @@ class Runner:
         order = list(self.sequence)
         return Result(time=self.grid[:rows].copy(), names=list(self.names), _columns=columns, order=order,
                       delayed=list(self.delayed), ordering=self.ordering, step=self.step, failure=failure,
-                      ended=ended, loop=self.loop_used)
+                      ended=ended, loop=self.loop_used,
+                      kinds={name: self.columns[name][0] for name in self.names})

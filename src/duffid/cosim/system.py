@@ -81,6 +81,7 @@ EXACT_ORDER_LIMIT = 12
 from ..errors import CosimError, WiringError
 from .compiled_loop import LOOP_MODES, obstacles
 from .container import export_container
+from .value_types import DTYPES, FLOAT_KINDS, INTEGER_KINDS, check_value
 from .elements import (
     INTERPOLATIONS,
     ORDERINGS,
@@ -96,6 +97,7 @@ from .elements import (
     sampled_on_grid,
     suggest,
     typed_parameter,
+    typed_parameter_values,
     Wiring,
     unit_of,
     with_article,
@@ -169,6 +171,33 @@ def _greedy_order(n: int, edges: Sequence[tuple[int, int]]) -> list[int]:
     return front + back
 
 
+def _csv_value(kind: str, text: str, where: str) -> Any:
+    """A CSV field as a sample of ``kind``: a finite number (integers exactly), a Boolean as
+    0/1/true/false, a String as it is, a Binary as hexadecimal (WiringError naming ``where``)."""
+    if kind == "String":
+        return text
+    text = text.strip()
+    if kind in INTEGER_KINDS:
+        try:
+            return int(text)
+        except ValueError:
+            pass
+    if kind == "Boolean" and text.lower() in ("true", "false"):
+        return text.lower() == "true"
+    if kind == "Binary":
+        try:
+            return bytes.fromhex(text)
+        except ValueError:
+            raise WiringError(f"{where}: {text!r} is not hexadecimal (a Binary input)") from None
+    try:
+        value = float(text)
+    except ValueError:
+        raise WiringError(f"{where}: {text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise WiringError(f"{where}: {text!r} is not finite")
+    return value
+
+
 # --------------------------------------------------------------------------------- inputs
 class System:
     """A set of co-simulation FMUs connected by variable name.
@@ -197,8 +226,12 @@ class System:
         path : str or os.PathLike
             FMU file with a Co-Simulation interface (FMI 2.0 or 3.0).
         parameters : mapping, optional
-            Parameter values set before initialisation: Real as float, Integer as int,
-            Boolean as bool, String as str. Unknown names and wrong types are rejected.
+            Parameter values set before initialisation: Real and Float32 as float, the
+            integer types and Enumeration as int (range checked), Boolean as bool, String as
+            str, Binary as bytes (or hexadecimal text); an array as a nested sequence of its
+            shape. FMI 3 structural parameters are set in Configuration Mode, before the
+            others, and give the shapes of the arrays they dimension. Unknown names and wrong
+            types are rejected.
         logging : bool
             Instantiate with ``loggingOn`` (debug messages). Errors are logged anyway by
             FMUs that follow the standard.
@@ -218,8 +251,10 @@ class System:
         if name in self._components:
             raise WiringError(f"component {name!r} is already in the system")
         comp = Component(name, Path(path), logging)
-        for pname, value in (parameters or {}).items():
-            comp.parameters[pname] = typed_parameter(comp, comp.variable(pname), value)
+        given = [(comp.variable(pname), value) for pname, value in (parameters or {}).items()]
+        # structural parameters first: they give the shapes of the array parameters
+        for variable, value in sorted(given, key=lambda item: item[0].causality != "structuralParameter"):
+            comp.parameters[variable.name] = typed_parameter(comp, variable, value)
         self._components[name] = comp
         return self
 
@@ -233,27 +268,45 @@ class System:
                               f"{suggest(cname, self._components)}")
         return comp, comp.variable(var)
 
-    def _claim_input(self, target: str, driver: str) -> tuple[Component, Any]:
-        comp, var = self._lookup(target, "target")
+    def _channel(self, full: str, role: str) -> tuple[Component, Any, int | None]:
+        """The component, variable and element position (None: the whole variable) of
+        ``"comp.var"`` or ``"comp.var[i,j]"``."""
+        comp, _ = self._lookup(full.split("[", 1)[0] if isinstance(full, str) else full, role)
+        var, index = comp.channel(full.split(".", 1)[1])
+        return comp, var, index
+
+    def _channel_names(self, comp: Component, var: Any, index: int | None) -> list[str]:
+        """The full names of the values a channel covers (normalised element names)."""
+        names = comp.elements(var)
+        return [f"{comp.name}.{names[index]}"] if index is not None else [f"{comp.name}.{n}" for n in names]
+
+    def _claim_input(self, target: str, driver: str) -> tuple[Component, Any, int | None, list[str]]:
+        comp, var, index = self._channel(target, "target")
         if var.causality != "input":
             raise WiringError(f"target {target!r}: {comp.where()}: {var.name} is {with_article(var.causality)}, not an input")
-        if target in self._drivers:
-            raise WiringError(f"input {target!r} is already driven by {self._drivers[target]}; "
-                              f"it cannot also be driven by {driver}")
-        return comp, var
+        keys = self._channel_names(comp, var, index)
+        for key in keys:
+            if key in self._drivers:
+                raise WiringError(f"input {key!r} is already driven by {self._drivers[key]}; "
+                                  f"it cannot also be driven by {driver}")
+        return comp, var, index, keys
 
     def connect(self, source: str, target: str, *, check_units: bool = True, factor: float = 1.0,
                 offset: float = 0.0) -> System:
         """Connect an output to an input (``"plant.x"``, ``"estimator.x"``).
 
         Checks that both exist, that the source is an output and the target an input,
-        that the types match (Real/Float64, Integer/Int32, Boolean), that the target has
-        no other driver, and that the units agree when both declare one.
+        that the kinds match (:mod:`duffid.cosim.value_types`: Real/Float64, Integer/Int32,
+        Enumeration with the same items, or the same FMI type), that the shapes match (an
+        array to an array of its shape, element-wise; an element ``"comp.y[2]"`` to a scalar
+        or an element), that the target has no other driver, and that the units agree when
+        both declare one.
 
         Parameters
         ----------
         source, target : str
-            ``"component.output"`` and ``"component.input"``.
+            ``"component.output"`` and ``"component.input"`` (or array elements,
+            ``"component.y[1,2]"``, indices from 1).
         check_units : bool
             False connects variables whose declared units differ: a generic FMU used in
             another domain (the 1-DOF estimator and controller, declared in m and N, on
@@ -269,15 +322,27 @@ class System:
         System
             self.
         """
-        scomp, svar = self._lookup(source, "source")
+        scomp, svar, sindex = self._channel(source, "source")
         if svar.causality != "output":
             raise WiringError(f"source {source!r}: {scomp.where()}: {svar.name} is {with_article(svar.causality)}, "
                               "not an output")
-        tcomp, tvar = self._claim_input(target, f"the connection from {source!r}")
+        tcomp, tvar, tindex, keys = self._claim_input(target, f"the connection from {source!r}")
         skind, tkind = scomp.kind(svar, "connected"), tcomp.kind(tvar, "connected")
         if skind != tkind:
             raise WiringError(f"cannot connect {source!r} ({svar.type}) to {target!r} ({tvar.type}): "
-                              "types differ")
+                              "types differ (duffid connects the same kind only: Real/Float64, Integer/Int32, "
+                              "Enumeration, or one FMI 3 type to itself)")
+        if skind == "Enumeration":
+            items = [[(i.name, int(i.value)) for i in getattr(v.declaredType, "items", [])] for v in (svar, tvar)]
+            if items[0] != items[1]:
+                raise WiringError(f"cannot connect {source!r} to {target!r}: their enumerations have different "
+                                  f"items ({items[0]} and {items[1]})")
+        sshape = () if sindex is not None else scomp.shape(svar)
+        tshape = () if tindex is not None else tcomp.shape(tvar)
+        if sshape != tshape:
+            raise WiringError(f"cannot connect {source!r} (shape {sshape}) to {target!r} (shape {tshape}): an "
+                              "array connects to an array of the same shape, an element (name[i]) to a scalar "
+                              "or an element")
         sunit, tunit = unit_of(svar), unit_of(tvar)
         if check_units and sunit and tunit and sunit != tunit:
             raise WiringError(f"cannot connect {source!r} [{sunit}] to {target!r} [{tunit}]: units differ "
@@ -291,7 +356,8 @@ class System:
             raise WiringError(f"connection {source!r} -> {target!r}: a factor or offset applies to Real "
                               f"connections only, not {svar.type}")
         self._connections.append(connection)
-        self._drivers[target] = f"the connection from {source!r}"
+        for key in keys:
+            self._drivers[key] = f"the connection from {source!r}"
         return self
 
     def set_input(self, target: str, source: InputSource, interpolation: str | None = None) -> System:
@@ -325,20 +391,31 @@ class System:
         return self._set_input(target, source, "set_input", interpolation)
 
     def _set_input(self, target: str, source: Any, origin: str, interpolation: str | None = None) -> System:
-        comp, var = self._claim_input(target, origin)
+        comp, var, index, keys = self._claim_input(target, origin)
         kind = comp.kind(var, "driven")
+        if index is None and comp.shape(var):  # a whole array: a constant of its shape, element by element
+            try:
+                values = typed_parameter_values(comp, var, source, f"input {target!r} ({origin})")
+            except ValueError as exc:
+                raise WiringError(str(exc)) from None
+            for key, value in zip(keys, values):
+                self._externals[key] = External(key, kind, "constant", value, origin)
+                self._drivers[key] = origin
+            return self
+        target = keys[0]
+        continuous = kind in FLOAT_KINDS and var.variability == "continuous"
         if interpolation is None:
-            interpolation = "linear" if kind == "Real" and var.variability == "continuous" else "hold"
+            interpolation = "linear" if continuous else "hold"
         elif interpolation not in INTERPOLATIONS:
             raise WiringError(f"input {target!r} ({origin}): interpolation must be one of "
                               f"{', '.join(INTERPOLATIONS)}, got {interpolation!r}")
-        elif interpolation != "hold" and kind != "Real":
+        elif interpolation != "hold" and kind not in FLOAT_KINDS:
             raise WiringError(f"input {target!r} ({origin}) is {var.type}: it can only hold its samples")
         if isinstance(source, tuple) or isinstance(source, list):
             if len(source) != 2:
                 raise WiringError(f"input {target!r}: samples must be a pair (t, values)")
             ts = np.asarray(source[0], dtype=np.float64)
-            values = np.asarray(source[1], dtype=np.float64)
+            values = np.asarray(source[1], dtype=np.float64 if kind == "Real" else object)
             if ts.ndim != 1 or values.shape != ts.shape or len(ts) < 2:
                 raise WiringError(f"input {target!r}: t and values must be 1-D of the same length >= 2, "
                                   f"got shapes {ts.shape} and {values.shape}")
@@ -346,20 +423,27 @@ class System:
                 raise WiringError(f"input {target!r}: t must be finite and non-decreasing")
             if np.any((np.diff(ts[1:]) == 0) & (np.diff(ts[:-1]) == 0)):
                 raise WiringError(f"input {target!r}: a time is given more than twice (twice marks a step)")
-            if kind != "Real" and not np.all(values == np.round(values)):
-                raise WiringError(f"input {target!r} is {var.type}; the samples must be integers")
+            if kind != "Real":
+                try:
+                    checked = [check_value(kind, v, f"input {target!r} ({origin}), sample {i}")
+                               for i, v in enumerate(values.tolist())]
+                except ValueError as exc:
+                    raise WiringError(str(exc)) from None
+                values = np.array(checked, dtype=DTYPES[kind] if kind not in FLOAT_KINDS else np.float64)
             ext = External(target, kind, "sampled", (ts, values), origin, interpolation)
         elif callable(source):
             ext = External(target, kind, "function", source, origin)
-        elif isinstance(source, numbers.Real):
-            ext = External(target, kind, "constant", float(source), origin)
-            try:
-                check_external_value(ext, source, 0.0)
-            except ValueError as exc:
-                raise WiringError(str(exc)) from None
         else:
-            raise WiringError(f"input {target!r}: the source must be a number, a function of t or "
-                              f"(t, values); got {type(source).__name__}")
+            if isinstance(source, numbers.Real) and not isinstance(source, (bool, np.bool_)) and kind == "Real":
+                value: Any = float(source)
+            else:
+                try:
+                    value = check_value(kind, source, f"input {target!r} ({origin})")
+                except ValueError as exc:
+                    what = {"String": "a text", "Binary": "bytes (or hexadecimal text)"}.get(kind, "a number")
+                    raise WiringError(f"input {target!r}: the source must be {what}, a function of t or "
+                                      f"(t, values); {exc}") from None
+            ext = External(target, kind, "constant", value, origin)
         self._externals[target] = ext
         self._drivers[target] = origin
         return self
@@ -443,36 +527,35 @@ class System:
                 raise WiringError(f"{source}, line 1: no column {column!r}{suggest(column, header)}")
         wanted = [time_cols[0]] + list(columns)
         index = [header.index(c) for c in wanted]
-        data = np.empty((len(rows) - 1, len(wanted)))
+        kinds = ["Real"] + [self._csv_kind(target) for target in columns.values()]
+        data = np.empty((len(rows) - 1, len(wanted)), dtype=object)
         for i, row in enumerate(rows[1:]):
             line = i + 2
             if len(row) != len(header):
                 raise WiringError(f"{source}, line {line}: {len(row)} fields, the header has {len(header)}")
             for j, (col, k) in enumerate(zip(wanted, index)):
-                text = row[k].strip()
-                try:
-                    value = float(text)
-                except ValueError:
-                    raise WiringError(f"{source}, line {line}, column {col!r}: {text!r} is not a number") from None
-                if not math.isfinite(value):
-                    raise WiringError(f"{source}, line {line}, column {col!r}: {text!r} is not finite")
-                data[i, j] = value
+                data[i, j] = _csv_value(kinds[j], row[k], f"{source}, line {line}, column {col!r}")
         if len(data) < 2:
             raise WiringError(f"{source}: needs at least 2 rows of samples, found {len(data)}")
-        steps = np.diff(data[:, 0])
+        times = data[:, 0].astype(np.float64)
+        steps = np.diff(times)
         bad = np.nonzero((steps < 0) | np.concatenate([[False], (steps[1:] == 0) & (steps[:-1] == 0)]))[0]
         if len(bad):
             raise WiringError(f"{source}, line {bad[0] + 3}, column {wanted[0]!r}: time "
-                              f"{float(data[bad[0] + 1, 0])!r} does not increase (previous {float(data[bad[0], 0])!r}"
+                              f"{float(times[bad[0] + 1])!r} does not increase (previous {float(times[bad[0]])!r}"
                               "; a time may be given twice, to mark a step)")
         for column in interpolation or {}:
             if column not in columns:
                 raise WiringError(f"{source}: interpolation given for {column!r}, which is not one of the columns "
                                   f"used ({', '.join(columns)})")
         for j, (column, target) in enumerate(columns.items(), start=1):
-            self._set_input(target, (data[:, 0], data[:, j]), f"column {column!r} of {source}",
+            self._set_input(target, (times, data[:, j].tolist()), f"column {column!r} of {source}",
                             (interpolation or {}).get(column))
         return self
+
+    def _csv_kind(self, target: str) -> str:
+        comp, var, _ = self._channel(target, "target")
+        return comp.kind(var, "driven")
 
     # ---------------------------------------------------------------- inspection
     @property
@@ -506,7 +589,7 @@ class System:
         """A read-only view of the components, connections, external inputs and the variable
         lookup (what the runner and the container export read)."""
         return Wiring(MappingProxyType(self._components), tuple(self._connections),
-                      MappingProxyType(self._externals), self._lookup)
+                      MappingProxyType(self._externals), self._lookup, self._channel)
 
     @property
     def external_inputs(self) -> dict[str, str]:
@@ -620,10 +703,6 @@ class System:
             raise WiringError(f"loop must be one of {LOOP_MODES}, got {loop!r}")
         if not self._components:
             raise WiringError("the system has no components")
-        if loop == "compiled":
-            reasons = obstacles(self._components.values(), self._externals.values(), self._connections)
-            if reasons:
-                raise WiringError("loop='compiled' cannot run this system: " + "; ".join(reasons))
         for value, label in ((stop_time, "stop_time"), (step, "step"), (start_time, "start_time")):
             if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
                 raise WiringError(f"{label} must be a finite number, got {value!r}")
@@ -655,6 +734,11 @@ class System:
             delayed = self._delayed(sequence)
         warnings: list[str] = []
         names = self._record_names(record, warnings)
+        exchanged = self._exchanged_kinds(names)
+        if loop == "compiled":
+            reasons = obstacles(self._components.values(), self._externals.values(), self._connections, exchanged)
+            if reasons:
+                raise WiringError("loop='compiled' cannot run this system: " + "; ".join(reasons))
         for comp in self._components.values():
             internal = getattr(comp.md.coSimulation, "fixedInternalStepSize", None)
             if internal is not None and float(step) < float(internal) * (1 - 1e-9):
@@ -663,45 +747,54 @@ class System:
                                 "outputs change only every internal step (a staircase)")
         grid = float(start_time) + np.arange(n + 1) * float(step)
         sampled = {t: sampled_on_grid(e, grid) for t, e in self._externals.items() if e.mode == "sampled"}
-        runner = Runner(self, grid, float(step), ordering, sequence, delayed, names, sampled, progress, loop)
+        runner = Runner(self, grid, float(step), ordering, sequence, delayed, names, sampled, progress, loop, exchanged)
         result = runner.execute()
         result.warnings = warnings
         return result
 
+    def _exchanged_kinds(self, names: Sequence[str]) -> dict[str, str]:
+        """Every value a run reads, sets or records (connection ends, external inputs, recorded
+        names) -> its kind."""
+        kinds: dict[str, str] = {}
+        for full in [*names, *self._externals, *(end for c in self._connections for end in (c.source, c.target))]:
+            comp, var, _ = self._channel(full, "variable")
+            kinds[full] = comp.kind(var, "exchanged")
+        return kinds
+
     def _record_names(self, record: Sequence[str] | None, warnings: list[str]) -> list[str]:
+        """The recorded values' names (an array's elements ``comp.y[i,j]``), checked."""
         if record is None:
             names = []
             for comp in self._components.values():
                 seen: dict[tuple[str, int], str] = {}
-                arrays = []
                 for v in comp.md.modelVariables:
                     full = f"{comp.name}.{v.name}"
-                    if v.causality == "output" and v.type in VARIABLE_KINDS and v.dimensions:
-                        arrays.append(v.name)
-                    elif (v.causality == "output" and v.type in VARIABLE_KINDS) or full in self._externals:
+                    driven = [n for n in self._channel_names(comp, v, None) if n in self._externals]
+                    if v.causality == "output":
                         key = (v.type, v.valueReference)
-                        if key in seen and comp.version == 3 and full not in self._externals:
+                        if key in seen and comp.version == 3:
                             warnings.append(f"{full} is an alias of {seen[key]} (the same value reference): "
                                             f"recorded once, as {seen[key]}")
                             continue
                         seen.setdefault(key, full)
-                        names.append(full)
-                if arrays:
-                    warnings.append(f"component {comp.name!r} ({comp.path}): its array outputs "
-                                    f"{', '.join(arrays)} are not recorded (only scalar variables can be)")
+                        names += self._channel_names(comp, v, None)
+                    else:
+                        names += driven
             return names
         if isinstance(record, str):
             raise WiringError("record must be a sequence of names, not a string")
         names = []
         for full in record:
-            comp, var = self._lookup(full, "recorded variable")
+            comp, var, index = self._channel(full, "recorded variable")
             comp.kind(var, "recorded")
-            if var.causality == "input" and full not in self._externals:
-                hint = next((f"; record its source {c.source!r}" for c in self._connections if c.target == full), "")
-                raise WiringError(f"recorded variable {full!r} is an input that no external source drives{hint}")
-            if full in names:
-                raise WiringError(f"recorded variable {full!r} is listed twice")
-            names.append(full)
+            for name in self._channel_names(comp, var, index):
+                if var.causality == "input" and name not in self._externals:
+                    hint = next((f"; record its source {c.source!r}" for c in self._connections
+                                 if c.target in (full, name)), "")
+                    raise WiringError(f"recorded variable {name!r} is an input that no external source drives{hint}")
+                if name in names:
+                    raise WiringError(f"recorded variable {name!r} is listed twice")
+                names.append(name)
         return names
 
     # ---------------------------------------------------------------- SSP
