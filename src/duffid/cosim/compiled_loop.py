@@ -105,8 +105,11 @@ def obstacles(components: Iterable[Any], externals: Iterable[Any], connections: 
                if (c.md.generationTool or "").startswith("PythonFMU")]
     reasons += [f"the input {e.target} is a Python function" for e in externals if e.mode == "function"]
     reasons += [f"the connection {c} has a factor or offset" for c in connections if c.transformed]
-    reasons += [f"{name} is {kind} (String and Binary values are copied in the Python loop)"
-                for name, kind in (exchanged or {}).items() if kind in OBJECT_KINDS]
+    objects = [f"{name} ({kind})" for name, kind in (exchanged or {}).items() if kind in OBJECT_KINDS]
+    if objects:
+        reasons.append(f"String and Binary values are copied in the Python loop: {', '.join(objects[:4])}"
+                       + (f" and {len(objects) - 4} more" if len(objects) > 4 else "")
+                       + " (record= without them lets the compiled loop run the rest)")
     if not reasons and load() is None:
         reasons.append("no C compiler was found to build it")
     return reasons

@@ -19,9 +19,12 @@ A configuration file lets a user wire and run FMUs without writing Python::
     }
 
 Relative paths (FMUs, CSV) are taken from the configuration file's folder. ``inputs`` are
-constants; time-varying inputs come from ``input_csv`` (time column ``t`` or ``time``; a time
-given twice marks a step): continuous Real inputs are interpolated linearly, discrete ones
-and Integer/Boolean inputs hold the last sample, and ``"interpolation": {"r": "hold"}``
+constants of the input's type (a number, true/false, a text for a String or hexadecimal text
+for a Binary, a nested list for an array input; ``"comp.u[2]"`` names one element);
+time-varying inputs come from ``input_csv`` (time column ``t`` or ``time``; a time given
+twice marks a step; fields as the input's type reads them: numbers, true/false or 0/1, text,
+hexadecimal for Binary): continuous Real and Float32 inputs are interpolated linearly,
+discrete ones and the other types hold the last sample, and ``"interpolation": {"r": "hold"}``
 overrides per column. ``container`` describes the container FMU that ``duffid cosim
 --export-container`` writes (its step is ``run.step``). Connections may carry a third
 element ``{"check_units": false}``. Every error names the file and the entry that is
@@ -33,6 +36,8 @@ import json
 import math
 import os
 import tomllib
+
+import numpy as np
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -161,6 +166,17 @@ def _number(path: Path, where: str, value: Any, positive: bool = False) -> float
     return float(value)
 
 
+def _constant(path: Path, where: str, value: Any) -> Any:
+    """A constant input as the file gives it: a number (an integer stays exact), a Boolean, a
+    text (String; Binary as hexadecimal), or a list (an array input, nested by its dimensions);
+    the input's type is checked when it is set."""
+    if isinstance(value, list):
+        return np.asarray(value, dtype=object)
+    if isinstance(value, (bool, str)) or (isinstance(value, int) and not isinstance(value, bool)):
+        return value
+    return _number(path, where, value)
+
+
 def load_ssp(path: str | os.PathLike[str], step: float | None = None, *, stop_time: float | None = None,
              parameter_set: str | os.PathLike[str] | None = None,
              parameters: Mapping[str, Any] | None = None) -> CosimConfig:
@@ -266,7 +282,7 @@ def load_config(path: str | os.PathLike[str], step: float | None = None) -> Cosi
         options = _mapping(path, f"{where} options", item[2], {"check_units"}) if len(item) == 3 else {}
         wired(where, system.connect, item[0], item[1], **options)
     for target, value in _mapping(path, "inputs", data.get("inputs", {})).items():
-        wired(f"inputs.{target}", system.set_input, target, _number(path, f"inputs.{target}", value))
+        wired(f"inputs.{target}", system.set_input, target, _constant(path, f"inputs.{target}", value))
     if "input_csv" in data:
         csv_spec = _mapping(path, "input_csv", data["input_csv"], {"file", "columns", "interpolation"})
         if not isinstance(csv_spec.get("file"), str):

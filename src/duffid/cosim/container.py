@@ -86,9 +86,9 @@ from ..fmu.c_model import TYPE_CODES, config_header, retype
 from ..fmu.fmi_xml import FmuInfo, model_description_fmi2, model_description_fmi3
 from ..fmu.package import COMMON_FILES, fmi_include_dir, token_from, write_zip
 from ..fmu.variables import FmuVariable
-from .elements import VARIABLE_KINDS, WiredSystem, with_article
+from .elements import WiredSystem, with_article
 
-__all__ = ["CONTAINER_GENERATION_TOOL", "RUNTIME_FILES", "export_container"]
+__all__ = ["CONTAINER_GENERATION_TOOL", "RUNTIME_FILES", "export_container", "carried_kind"]
 
 #: generationTool of container FMUs.
 CONTAINER_GENERATION_TOOL = "duffid.cosim.container (duffid's container runtime, fmus/container)"
@@ -171,6 +171,21 @@ def _identifier(stem: str) -> str:
     return ident if not ident[0].isdigit() else "_" + ident
 
 
+def carried_kind(comp: Any, var: Any, role: str) -> str:
+    """The kind of a component variable the container exchanges, or WiringError naming the
+    component, its FMU, the variable and why: the container runtime (on the shared FMI glue,
+    whose values are doubles) carries scalar Real/Float64, Integer/Int32 and Boolean values
+    only, not the other FMI 3 types, String, Binary, Enumeration or arrays (run such systems
+    with System.run)."""
+    kind = comp.kind(var, "exported")
+    if kind not in _GLUE_TYPE or var.dimensions:
+        what = f"an array of {var.type}" if var.dimensions else var.type
+        raise WiringError(f"{role} {comp.where()}: {var.name} is {what}; the container runtime carries scalar "
+                          "Real/Float64, Integer/Int32 and Boolean values only (run the system with System.run, "
+                          "or leave the variable out of the container)")
+    return kind
+
+
 def _plan(system: WiredSystem, inputs: Mapping[str, str | Sequence[str]] | None, outputs: Mapping[str, str] | None,
           parameters: Mapping[str, str | Sequence[str]] | None) -> list[_Variable]:
     """The container variables, checked (WiringError for anything the container cannot carry)."""
@@ -187,8 +202,11 @@ def _plan(system: WiredSystem, inputs: Mapping[str, str | Sequence[str]] | None,
 
     def resolve(full: str, role: str) -> tuple[Any, Any, str]:
         comp, var = system.wiring.lookup(full, role)
-        return comp, var, comp.kind(var, "exported")
+        return comp, var, carried_kind(comp, var, role)
 
+    for conn in system.wiring.connections:
+        for full in (conn.source, conn.target):
+            resolve(full, f"the connection {conn}:")
     connected = {c.target for c in system.wiring.connections}
     for name, targets in (inputs or {}).items():
         entries = []
@@ -215,7 +233,7 @@ def _plan(system: WiredSystem, inputs: Mapping[str, str | Sequence[str]] | None,
         raise WiringError(f"{', '.join(lost)} {'is' if len(lost) == 1 else 'are'} driven by the system's external "
                           "inputs (set_input, inputs_from_csv), which a container cannot hold: map "
                           f"{'it' if len(lost) == 1 else 'them'} to container inputs")
-    if outputs is None:
+    if outputs is None:  # every output; one the container cannot carry is refused by name
         outputs = {f"{c.name}.{v.name}": f"{c.name}.{v.name}" for c in system.wiring.components.values()
                    for v in c.outputs()}
     for name, source in outputs.items():
@@ -243,9 +261,6 @@ def _plan(system: WiredSystem, inputs: Mapping[str, str | Sequence[str]] | None,
             if var.causality != "parameter" or var.variability not in ("fixed", "tunable"):
                 raise WiringError(f"container parameter {name!r}: {full} is {with_article(var.causality)} "
                                   f"({var.variability}), not a settable parameter")
-            if var.type not in VARIABLE_KINDS:
-                raise WiringError(f"container parameter {name!r}: {full} has type {var.type}; the container "
-                                  "carries Real, Integer and Boolean parameters only")
             entries.append(resolve(full, "container parameter target"))
             given = comp.parameters.get(var.name)
             starts.append(_literal(given) if given is not None else var.start)

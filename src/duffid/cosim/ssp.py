@@ -1107,6 +1107,12 @@ def write_ssp(system: SystemLike, path: str | os.PathLike[str], *, stop_time: fl
         raise WiringError(f"the input {target} is driven by {'a function' if mode == 'function' else 'samples'}: an "
                           "SSP carries constant inputs only (as parameter values); drive it with a constant, or "
                           "from a component")
+    for full in [end for c in system.connections for end in (c.source, c.target)] + \
+            [f"{c}.{p}" for c in system.components for p in system.parameter_values(c)] + \
+            list(system.constant_inputs):
+        if "[" in full or getattr(system.variable(full), "dimensions", None):
+            raise WiringError(f"{full} is an array or an array element: SSP 1.0 has no arrays (duffid writes "
+                              "SSP 1.0); run the system with System.run")
     name = path.stem or "system"
     members = _resources(system)
     sets = _parameter_sets(system)
