@@ -4,12 +4,12 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-kernels venv bench embedded clean generated
+.PHONY: demo test test-kernels venv bench embedded clean generated docs
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -c constraints.txt -e '.[test,modelica,files]'
+	$(BIN)/python -m pip install --quiet -c constraints.txt -e '.[test,modelica,files,docs]'
 	touch $(STAMP)
 
 venv: $(STAMP)
@@ -19,6 +19,13 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest
+
+# the documentation site, docs/_build/html/index.html, with the paper report (duffid paper-report)
+# at docs/_build/html/paper-report/; CI builds it with SPHINXOPTS="-W --keep-going" (warnings fail)
+SPHINXOPTS ?=
+docs: $(STAMP)
+	$(BIN)/duffid paper-report -o docs/_build/extra/paper-report
+	$(BIN)/sphinx-build -b html $(SPHINXOPTS) docs docs/_build/html
 
 # the numerically sensitive tests under every OpenBLAS kernel and thread count (a table)
 test-kernels: $(STAMP)
