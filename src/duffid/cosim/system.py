@@ -441,8 +441,7 @@ class System:
                     value = check_value(kind, source, f"input {target!r} ({origin})")
                 except ValueError as exc:
                     what = {"String": "a text", "Binary": "bytes (or hexadecimal text)"}.get(kind, "a number")
-                    raise WiringError(f"input {target!r}: the source must be {what}, a function of t or "
-                                      f"(t, values); {exc}") from None
+                    raise WiringError(f"{exc}; the source must be {what}, a function of t or (t, values)") from None
             ext = External(target, kind, "constant", value, origin)
         self._externals[target] = ext
         self._drivers[target] = origin
