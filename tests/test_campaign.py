@@ -385,7 +385,7 @@ def test_the_worker_settings_as_environment_variables_are_what_dask_reads(monkey
         for part in key.split("."):
             node = node[part.replace("-", "_")] if part.replace("-", "_") in node else node[part]
         assert node == value, key
-    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    readme = (Path(__file__).resolve().parent.parent / "docs" / "guide" / "campaigns.md").read_text()
     assert " ".join(f"{k}={v}" for k, v in worker_environment().items()) in readme
 
 
