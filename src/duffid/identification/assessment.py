@@ -13,6 +13,7 @@ import numpy as np
 from ..data.record import Record
 from ..errors import BuildError, RecordError
 from ..models.chain import Chain
+from .dispatch import Pool
 from .engine import MIN_SHARE
 from .offsets import DISPLACEMENT_OFFSET, canonical_of, inseparable_note, offset_check, offset_scales
 from .options import default_options
@@ -257,23 +258,22 @@ def _segment_response(simulator: Any, canonical: Mapping[str, float], segment: R
 
 def _bootstrap_uncertainty(record: Record, estimates: Mapping[str, float], noise: np.ndarray,
                            rerun: Callable[[Record], Mapping[str, float]], replicates: int,
-                           seed: int, progress: bool | None = None) -> dict[str, float]:
+                           seed: int, progress: Any = None, pool: Pool | None = None) -> dict[str, float]:
     """Relative standard error of each estimate from ``replicates`` noisy copies of the record.
 
-    ``progress``: a progress bar on stderr (None: when stderr is a terminal and the record is
-    long enough, :data:`PROGRESS_SAMPLES`, for the replicates to take more than a couple of
-    seconds)."""
-    from tqdm import tqdm
-
-    if progress is None:
-        progress = sys.stderr.isatty() and record.n_samples >= PROGRESS_SAMPLES
+    The copies' noise is drawn in order from one generator (seeded by ``seed``) and the
+    replicates run on ``pool`` (:class:`~duffid.identification.dispatch.Pool`: at most its
+    jobs at a time, so at most that many copies exist), their values taken in order: the
+    result is the same for any number of jobs. ``progress``: called once per replicate done."""
+    pool = pool if pool is not None else Pool(1)
     rng = np.random.default_rng(seed)
     deviations: dict[str, list[float]] = {k: [] for k in estimates}
-    for _ in tqdm(range(replicates), desc="uncertainty (noisy replicates)", disable=not progress,
-                  file=sys.stderr, leave=False):
-        noisy = Record(record.t, record.f, record.x + rng.standard_normal(record.x.shape) * noise,
-                       source=record.source, sampling_rtol=record.sampling_rtol)
-        values = rerun(noisy)
+
+    def noisy() -> Record:
+        return Record(record.t, record.f, record.x + rng.standard_normal(record.x.shape) * noise,
+                      source=record.source, sampling_rtol=record.sampling_rtol)
+
+    for values in pool.ordered(rerun, (noisy for _ in range(replicates)), progress):
         for k, v in estimates.items():
             deviations[k].append(float(values.get(k, math.nan)) - float(v))
     out = {}
@@ -284,6 +284,19 @@ def _bootstrap_uncertainty(record: Record, estimates: Mapping[str, float], noise
         else:
             out[k] = max(math.sqrt(float(np.mean(d**2))) / abs(float(v)), UNCERTAINTY_FLOOR)
     return out
+
+def _progress(progress: bool | None | Callable[[str], Any], record: Record, replicates: int) -> tuple[Any, Any]:
+    """The bootstrap's progress: the caller's callable, or a bar of its own (None: on a
+    terminal for a record of at least :data:`PROGRESS_SAMPLES` samples); (step, bar to close)."""
+    if callable(progress):
+        return (lambda: progress("uncertainty")), None
+    from tqdm import tqdm
+
+    if progress is None:
+        progress = sys.stderr.isatty() and record.n_samples >= PROGRESS_SAMPLES
+    bar = tqdm(total=replicates, desc="uncertainty (noisy replicates)", disable=not progress, file=sys.stderr,
+               leave=False)
+    return bar.update, bar
 
 def _refusal(record: Record, model: Chain, values: Mapping[str, float], spp: float, highest: float) -> str | None:
     """Why the record cannot support any value before the model is even simulated (None: it may)."""
@@ -334,7 +347,9 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
            replicates: int = REPLICATES, upsampled: int = 1, seed: int = 0,
            with_offsets: Callable[[], Mapping[str, float]] | None = None,
            at_half_rate: Callable[[], Mapping[str, float]] | None = None,
-           progress: bool | None = None, displacement_offset: bool = False, refine: bool = True) -> Assessment:
+           progress: bool | None | Callable[[str], Any] = None, displacement_offset: bool = False,
+           refine: bool = True, pool: Pool | None = None, noise: np.ndarray | None = None,
+           content: float | None = None) -> Assessment:
     """Decide which of ``estimates`` (public names) the record supports.
 
     Parameters
@@ -363,8 +378,10 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
         with the model's offset terms added and returns those estimates. A value that
         moves by more than its uncertainty when an offset is allowed is not published:
         the record cannot rule out a sensor offset.
-    progress : bool or None
-        Progress bar on stderr while the replicates run (None: for long records on a terminal).
+    progress : bool, None or callable
+        Progress bar on stderr while the replicates run (None: for long records on a terminal,
+        :data:`PROGRESS_SAMPLES`); a callable is called with the stage's name after each
+        replicate and re-run instead (the caller's bar).
     at_half_rate : callable, optional
         Identifies the record (as ``estimates`` were found) from every second sample. The
         difference to ``estimates`` bounds the quadrature's bias, which is of first order in
@@ -383,6 +400,13 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
         whose stated errors come from its covariance and its change at half the sampling
         rate; it is kept only when it agrees with the algebraic values within 3 combined
         standard errors (``fit["refinement"]``).
+    pool : Pool, optional
+        Where the replicates, the half-rate run and the offset check run
+        (:class:`~duffid.identification.dispatch.Pool`; default one job). The result is the same
+        for any number of jobs.
+    noise, content : optional
+        :func:`noise_level` and :func:`content_frequency` of ``record`` when the caller has
+        them already (computed once per record).
 
     Offsets (``c1``, ... of a model with ``offset``, and ``x0``) are published when their
     relative standard error is at most ``max_uncertainty`` or their standard error at most
@@ -391,8 +415,8 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
     """
     names = list(model.parameters) + ([DISPLACEMENT_OFFSET] if displacement_offset else [])
     values = {k: float(estimates.get(k, math.nan)) for k in names}
-    noise = noise_level(record.x)
-    content = content_frequency(record.x, record.dt, noise=noise)
+    noise = noise_level(record.x) if noise is None else np.asarray(noise, dtype=float)
+    content = content_frequency(record.x, record.dt, noise=noise) if content is None else content
     canonical = canonical_of(model, values)
     natural = natural_frequency(model, canonical) if canonical is not None else math.nan
     if max_uncertainty is None:
@@ -434,20 +458,30 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
     if problem is not None or unphysical is not None:
         notes.extend(n for n in (unphysical, problem) if n is not None)
         return Assessment(status, uncertainty, share, fit, notes, values)
-    uncertainty = _bootstrap_uncertainty(record, values, noise, rerun, replicates, seed, progress)
+    pool = pool if pool is not None else Pool(1)
+    varies = force_varies(record)
+    # the re-runs that do not depend on the bootstrap start first (with several jobs)
+    coarse_run = pool.submit(at_half_rate) if at_half_rate is not None else None
+    offset_run = pool.submit(with_offsets) if with_offsets is not None and varies else None
+    step, bar = _progress(progress, record, replicates)
+    try:
+        uncertainty = _bootstrap_uncertainty(record, values, noise, rerun, replicates, seed, step, pool)
+    finally:
+        if bar is not None:
+            bar.close()
     bias = BALANCE_FLOOR + QUADRATURE_BIAS / spp**4
     for k in names:  # the quadrature's share of the error, larger for a term that carries little
         if np.isfinite(share[k]) and share[k] > 0:
             uncertainty[k] = max(uncertainty[k], bias / share[k])
-    if at_half_rate is not None:
-        coarse = at_half_rate()
+    if coarse_run is not None:
+        coarse = coarse_run.result()
         for k in names:
             change = abs(float(coarse.get(k, math.nan)) - values[k]) / abs(values[k]) if values[k] else math.inf
             uncertainty[k] = _with_rate_bias(uncertainty[k], change)
         fit["half_rate_change"] = {k: (float(coarse.get(k, math.nan)) - values[k]) / values[k]
                                    for k in names if values[k]}
-    varies = force_varies(record)
-    offset_moved = offset_check(values, uncertainty, with_offsets if varies else None, notes, fit, max_uncertainty)
+    offset_moved = offset_check(values, uncertainty, offset_run.result if offset_run is not None else None, notes,
+                                fit, max_uncertainty)
     if with_offsets is not None and not varies and model.offset:
         notes.append("the force hardly varies over the record (e.g. a step from the first sample): the record "
                      "cannot check for a displacement-sensor offset, so the values assume that the displacement "

@@ -1,8 +1,15 @@
 """Engine dispatch: which implementation runs an estimator on a record (the C core where it
-runs the model, else Python), and the robust window from the data."""
+runs the model, else Python), in blocks of :data:`BLOCK_SAMPLES` (memory bounded by the
+history kept, not by the C core's per-sample outputs), the final estimates alone for the
+checks' re-runs (:func:`final_estimates`) on a :class:`Pool` of threads, and the robust
+window from the data."""
 from __future__ import annotations
 
-from typing import Any, Mapping
+import os
+import threading
+from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import Any, Callable, Iterable, Iterator, Mapping
 
 import numpy as np
 
@@ -12,27 +19,170 @@ from ..models.chain import Chain, Duffing1, Duffing2
 from ..models.registry import IdentifiableModel
 from .batch import estimate
 from .c_core import CIdentifier
-from .engine import Identification
+from .engine import STATUSES, Identification, check_record
 from .options import ENGINES, ONLINE_METHODS
 
 __all__ = [
     "run_estimator",
+    "final_estimates",
     "data_window",
+    "BLOCK_SAMPLES",
+    "Cancelled",
+    "Pool",
+    "all_cores",
 ]
+
+#: Samples handed to the C batch per call: its per-sample outputs exist for one block at a
+#: time (the history keeps only the parameters, condition and flags), and a cancelled run
+#: stops within a block.
+BLOCK_SAMPLES = 1 << 16
+
+
+class Cancelled(Exception):
+    """A run stopped between two blocks because its ``cancel`` event was set (Ctrl-C)."""
+
+
+def all_cores() -> int:
+    """The cores this process may run on (the default number of jobs)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+class _Deferred:
+    """A call made when its result is first asked for (one job: runs in the caller's order)."""
+
+    def __init__(self, call: Callable[[], Any]) -> None:
+        self._call, self._done, self._value = call, False, None
+
+    def result(self) -> Any:
+        if not self._done:
+            self._value, self._done = self._call(), True
+        return self._value
+
+
+class Pool:
+    """Independent estimator runs on up to ``jobs`` threads (the C batch releases the GIL
+    while it runs a block); with one job every call runs in the caller's thread when its
+    result is asked for. Every result depends only on its inputs, never on the number of
+    jobs or the order in which runs finish.
+
+    Parameters
+    ----------
+    jobs : int or None
+        Threads (None: :func:`all_cores`).
+
+    Attributes
+    ----------
+    cancel : threading.Event
+        Set when the pool is left by an exception (Ctrl-C): runs given it
+        (:func:`run_estimator`'s ``cancel``) stop at their next block.
+    """
+
+    def __init__(self, jobs: int | None = None) -> None:
+        jobs = all_cores() if jobs is None else int(jobs)
+        if jobs < 1:
+            raise InputError(f"jobs must be at least 1, got {jobs}")
+        self.jobs = jobs
+        self.cancel = threading.Event()
+        self._executor = ThreadPoolExecutor(jobs, thread_name_prefix="duffid") if jobs > 1 else None
+
+    def __enter__(self) -> "Pool":
+        return self
+
+    def __exit__(self, kind: Any, *rest: Any) -> None:
+        self.close(cancel=kind is not None)
+
+    def close(self, cancel: bool = False) -> None:
+        """Wait for the runs (after setting :attr:`cancel` when ``cancel``) and stop the threads."""
+        if cancel:
+            self.cancel.set()
+        if self._executor is not None:
+            self._executor.shutdown(wait=True, cancel_futures=True)
+
+    def submit(self, call: Callable[[], Any]) -> Future | _Deferred:
+        """Start ``call`` (one job: defer it); ``.result()`` gives its value."""
+        if self._executor is None:
+            return _Deferred(call)
+        return self._executor.submit(call)
+
+    def ordered(self, call: Callable[[Any], Any], inputs: Iterable[Callable[[], Any]],
+                done: Callable[[], Any] | None = None) -> Iterator[Any]:
+        """``call(make())`` for each ``make`` of ``inputs``, in order. Each input is made in
+        the caller's thread, in order, when a job is free (at most :attr:`jobs` inputs exist
+        at once); ``done`` is called after each result."""
+        running: deque[Future | _Deferred] = deque()
+        for make in inputs:
+            if len(running) >= self.jobs:
+                yield self._finished(running.popleft(), done)
+            value = make()
+            running.append(self.submit(lambda value=value: call(value)))
+        while running:
+            yield self._finished(running.popleft(), done)
+
+    @staticmethod
+    def _finished(future: Future | _Deferred, done: Callable[[], Any] | None) -> Any:
+        value = future.result()
+        if done is not None:
+            done()
+        return value
 
 
 def run_estimator(record: Record, model: Chain, method: str = "robust", *, engine: str = "auto",
-                  **options: Any) -> Identification:
+                  cancel: Any = None, **options: Any) -> Identification:
     """The estimator's run over ``record`` (unchecked), on the C core or in Python.
 
-    The C core (:class:`~duffid.identification.c_core.CIdentifier`, one batch call) gives the answers
-    of the Python identifier to rounding, many times faster; ``engine="auto"`` uses it for
-    every model with the online methods when a C compiler is available, and Python otherwise
-    (or for a model beyond the C core's limits): :class:`~duffid.models.chain.Duffing1`,
-    :class:`~duffid.models.chain.Duffing2` and chains of their structure on the core's own
-    description, any other chain or equation model on its generated description (the
-    generic engine; one cached library per model, compiled on first use).
+    The C core (:class:`~duffid.identification.c_core.CIdentifier`, fed in blocks of
+    :data:`BLOCK_SAMPLES`) gives the answers of the Python identifier to rounding, many times
+    faster; ``engine="auto"`` uses it for every model with the online methods when a C
+    compiler is available, and Python otherwise (or for a model beyond the C core's limits):
+    :class:`~duffid.models.chain.Duffing1`, :class:`~duffid.models.chain.Duffing2` and chains of
+    their structure on the core's own description, any other chain or equation model on its
+    generated description (the generic engine; one cached library per model, compiled on
+    first use). ``cancel``: an event (``threading.Event``) checked between blocks of the C
+    batch; when it is set the run raises :class:`Cancelled`.
     """
+    identifier = _c_identifier(record, model, method, engine, options)
+    if identifier is None:
+        return estimate(record, model, method, **options)
+    with identifier:
+        result = _identified_in_blocks(identifier, record, cancel)
+    return result if identifier.model is model else _renamed(result, model)
+
+def final_estimates(record: Record, model: Chain, method: str = "robust", *, engine: str = "auto",
+                    cancel: Any = None, **options: Any) -> dict[str, float]:
+    """The estimator's final solution over ``record`` (public names), as
+    ``run_estimator(...).estimates``, without the history: on the C core block by block,
+    only the last output kept (``cancel`` as in :func:`run_estimator`)."""
+    identifier = _c_identifier(record, model, method, engine, options)
+    if identifier is None:
+        return dict(estimate(record, model, method, **options).estimates)
+    with identifier:
+        check_record(record, identifier.model, identifier.dt)
+        identifier.reset()
+        last = None
+        for start, stop in _blocks(record.n_samples, cancel):
+            last = identifier.run(record.x[start:stop], record.f[start:stop])[-1]
+        flushed = identifier.flush()
+        names = identifier.parameter_names
+        values = {k: float(v) for k, v in flushed.current.items()} if flushed is not None else {
+            name: float(last["current"][i]) for i, name in enumerate(names)}
+    if identifier.model is model:
+        return values
+    return model.from_canonical({identifier.model.canonical_name(k): v for k, v in values.items()})
+
+def _blocks(n: int, cancel: Any) -> Any:
+    """``(start, stop)`` of the blocks of ``n`` samples; :class:`Cancelled` once ``cancel`` is set."""
+    for start in range(0, n, BLOCK_SAMPLES):
+        if cancel is not None and cancel.is_set():
+            raise Cancelled()
+        yield start, min(start + BLOCK_SAMPLES, n)
+
+def _c_identifier(record: Record, model: Chain, method: str, engine: str,
+                  options: Mapping[str, Any]) -> CIdentifier | None:
+    """The C core's identifier of ``model`` (its ``model`` is the core's), or None when the
+    Python identifier runs it."""
     if engine not in ENGINES:
         raise InputError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
     if engine != "python" and method in ONLINE_METHODS:
@@ -40,19 +190,57 @@ def run_estimator(record: Record, model: Chain, method: str = "robust", *, engin
         try:
             if core is None:
                 raise InputError(f"the C core does not run the model {model.name}")
-            identifier = CIdentifier(core, record.dt, method, **options)
+            return CIdentifier(core, record.dt, method, **options)
         except (BuildError, ValueError, OSError):
             # no compiler (BuildError), no C sources (AssetError, an OSError) (an installed wheel without them), or a model or
             # option the C core does not take: the Python identifier gives the same answers
             if engine == "c":
                 raise
-        else:
-            with identifier:
-                result = identifier.identify_record(record)
-            return result if core is model else _renamed(result, model)
-    elif engine == "c":
+            return None
+    if engine == "c":
         raise InputError(f"the C core runs the methods {', '.join(ONLINE_METHODS)}, not {method!r}")
-    return estimate(record, model, method, **options)
+    return None
+
+def _identified_in_blocks(identifier: CIdentifier, record: Record, cancel: Any) -> Identification:
+    """:meth:`CIdentifier.identify_record`'s result with the record fed in blocks: of each
+    block's outputs the parameters, condition, flags and outliers are kept, of the last its
+    window, current values and statuses (the flushed sample's when one was held back)."""
+    check_record(record, identifier.model, identifier.dt)
+    identifier.reset()
+    names = identifier.parameter_names
+    n = record.n_samples
+    parameters = np.empty((n, len(names)))
+    condition = np.empty(n)
+    flags = np.empty(n, dtype=bool)
+    outliers: list[dict[str, Any]] = []
+    count, last = 0, None
+    for start, stop in _blocks(n, cancel):
+        rows = identifier.run(record.x[start:stop], record.f[start:stop])
+        parameters[start:stop] = rows["parameters"][:, :len(names)]
+        condition[start:stop] = rows["condition"]
+        flags[start:stop] = rows["identified"].astype(bool)
+        found = np.flatnonzero(np.diff(rows["outliers"], prepend=count) > 0)
+        outliers.extend({"t": float(rows["outlier_t"][k]), "column": f"x{int(rows['outlier_column'][k]) + 1}",
+                         "value": float(rows["outlier_value"][k]),
+                         "replaced_by": float(rows["outlier_replaced_by"][k])} for k in found)
+        count, last = int(rows["outliers"][-1]), rows[-1]
+    window = float(last["window"])
+    current = {name: float(last["current"][i]) for i, name in enumerate(names)}
+    online_status = {name: STATUSES[last["status"][i]] for i, name in enumerate(names)}
+    flushed = identifier.flush()
+    if flushed is not None:  # a sample held back at the end, processed as measured
+        parameters[-1] = [flushed.parameters[name] for name in names]
+        condition[-1], flags[-1], window = flushed.condition, flushed.identified, flushed.window
+        current = {k: float(v) for k, v in flushed.current.items()}
+        online_status = dict(flushed.status)
+    history = {name: parameters[:, i].copy() for i, name in enumerate(names)}
+    return Identification(
+        model=identifier.model.name, method=identifier.method,
+        parameters={name: float(history[name][-1]) for name in names},
+        t=record.t - record.t[0], history=history, condition=condition, identified=flags,
+        t_identified=float(record.t[np.argmax(flags)] - record.t[0]) if flags.any() else None,
+        window=window, options=dict(identifier.options), source=record.source,
+        estimates=current, online_status=online_status, outliers=outliers)
 
 def data_window(record: Record, frequency: float, periods: float) -> float:
     """Window [s] of the robust method for a record whose main frequency is ``frequency`` Hz:

@@ -78,15 +78,18 @@ that is zero is then published as zero within its standard error.
 from __future__ import annotations
 
 import math
+import sys
+import time
 from typing import Any, Callable, Mapping
 
 import numpy as np
+from tqdm import tqdm
 
 from ..data.record import Record
 from ..errors import InputError
 from ..models.chain import Chain
-from .assessment import ASSESSMENT_UNCERTAINTY, assess
-from .dispatch import data_window, run_estimator
+from .assessment import ASSESSMENT_UNCERTAINTY, PROGRESS_SAMPLES, assess
+from .dispatch import Pool, data_window, final_estimates, run_estimator
 from .engine import MIN_SHARE, Identification, check_record
 from .offsets import (
     canonical_of,
@@ -151,7 +154,7 @@ __all__ = [
 
 def identify(record: Record, model: Chain, method: str = "robust", *, offsets: str | None = None,
              check: bool = True, engine: str = "auto", progress: bool | None = None,
-             refine: bool = True, **options: Any) -> Identification:
+             refine: bool = True, jobs: int | None = None, **options: Any) -> Identification:
     """Identify ``model``'s parameters from a record, publishing only what the record supports.
 
     The estimator (:func:`duffid.identification.engine.estimate`: the online methods sample by
@@ -197,10 +200,17 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
         Where the online methods run (:func:`run_estimator`; a displacement offset needs the
         x^2 term, which only the Python identifier runs).
     progress : bool or None
-        Progress bar on stderr while the checks run (None: for long records on a terminal).
+        Progress bar on stderr while the estimator and the checks run (None: on a terminal,
+        for records of at least :data:`~duffid.identification.assessment.PROGRESS_SAMPLES`
+        samples, about a second's work). Ctrl-C stops the runs under way and raises
+        ``KeyboardInterrupt`` after a message on stderr.
     refine : bool
         Refine by output-error least squares when the algebraic estimate leaves excited
         values undetermined (see :func:`assess`; CLI ``--no-refine`` turns it off).
+    jobs : int or None
+        Threads for the independent re-runs of the checks (noisy replicates, half rate,
+        offsets; None: every core, :func:`~duffid.identification.dispatch.all_cores`). The
+        result is the same, bit for bit, for any number.
     **options
         Method options (see :class:`~duffid.identification.engine.OnlineIdentifier`).
 
@@ -216,6 +226,28 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
     if not check:
         return estimation.run(record, options)
     check_record(record, model)
+    if progress is None:
+        progress = sys.stderr.isatty() and record.n_samples >= PROGRESS_SAMPLES
+    bar = tqdm(total=REPLICATES + 4, desc="identify", unit="run", disable=not progress, file=sys.stderr, leave=False)
+    started = time.perf_counter()
+    try:
+        with Pool(jobs) as pool:
+            estimation.cancel = pool.cancel
+            return _checked(record, method, kind, physical, estimation, options, pool,
+                            lambda stage: bar.update(1), refine)
+    except KeyboardInterrupt:
+        bar.close()
+        print(f"\nduffid identify: interrupted (Ctrl-C) after {time.perf_counter() - started:.1f} s; the runs under "
+              "way were stopped and nothing was published", file=sys.stderr)
+        raise
+    finally:
+        bar.close()
+
+
+def _checked(record: Record, method: str, kind: str | None, physical: Chain, estimation: "_Estimation",
+             options: Mapping[str, Any], pool: Pool, step: Callable[[str], Any], refine: bool) -> Identification:
+    """:func:`identify` with ``check``: the record checks, the estimator's runs at the
+    sampling and window the record needs, and :func:`assess` (its re-runs on ``pool``)."""
     outliers = isolated_outliers(record.x)
     if outliers:  # excluded: replaced by what their neighbours give, and reported
         x = record.x.copy()
@@ -230,7 +262,8 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
     # main frequency, then from the identified natural frequency
     auto = method == "robust" and check_options(method, opts)["window"] == "auto"
     periods = check_options(method, opts)["window_periods"] if auto else math.nan
-    content = content_frequency(record.x, record.dt)
+    noise = noise_level(record.x)  # the record checks, computed once
+    content = content_frequency(record.x, record.dt, noise=noise)
     if auto and np.isfinite(content) and content > 0:
         opts["window"] = data_window(record, content, periods)
     if auto and "min_time" not in options:  # 10 ms is 20 periods of a 2 kHz resonator
@@ -238,6 +271,7 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
                                0.5 * periods / content if np.isfinite(content) and content > 0 else math.inf)
     estimation.factor = upsampling_needed(record, content=content)
     result = estimation.run(estimation.sampled(), opts)
+    step("estimator")
     slowest = natural_frequency(physical, canonical_of(physical, result.estimates) or {}, lowest=True)
     again = upsampling_needed(record, result.estimates, physical, content=content)
     window = opts.get("window")
@@ -248,6 +282,7 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
         if window is not None:
             opts["window"] = window
         result = estimation.run(estimation.sampled(), opts)
+    step("estimator")
     cubic_share = math.nan
     if estimation.shifted:
         cubic_share = cubic_share_of(record, estimation.measured_coordinate)
@@ -259,7 +294,8 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
     result.assessment = assess(record, physical, result.estimates, estimation.estimates,
                                max_uncertainty=max_uncertainty, upsampled=estimation.factor,
                                with_offsets=estimation.offset_check(), at_half_rate=estimation.at_half_rate,
-                               progress=progress, displacement_offset=estimation.shifted, refine=refine)
+                               progress=step, displacement_offset=estimation.shifted, refine=refine, pool=pool,
+                               noise=noise, content=content)
     if kind in ("displacement", "both"):
         report_displacement_offset(result, kind, separable=estimation.shifted, cubic_share=cubic_share)
     if outliers:
@@ -301,6 +337,7 @@ class _Estimation:
         self.factor = 1
         self.result: Identification | None = None
         self._sampled: tuple[int, Record] | None = None
+        self.cancel: Any = None  # the pool's event: runs stop at their next block once it is set
 
     def run(self, record: Record, options: Mapping[str, Any]) -> Identification:
         """The estimator on ``record`` (the displacement-offset chain mapped back when it applies)."""
@@ -309,7 +346,16 @@ class _Estimation:
             self.measured_coordinate.clear()
             self.measured_coordinate.update(raw.estimates)
             return mapped_to(raw, self.physical)
-        return run_estimator(record, self.physical, self.method, engine=self.engine, **options)
+        return run_estimator(record, self.physical, self.method, engine=self.engine, cancel=self.cancel, **options)
+
+    def final(self, record: Record) -> Mapping[str, float]:
+        """The final estimates of :meth:`run` on ``record`` with the decided options, without
+        the history (a re-run of the checks; safe to call from several threads)."""
+        if self.shifted and self.extended is not None:
+            raw = run_estimator(record, self.extended, self.method, engine="python", **self.options)
+            return mapped_to(raw, self.physical).estimates
+        return final_estimates(record, self.physical, self.method, engine=self.engine, cancel=self.cancel,
+                               **self.options)
 
     def sampled(self) -> Record:
         """The record upsampled by the current factor (made once per factor)."""
@@ -319,11 +365,11 @@ class _Estimation:
 
     def estimates(self, noisy: Record) -> Mapping[str, float]:
         """The final estimates from a noisy copy of the record, identified as the record was."""
-        return self.run(upsampled(noisy, self.factor), self.options).estimates
+        return self.final(upsampled(noisy, self.factor))
 
     def at_half_rate(self) -> Mapping[str, float]:
         """The final estimates from every second sample."""
-        return self.run(every_second(self.sampled()), self.options).estimates
+        return self.final(every_second(self.sampled()))
 
     def offset_check(self) -> Callable[[], Mapping[str, float]] | None:
         """The run that checks the offsets the model lacks (None when none applies): a force
@@ -333,8 +379,8 @@ class _Estimation:
             offset_model = with_force_offsets(self.model)
 
             def with_offsets() -> Mapping[str, float]:
-                return run_estimator(self.sampled(), offset_model, self.method, engine=self.engine,
-                                     **self.options).estimates
+                return final_estimates(self.sampled(), offset_model, self.method, engine=self.engine,
+                                       cancel=self.cancel, **self.options)
             return with_offsets
         if self.kind == "force" and carries_displacement_offset(self.physical):
             def with_displacement_offset() -> Mapping[str, float]:

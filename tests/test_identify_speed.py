@@ -1,0 +1,105 @@
+"""The checked identification's fast paths give today's answers: the C batch fed in blocks,
+the checks' re-runs without history, the same result for any number of jobs, and a clean stop
+on Ctrl-C."""
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+from duffid import Duffing1, Duffing2, Multisine, Record, identify, measure, simulate
+from duffid.identification import assessment, dispatch
+
+
+@pytest.fixture(scope="module")
+def record():
+    plant = Duffing1()
+    rec = measure(simulate(plant, Multisine(8.0, 0.5, 10.0, 2.0, phases="random", seed=1), 3.0, 1e-3),
+                  pulses_per_cm=None, snr_db=40, seed=2)
+    x = rec.x.copy()
+    x[1000, 0] += 5 * np.ptp(x)  # an isolated outlier: the blocks must report it as the whole run does
+    return Record(rec.t, rec.f, x, source="test")
+
+
+@pytest.mark.parametrize("model", [Duffing1(), Duffing2()], ids=["1-DOF", "2-DOF"])
+def test_blocks_and_final_estimates_equal_one_batch_call(record, model, monkeypatch):
+    if model.n_dof == 2:
+        record = measure(simulate(model, Multisine(8.0, 0.5, 10.0, 2.0, phases="random", seed=1), 3.0, 1e-3),
+                         pulses_per_cm=None, snr_db=40, seed=2)
+    monkeypatch.setattr(dispatch, "BLOCK_SAMPLES", 1 << 30)
+    whole = dispatch.run_estimator(record, model)
+    monkeypatch.setattr(dispatch, "BLOCK_SAMPLES", 700)
+    blocks = dispatch.run_estimator(record, model)
+    for name in whole.history:
+        np.testing.assert_array_equal(whole.history[name], blocks.history[name])
+    np.testing.assert_array_equal(whole.condition, blocks.condition)
+    np.testing.assert_array_equal(whole.identified, blocks.identified)
+    final = dispatch.final_estimates(record, model)
+    for values in (blocks.estimates, final):
+        np.testing.assert_array_equal(list(whole.estimates.values()), [values[k] for k in whole.estimates])
+    assert whole.outliers == blocks.outliers and whole.online_status == blocks.online_status
+    assert whole.window == blocks.window
+
+
+def test_a_set_cancel_event_stops_a_run(record):
+    cancel = threading.Event()
+    cancel.set()
+    with pytest.raises(dispatch.Cancelled):
+        dispatch.run_estimator(record, Duffing1(), cancel=cancel)
+    with pytest.raises(dispatch.Cancelled):
+        dispatch.final_estimates(record, Duffing1(), cancel=cancel)
+
+
+def test_pool_keeps_order_and_at_most_jobs_inputs():
+    alive, most = [0], [0]
+    lock = threading.Lock()
+
+    def make(i):
+        def made():
+            with lock:
+                alive[0] += 1
+                most[0] = max(most[0], alive[0])
+            return i
+        return made
+
+    def call(i):
+        with lock:
+            alive[0] -= 1
+        return i * i
+
+    for jobs in (1, 3):
+        alive[0] = most[0] = 0
+        with dispatch.Pool(jobs) as pool:
+            assert list(pool.ordered(call, (make(i) for i in range(10)))) == [i * i for i in range(10)]
+        assert most[0] <= jobs
+
+
+def test_the_result_is_the_same_for_any_number_of_jobs(record):
+    one = identify(record, Duffing1(), jobs=1, progress=False)
+    two = identify(record, Duffing1(), jobs=2, progress=False)
+    assert one.assessment.to_dict() == two.assessment.to_dict()
+    assert one.parameters == two.parameters and one.estimates == two.estimates
+
+
+def test_ctrl_c_ends_with_a_message(record, monkeypatch, capsys):
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("duffid.identification.trust.assess", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        identify(record, Duffing1(), jobs=2, progress=False)
+    assert "interrupted (Ctrl-C)" in capsys.readouterr().err
+
+
+def test_the_bootstrap_draws_the_same_noise_as_one_sequence(record):
+    seen = []
+
+    def rerun(noisy):
+        seen.append(noisy.x.copy())
+        return {"m": 1.0}
+
+    assessment._bootstrap_uncertainty(record, {"m": 1.0}, np.array([1e-3]), rerun, 3, seed=0)
+    rng = np.random.default_rng(0)
+    for x in seen:
+        np.testing.assert_array_equal(x, record.x + rng.standard_normal(record.x.shape) * 1e-3)
