@@ -33,6 +33,7 @@ def typed(tmp_path_factory):
     folder = tmp_path_factory.mktemp("typed_fmus")
     fmus = {m.name: typed_fmus.build(m, folder) for m in
             (typed_fmus.feedthrough3(), typed_fmus.statespace3(), typed_fmus.feedthrough2())}
+    fmus["Stair3"] = typed_fmus.build(typed_fmus.stair3(), folder, cosimulation_attributes=' hasEventMode="true"')
     clock = '<Clock name="tick" valueReference="900" causality="input" variability="discrete" intervalVariability="triggered"/>'
     fmus["Clocked"] = typed_fmus.build(typed_fmus.feedthrough3(), folder / "clocked", description_only=True,
                                        extra_variables=clock)
@@ -281,6 +282,20 @@ def test_arrays_connect_whole_and_by_element_between_components(typed):
             "f.Float64_array_output[3,1]", "g.Float64_input")
     with pytest.raises(WiringError, match=r"'q.u\[1\]' is already driven"):
         System().add("p", path).add("q", path).connect("p.y[1]", "q.u[1]").set_input("q.u", [1.0])
+
+
+# ------------------------------------------------------------------ Event Mode
+@pytest.mark.parametrize("loop", ["python", "compiled"])
+def test_event_mode_is_used_where_the_fmu_declares_it(typed, loop):
+    """Stair3 declares hasEventMode: the master instantiates it with eventModeUsed and updates
+    its discrete states in Event Mode between steps (event_updates counts them); the counter is
+    fmpy's, whose run lets the FMU handle its events inside doStep."""
+    path = typed["Stair3"]
+    result = System().add("s", path).run(1.0, 0.1, loop=loop)
+    reference = fmpy.simulate_fmu(str(path), stop_time=1.0, output_interval=0.1)
+    assert result.loop == loop
+    assert list(result["s.counter"]) == list(reference["counter"]) == [0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5]
+    assert list(result["s.event_updates"]) == list(result["s.counter"]) and not any(reference["event_updates"])
 
 
 # ------------------------------------------------------------------ refusals, named

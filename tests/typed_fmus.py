@@ -6,6 +6,8 @@ and the C header ``typed_model.h`` are generated, compiled with duffid's C build
   or parameter, plus arrays (a 2x3 Float64 and a 3-element Int32 array).
 * ``StateSpace3`` (FMI 3.0): ``der(x) = A x + B u, y = C x + D u`` with the sizes m, n, r as
   structural parameters (arrays sized by them), one explicit Euler step per doStep.
+* ``Stair3`` (FMI 3.0, ``hasEventMode``): a counter that rises at time events, updated in
+  Event Mode when the importer uses it.
 * ``Feedthrough2`` (FMI 2.0): Real, Integer, Boolean, String and Enumeration inputs,
   parameters and outputs.
 
@@ -102,6 +104,16 @@ def statespace3() -> Model:
         real("u", "input", "0", ("m",)),
         real("y", "output", None, ("r",)),
         real("x", "local", None, ("n",))])
+
+
+def stair3() -> Model:
+    """Time events: ``counter`` rises at every multiple of ``period`` (see tests/fmus/stair3.c)."""
+    return Model("Stair3", 3, ("typed_fmu3.c", "stair3.c"), [
+        Var("time", "Float64", "independent", "continuous"),
+        Var("period", "Float64", "parameter", "fixed", "0.2"),
+        Var("counter", "Int32", "output", "discrete"),
+        Var("event_updates", "Int32", "output", "discrete"),
+        Var("next_tick", "Float64", "local", "discrete")])
 
 
 def feedthrough2() -> Model:

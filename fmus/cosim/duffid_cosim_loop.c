@@ -8,10 +8,11 @@
  * operations in the same order on the same buffers: the results equal the Python loop's bit
  * for bit (only values are copied; no arithmetic is done on them).
  *
- * A doStep that does not simply succeed (status above Warning, or an FMI 3 request to
- * terminate) is handed to the caller's callback, which decides: 0 = the FMU asked to end
- * the simulation after this macro step (the step is completed and recorded, then the loop
- * returns DUFFID_LOOP_ENDED), anything else = abort now (DUFFID_LOOP_ABORTED).
+ * A doStep that does not simply succeed (status above Warning, an FMI 3 request to terminate, or
+ * eventHandlingNeeded of an FMU that uses Event Mode) is handed to the caller's callback, which
+ * answers: DUFFID_STEP_ENDED = the FMU asked to end the simulation after this macro step (the step
+ * is completed and recorded, then the loop returns DUFFID_LOOP_ENDED), DUFFID_STEP_EVENT_HANDLED =
+ * the caller ran the FMU's Event Mode (continue), anything else = abort now (DUFFID_LOOP_ABORTED).
  *
  * C99, no allocation, no global or static mutable state. The structures and return codes are
  * in duffid_cosim_loop.h (shared with the container FMU runtime, fmus/container).
@@ -122,23 +123,26 @@ int duffid_cosim_run(const double *grid, long start, long stop, double h, const 
             }
             for (i = stage->step_lo; i < stage->step_hi; i++) {
                 const duffid_step_op *op = &steps[i];
-                int terminate;
+                int terminate, event;
                 if (op->fmi3) {
                     status = ((fmi3_do_step_t)op->function)(op->instance, t, h, 1, op->event_handling_needed,
                                                            op->terminate, op->early_return,
                                                            op->last_successful_time);
                     terminate = *op->terminate;
+                    event = op->event_mode && *op->event_handling_needed;
                 } else {
                     status = ((fmi2_do_step_t)op->function)(op->instance, t, h, 1);
-                    terminate = 0;
+                    terminate = event = 0;
                 }
-                if (status > FMI_WARNING || terminate) {
-                    if (on_step(i, status, k) != 0) {
+                if (status > FMI_WARNING || terminate || event) {
+                    int answer = on_step(i, status, k);
+                    if (answer == DUFFID_STEP_ENDED) {
+                        ending = 1;
+                    } else if (answer != DUFFID_STEP_EVENT_HANDLED) {
                         *failed_op = i;
                         *failed_status = status;
                         return DUFFID_LOOP_ABORTED;
                     }
-                    ending = 1;
                 }
             }
             for (i = stage->get_lo; i < stage->get_hi; i++) {

@@ -54,6 +54,7 @@ typedef struct {
     _Bool *terminate;
     _Bool *early_return;
     double *last_successful_time;
+    int event_mode; /* FMI 3 with eventModeUsed: eventHandlingNeeded goes to the callback */
 } duffid_step_op;
 
 /* A copy of n values for row r (= k + 1 after macro step k): from source + r * source_stride
@@ -75,6 +76,13 @@ typedef struct {
 typedef struct {
     int set_lo, set_hi, step_lo, step_hi, get_lo, get_hi, post_lo, post_hi;
 } duffid_stage;
+
+/* What the callback answers about a doStep it was handed: the FMU asked to end the simulation
+ * (complete the macro step, then stop), the caller handled the FMU's Event Mode (continue);
+ * anything else aborts. */
+#define DUFFID_STEP_ENDED 0
+#define DUFFID_STEP_ABORT 1
+#define DUFFID_STEP_EVENT_HANDLED 2
 
 typedef int (*duffid_step_callback)(int step_op, int status, long step);
 

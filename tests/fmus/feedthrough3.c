@@ -18,3 +18,15 @@ void model_step(Model *m, double h)
     (void)m;
     (void)h;
 }
+
+int model_event_due(Model *m)
+{
+    (void)m;
+    return 0;
+}
+
+void model_update(Model *m, int in_event_mode)
+{
+    (void)m;
+    (void)in_event_mode;
+}

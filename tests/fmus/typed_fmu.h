@@ -54,5 +54,9 @@ void model_copy(Model *m, int dst, int src);
 void model_initialize(Model *m);
 void model_calculate(Model *m);
 void model_step(Model *m, double h);
+/* Time events (after a step, at the model's time): whether one is due, and its discrete update
+ * (in_event_mode: made in Event Mode at the importer's fmi3UpdateDiscreteStates, else inside doStep). */
+int model_event_due(Model *m);
+void model_update(Model *m, int in_event_mode);
 
 #endif

@@ -13,13 +13,13 @@
 #include "typed_model.h"
 
 enum { M_INSTANTIATED = 1, M_CONFIGURATION = 2, M_INITIALIZATION = 4, M_STEP = 8, M_TERMINATED = 16,
-       M_ERROR = 32 };
-#define M_ANY 63
+       M_ERROR = 32, M_EVENT = 64 };
 
 struct Model {
     char *name;
     int mode;
     int logging;
+    int event_mode_used;
     double time;
     fmi3InstanceEnvironment env;
     fmi3LogMessageCallback logger;
@@ -206,7 +206,7 @@ static fmi3Status check(Model *m, const char *function, int modes)
 static int settable_modes(const VarInfo *v)
 {
     if (v->causality == C_STRUCTURAL) return M_CONFIGURATION;
-    if (v->causality == C_INPUT) return M_INSTANTIATED | M_INITIALIZATION | M_STEP;
+    if (v->causality == C_INPUT) return M_INSTANTIATED | M_INITIALIZATION | M_STEP | M_EVENT;
     if (v->causality == C_PARAMETER)
         return M_INSTANTIATED | M_INITIALIZATION | (v->variability == V_TUNABLE ? M_STEP : 0);
     return 0;
@@ -252,7 +252,8 @@ static fmi3Status get_values(fmi3Instance instance, const char *function, int ty
     Model *m = (Model *)instance;
     int indices[N_VARS + 1];
     size_t j, at = 0, item;
-    if (check(m, function, M_CONFIGURATION | M_INITIALIZATION | M_STEP | M_TERMINATED) != fmi3OK) return fmi3Error;
+    if (check(m, function, M_CONFIGURATION | M_INITIALIZATION | M_STEP | M_EVENT | M_TERMINATED) != fmi3OK)
+        return fmi3Error;
     if (nvr > N_VARS) return fail(m, "%s: %s", function, "too many value references");
     if (resolve(m, function, type, 0, vr, nvr, n_values, indices) < 0) return fmi3Error;
     if (n_values > 0 && values == NULL) return fail(m, "%s: %s", function, "values is NULL");
@@ -271,7 +272,7 @@ static fmi3Status set_values(fmi3Instance instance, const char *function, int ty
     Model *m = (Model *)instance;
     int indices[N_VARS + 1];
     size_t j, k, at = 0;
-    if (check(m, function, M_INSTANTIATED | M_CONFIGURATION | M_INITIALIZATION | M_STEP) != fmi3OK)
+    if (check(m, function, M_INSTANTIATED | M_CONFIGURATION | M_INITIALIZATION | M_STEP | M_EVENT) != fmi3OK)
         return fmi3Error;
     if (nvr > N_VARS) return fail(m, "%s: %s", function, "too many value references");
     if (resolve(m, function, type, 1, vr, nvr, n_values, indices) < 0) return fmi3Error;
@@ -297,7 +298,7 @@ static fmi3Status set_values(fmi3Instance instance, const char *function, int ty
             }
         }
     }
-    if (m->mode & (M_INITIALIZATION | M_STEP)) model_calculate(m);
+    if (m->mode & (M_INITIALIZATION | M_STEP | M_EVENT)) model_calculate(m);
     return fmi3OK;
 }
 
@@ -334,7 +335,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
                                          fmi3IntermediateUpdateCallback intermediateUpdate)
 {
     Model *m;
-    (void)resourcePath; (void)visible; (void)eventModeUsed; (void)earlyReturnAllowed;
+    (void)resourcePath; (void)visible; (void)earlyReturnAllowed;
     (void)requiredIntermediateVariables; (void)nRequiredIntermediateVariables; (void)intermediateUpdate;
     if (instantiationToken == NULL || strcmp(instantiationToken, INSTANTIATION_TOKEN) != 0) {
         if (logMessage)
@@ -346,6 +347,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     m->env = instanceEnvironment;
     m->logger = logMessage;
     m->logging = loggingOn;
+    m->event_mode_used = eventModeUsed;
     m->mode = M_INSTANTIATED;
     set_string(&m->name, instanceName ? instanceName : "");
     if (allocate_values(m) != 0) {
@@ -415,14 +417,14 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance instance)
     if (check(m, "fmi3ExitInitializationMode", M_INITIALIZATION) != fmi3OK) return fmi3Error;
     model_initialize(m);
     model_calculate(m);
-    m->mode = M_STEP;
+    m->mode = m->event_mode_used ? M_EVENT : M_STEP; /* FMI 3 Co-Simulation with Event Mode starts there */
     return fmi3OK;
 }
 
 fmi3Status fmi3Terminate(fmi3Instance instance)
 {
     Model *m = (Model *)instance;
-    if (check(m, "fmi3Terminate", M_STEP) != fmi3OK) return fmi3Error;
+    if (check(m, "fmi3Terminate", M_STEP | M_EVENT) != fmi3OK) return fmi3Error;
     m->mode = M_TERMINATED;
     return fmi3OK;
 }
@@ -460,11 +462,52 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
         return fail(m, "%s: %s", "fmi3DoStep", "an output argument is NULL");
     model_step(m, communicationStepSize);
     m->time = currentCommunicationPoint + communicationStepSize;
-    model_calculate(m);
     *eventHandlingNeeded = fmi3False;
+    if (m->event_mode_used)
+        *eventHandlingNeeded = model_event_due(m) ? fmi3True : fmi3False; /* the importer updates in Event Mode */
+    else
+        while (model_event_due(m)) model_update(m, 0);                    /* handled inside the step */
+    model_calculate(m);
     *terminateSimulation = fmi3False;
     *earlyReturn = fmi3False;
     *lastSuccessfulTime = m->time;
+    return fmi3OK;
+}
+
+/* ------------------------------------------------------------------ Event Mode (eventModeUsed) */
+
+fmi3Status fmi3EnterEventMode(fmi3Instance instance)
+{
+    Model *m = (Model *)instance;
+    if (check(m, "fmi3EnterEventMode", M_STEP) != fmi3OK) return fmi3Error;
+    if (!m->event_mode_used) return fail(m, "%s: %s", "fmi3EnterEventMode", "the instance was made with eventModeUsed false");
+    m->mode = M_EVENT;
+    return fmi3OK;
+}
+
+fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discreteStatesNeedUpdate,
+                                    fmi3Boolean *terminateSimulation, fmi3Boolean *nominalsChanged,
+                                    fmi3Boolean *valuesChanged, fmi3Boolean *nextEventTimeDefined,
+                                    fmi3Float64 *nextEventTime)
+{
+    Model *m = (Model *)instance;
+    if (check(m, "fmi3UpdateDiscreteStates", M_EVENT) != fmi3OK) return fmi3Error;
+    if (discreteStatesNeedUpdate == NULL || terminateSimulation == NULL || nominalsChanged == NULL ||
+        valuesChanged == NULL || nextEventTimeDefined == NULL || nextEventTime == NULL)
+        return fail(m, "%s: %s", "fmi3UpdateDiscreteStates", "an output argument is NULL");
+    if (model_event_due(m)) model_update(m, 1);
+    model_calculate(m);
+    *discreteStatesNeedUpdate = model_event_due(m) ? fmi3True : fmi3False;
+    *terminateSimulation = *nominalsChanged = *valuesChanged = *nextEventTimeDefined = fmi3False;
+    *nextEventTime = 0.0;
+    return fmi3OK;
+}
+
+fmi3Status fmi3EnterStepMode(fmi3Instance instance)
+{
+    Model *m = (Model *)instance;
+    if (check(m, "fmi3EnterStepMode", M_EVENT) != fmi3OK) return fmi3Error;
+    m->mode = M_STEP;
     return fmi3OK;
 }
 
@@ -602,11 +645,6 @@ REFUSED(fmi3SetShiftFraction,
         (fmi3Instance instance, const fmi3ValueReference vr[], size_t n, const fmi3UInt64 c[], const fmi3UInt64 r[]),
         (void)vr; (void)n; (void)c; (void)r)
 REFUSED(fmi3EvaluateDiscreteStates, (fmi3Instance instance), (void)0)
-REFUSED(fmi3UpdateDiscreteStates,
-        (fmi3Instance instance, fmi3Boolean *a, fmi3Boolean *b, fmi3Boolean *c, fmi3Boolean *d, fmi3Boolean *e,
-         fmi3Float64 *f),
-        (void)a; (void)b; (void)c; (void)d; (void)e; (void)f)
-REFUSED(fmi3EnterEventMode, (fmi3Instance instance), (void)0)
 REFUSED(fmi3EnterContinuousTimeMode, (fmi3Instance instance), (void)0)
 REFUSED(fmi3CompletedIntegratorStep, (fmi3Instance instance, fmi3Boolean a, fmi3Boolean *b, fmi3Boolean *c),
         (void)a; (void)b; (void)c)
@@ -618,7 +656,6 @@ REFUSED(fmi3GetContinuousStates, (fmi3Instance instance, fmi3Float64 x[], size_t
 REFUSED(fmi3GetNominalsOfContinuousStates, (fmi3Instance instance, fmi3Float64 x[], size_t n), (void)x; (void)n)
 REFUSED(fmi3GetNumberOfEventIndicators, (fmi3Instance instance, size_t *n), (void)n)
 REFUSED(fmi3GetNumberOfContinuousStates, (fmi3Instance instance, size_t *n), (void)n)
-REFUSED(fmi3EnterStepMode, (fmi3Instance instance), (void)0)
 REFUSED(fmi3GetOutputDerivatives,
         (fmi3Instance instance, const fmi3ValueReference vr[], size_t n, const fmi3Int32 o[], fmi3Float64 v[],
          size_t nv),

@@ -25,7 +25,8 @@ from ..cbuild import cached_library
 from ..errors import CompilerNotFoundError
 from .value_types import OBJECT_KINDS
 
-__all__ = ["CompiledLoop", "load", "obstacles", "LOOP_MODES", "DONE", "SET_FAILED", "GET_FAILED", "ABORTED", "ENDED"]
+__all__ = ["CompiledLoop", "load", "obstacles", "LOOP_MODES", "DONE", "SET_FAILED", "GET_FAILED", "ABORTED", "ENDED",
+           "STEP_ENDED", "STEP_ABORT", "EVENT_HANDLED"]
 
 #: ``System.run(loop=...)``: ``"auto"`` (compiled where every component allows it, else
 #: Python), ``"compiled"`` (an error where it cannot be used), ``"python"``.
@@ -33,6 +34,9 @@ LOOP_MODES = ("auto", "compiled", "python")
 
 # duffid_cosim_run's return codes (DUFFID_LOOP_*)
 DONE, SET_FAILED, GET_FAILED, ABORTED, ENDED = range(5)
+# what on_step answers (DUFFID_STEP_*): the FMU ended the simulation (complete the macro step, then
+# stop), abort now, or the FMU's Event Mode was handled (continue)
+STEP_ENDED, STEP_ABORT, EVENT_HANDLED = range(3)
 # value conversions (DUFFID_COPY, DUFFID_INT32_TO_BOOL, DUFFID_BOOL_TO_INT32, DUFFID_INT64_TO_INT32,
 # DUFFID_INT32_TO_INT64), by (source, destination) bytes per value when they differ
 _COPY, _INT32_TO_BOOL, _BOOL_TO_INT32, _INT64_TO_INT32, _INT32_TO_INT64 = range(5)
@@ -49,7 +53,7 @@ class _IoOp(ctypes.Structure):
 
 class _StepOp(ctypes.Structure):
     _fields_ = [("function", _P), ("instance", _P), ("fmi3", ctypes.c_int), ("event_handling_needed", _P),
-                ("terminate", _P), ("early_return", _P), ("last_successful_time", _P)]
+                ("terminate", _P), ("early_return", _P), ("last_successful_time", _P), ("event_mode", ctypes.c_int)]
 
 
 class _Move(ctypes.Structure):
@@ -148,13 +152,15 @@ class CompiledLoop:
     stages : sequence of (sets, steps, gets, posts)
         The runner's per-stage operation lists, in the layout of its Python loop: set
         ``(g, idx, buf, setf, args, ci, name)``, step ``(stepf, args, ci, name, term, flags)``,
-        get ``(getf, args, ci, name)``, post ``(destination view, staging array)``.
+        get ``(getf, args, ci, name)``, post ``(destination view, staging array)``; a step's
+        ``event`` flag (FMI 3 eventHandlingNeeded) is given for an FMU that uses Event Mode.
     moves : sequence of (destination, source, index, destination_stride, source_stride)
         Copies after every macro step for row ``k + 1``: the input tables' rows and the
         recorded rows (arrays; strides in bytes; index None or an intp array).
     on_step : callable
-        ``on_step(step_op, status, k) -> bool``: True when the FMU ended the simulation
-        (complete the macro step, then stop), False to abort.
+        ``on_step(step_op, status, k) -> int``: :data:`STEP_ENDED` when the FMU ended the
+        simulation (complete the macro step, then stop), :data:`STEP_ABORT` to abort,
+        :data:`EVENT_HANDLED` when it handled the FMU's Event Mode (continue).
     """
 
     def __init__(self, library: ctypes.CDLL, grid: np.ndarray, step: float,
@@ -190,10 +196,10 @@ class CompiledLoop:
 
         def callback(op: int, status: int, k: int) -> int:
             try:
-                return 0 if on_step(op, status, k) else 1
+                return on_step(op, status, k)
             except BaseException as exc:  # noqa: BLE001 - re-raised by run() once the C loop has returned
                 self.exception = exc
-                return 1
+                return STEP_ABORT
 
         self.callback = _CALLBACK(callback)
         self.failed_step, self.failed_op, self.failed_status = ctypes.c_long(0), ctypes.c_int(0), ctypes.c_int(0)
@@ -213,11 +219,12 @@ class CompiledLoop:
 
     @staticmethod
     def _step(entry: tuple) -> _StepOp:
-        function, args, _, name, _, flags = entry
+        function, args, _, name, _, flags, event = entry
         op = _StepOp(_function(function), args[0].value, int(name == "fmi3DoStep"))
         if flags is not None:
             op.event_handling_needed, op.terminate, op.early_return, op.last_successful_time = (
                 ctypes.addressof(f) for f in flags)
+        op.event_mode = int(event is not None)
         return op
 
     def _move(self, destination: np.ndarray, source: np.ndarray, index: np.ndarray | None,

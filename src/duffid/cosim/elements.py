@@ -253,6 +253,12 @@ class Component:
     def where(self) -> str:
         return f"component {self.name!r} ({self.path.name})"
 
+    @property
+    def event_mode(self) -> bool:
+        """Whether the master runs the FMU with Event Mode (FMI 3 ``hasEventMode``): it then
+        instantiates it with eventModeUsed, and handles the events it asks for between steps."""
+        return self.version == 3 and bool(getattr(self.md.coSimulation, "hasEventMode", False))
+
     def variable(self, var: str) -> Any:
         try:
             return self.variables[var]

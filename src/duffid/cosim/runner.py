@@ -44,6 +44,8 @@ from .value_types import DTYPES, FMI_FUNCTIONS, OBJECT_KINDS, VARIABLE_KINDS, pa
 
 __all__ = ["Runner", "signals_held"]
 
+#: Most fmi3UpdateDiscreteStates calls of one event iteration (an FMU still asking is a failure).
+_EVENT_ITERATIONS = 100
 #: Macro steps per call of the compiled loop: signals (Ctrl-C, SIGTERM) are acted on between calls.
 _COMPILED_CHUNK = 5000
 
@@ -328,7 +330,8 @@ class Runner:
                     holder[0].log(status, category, message)
 
             try:
-                inst.slave.instantiate(loggingOn=comp.logging, logMessage=log3)  # fmpy keeps the callback
+                inst.slave.instantiate(loggingOn=comp.logging, logMessage=log3,  # fmpy keeps the callback
+                                       eventModeUsed=comp.event_mode)
                 failed = not inst.slave.component
             except Exception:
                 failed = True
@@ -368,14 +371,35 @@ class Runner:
             inst.slave = None
             inst.state = "freed"
 
-    def _call(self, inst: _Instance, method: str, *args: Any, **kwargs: Any) -> Any:
-        """A call through fmpy's high-level API (set-up only), status exceptions converted."""
+    def _call(self, inst: _Instance, method: str, *args: Any, at: float | None = None, **kwargs: Any) -> Any:
+        """A call through fmpy's high-level API (set-up, Event Mode), status exceptions converted
+        (``at``: the time a failure is reported at, default the start)."""
         from fmpy.fmi1 import FMICallException
 
         try:
             return getattr(inst.slave, method)(*args, **kwargs)
         except FMICallException as exc:
-            raise _StepFailure(inst.index, exc.function, exc.status, self.grid[0]) from None
+            raise _StepFailure(inst.index, exc.function, exc.status, self.grid[0] if at is None else at) from None
+
+    def _event(self, ci: int, t: float, entered: bool = False) -> None:
+        """Event Mode of an FMI 3 component that uses it (``hasEventMode``): after a doStep that set
+        eventHandlingNeeded (and after initialisation, which ends in Event Mode), enter Event Mode,
+        update the discrete states until the FMU needs no further update, return to Step Mode. A
+        request to end the simulation ends the run after this macro step."""
+        inst = self.instances[ci]
+        if not entered:
+            self._call(inst, "enterEventMode", at=t)
+        for _ in range(_EVENT_ITERATIONS):
+            again, terminate, *_ = self._call(inst, "updateDiscreteStates", at=t)
+            if terminate:
+                self.ending = _Terminated(ci, t, True)
+            if not again:
+                break
+        else:
+            inst.log(3, b"duffid", f"the discrete states still need an update after {_EVENT_ITERATIONS} "
+                                   "iterations of fmi3UpdateDiscreteStates".encode())
+            raise _StepFailure(ci, "fmi3UpdateDiscreteStates", "no fixed point", t)
+        self._call(inst, "enterStepMode", at=t)
 
     def _set_parameters(self, inst: _Instance) -> None:
         """The parameter values given to ``System.add``, through fmpy's setters; FMI 3 structural
@@ -498,12 +522,13 @@ class Runner:
             if version == 2:
                 term = ctypes.c_bool(False)
                 args = (handle, self.t_arg, self.h_arg, ctypes.c_int(1))
-                self.step_ops.append((raw("fmi2DoStep"), args, ci, "fmi2DoStep", term, None))
+                self.step_ops.append((raw("fmi2DoStep"), args, ci, "fmi2DoStep", term, None, None))
             else:
                 flags = [ctypes.c_bool(False) for _ in range(3)] + [ctypes.c_double(0.0)]
                 args = (handle, self.t_arg, self.h_arg, ctypes.c_bool(True)) + tuple(ctypes.pointer(f) for f in flags)
                 self._keep.append(flags)
-                self.step_ops.append((raw("fmi3DoStep"), args, ci, "fmi3DoStep", flags[1], flags))
+                self.step_ops.append((raw("fmi3DoStep"), args, ci, "fmi3DoStep", flags[1], flags,
+                                      flags[0] if comp.event_mode else None))
             self.set_ops.append(sets)
             self.init_ops.append(inits)
             self.get_ops.append(gets)
@@ -511,6 +536,7 @@ class Runner:
 
     def _initialize(self) -> None:
         t0, t_end = float(self.grid[0]), float(self.grid[-1])
+        self.ending: _Terminated | None = None
         for kind, (view, table) in self.tables.items():
             view[...] = table[0]
         self._evaluate_functions(t0)
@@ -533,6 +559,8 @@ class Runner:
                 if status > 1:
                     raise _StepFailure(ci, fname, status, t0)
             self._call(inst, "exitInitializationMode")
+            if inst.comp.event_mode:  # FMI 3 Co-Simulation with Event Mode leaves initialisation in it
+                self._event(inst.index, t0, entered=True)
             inst.state = "stepping"
         self._read_all(t0)
         self._record(0)
@@ -592,7 +620,8 @@ class Runner:
         else:
             stages = [(self.set_ops[self.index[c]], [self.step_ops[self.index[c]]], self.get_ops[self.index[c]],
                        self.post_ops[self.index[c]]) for c in self.sequence]
-        self.ending: _Terminated | None = None
+        if self.ending is not None:  # a component asked to end the simulation in its initial event iteration
+            raise self.ending
         compiled = self._compiled_loop(stages)
         if compiled is not None:
             self._run_compiled(compiled)
@@ -615,10 +644,12 @@ class Runner:
                             status = setf(*args)
                             if status > 1:
                                 raise _StepFailure(ci, fname, status, t)
-                        for stepf, step_args, ci, fname, term, flags in steps:
+                        for stepf, step_args, ci, fname, term, flags, event in steps:
                             status = stepf(*step_args)
                             if status > 1 or term.value:
                                 self._ended(ci, fname, status, flags, t)
+                            elif event is not None and event.value:
+                                self._event(ci, grid[k + 1])
                         for getf, args, ci, fname in gets:
                             status = getf(*args)
                             if status > 1:
@@ -658,10 +689,13 @@ class Runner:
         moves += [(rec, self.g[kind], None if identity else idx, rec.strides[0], 0)
                   for kind, (rec, idx, identity) in self.records.items()]
 
-        def on_step(op: int, status: int, k: int) -> bool:
-            _, _, ci, fname, _, flags = loop.step_entries[op]
+        def on_step(op: int, status: int, k: int) -> int:
+            _, _, ci, fname, term, flags, event = loop.step_entries[op]
+            if status <= 1 and not term.value:  # an FMU in Event Mode asked for it
+                self._event(ci, float(self.grid[k + 1]))
+                return compiled_loop.EVENT_HANDLED
             self._ended(ci, fname, status, flags, float(self.grid[k]))  # raises unless the FMU ended the run
-            return True
+            return compiled_loop.STEP_ENDED
 
         loop = CompiledLoop(compiled_loop.load(), self.grid, self.step, stages, moves, on_step)
         return loop
