@@ -192,9 +192,10 @@ def test_binary_is_written_as_hex_and_wide_integers_exactly(typed, tmp_path):
 
 
 # ------------------------------------------------------------------ arrays and structural parameters
-def _fmpy_statespace(path, sizes, arrays, u, steps, h):
+def _fmpy_statespace(path, sizes, arrays, inputs, h):
     """fmpy's own run of StateSpace3: structural parameters in Configuration Mode, then the
-    arrays, then ``u`` before each step; y after each step (FMU3Slave's getters/setters)."""
+    arrays, ``inputs[0]`` as u before initialisation and ``inputs[k]`` before the step from
+    t_k; y after initialisation and after each step (FMU3Slave's getters and setters)."""
     md = fmpy.read_model_description(str(path))
     vr = {v.name: v.valueReference for v in md.modelVariables}
     slave = FMU3Slave(guid=md.instantiationToken, unzipDirectory=fmpy.extract(str(path)),
@@ -206,11 +207,12 @@ def _fmpy_statespace(path, sizes, arrays, u, steps, h):
     slave.exitConfigurationMode()
     for name, value in arrays.items():
         slave.setFloat64([vr[name]], list(np.ravel(value)))
+    slave.setFloat64([vr["u"]], list(inputs[0]))
     slave.enterInitializationMode(startTime=0.0)
     slave.exitInitializationMode()
     r = sizes.get("r", 2)
     ys = [slave.getFloat64([vr["y"]], nValues=r)]
-    for k in range(steps):
+    for k, u in enumerate(inputs[:-1]):
         slave.setFloat64([vr["u"]], list(u))
         slave.doStep(currentCommunicationPoint=k * h, communicationStepSize=h)
         ys.append(slave.getFloat64([vr["y"]], nValues=r))
@@ -240,28 +242,8 @@ def test_structural_parameters_size_the_arrays_as_in_fmpy(typed, loop):
     result = system.run(0.05, 0.01, loop=loop)
     assert result.loop == loop and result.names == ["ss.u[1]", "ss.u[2]", "ss.y[1]"]
     # fmpy's run with the same inputs (u[2] sampled: its value at each communication point)
-    md = fmpy.read_model_description(str(path))
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    slave = FMU3Slave(guid=md.instantiationToken, unzipDirectory=fmpy.extract(str(path)),
-                      modelIdentifier="StateSpace3", instanceName="reference")
-    slave.instantiate()
-    slave.enterConfigurationMode()
-    for name, value in sizes.items():
-        slave.setUInt64([vr[name]], [value])
-    slave.exitConfigurationMode()
-    for name, value in arrays.items():
-        slave.setFloat64([vr[name]], list(np.ravel(value)))
-    slave.setFloat64([vr["u"]], [2.0, 0.0])
-    slave.enterInitializationMode(startTime=0.0)
-    slave.exitInitializationMode()
-    ys = [slave.getFloat64([vr["y"]], nValues=1)[0]]
-    for k in range(5):
-        slave.setFloat64([vr["u"]], [2.0, result["ss.u[2]"][k]])
-        slave.doStep(currentCommunicationPoint=k * 0.01, communicationStepSize=0.01)
-        ys.append(slave.getFloat64([vr["y"]], nValues=1)[0])
-    slave.terminate()
-    slave.freeInstance()
-    assert list(result["ss.y[1]"]) == ys
+    reference = _fmpy_statespace(path, sizes, arrays, [[2.0, u2] for u2 in result["ss.u[2]"]], 0.01)
+    assert list(result["ss.y[1]"]) == list(reference[:, 0])
 
 
 def test_arrays_connect_whole_and_by_element_between_components(typed):
@@ -272,7 +254,7 @@ def test_arrays_connect_whole_and_by_element_between_components(typed):
               .add("f", typed["Feedthrough3"]).add("s", path)
               .connect("p.y", "q.u").connect("p.y[2]", "f.Float64_input").connect("f.Float64_output", "s.u[1]"))
     result = system.run(0.3, 0.1, record=["p.y", "q.y", "f.Float64_output", "s.y"], loop="compiled")
-    reference = _fmpy_statespace(path, {}, {}, [0.0], 3, 0.1)   # p: no input
+    reference = _fmpy_statespace(path, {}, {}, [[0.0]] * 4, 0.1)   # p: no input
     assert np.array_equal(np.column_stack([result["p.y[1]"], result["p.y[2]"]]), reference)
     assert list(result["f.Float64_output"][1:]) == list(reference[:-1, 1])   # Jacobi: one step later
     with pytest.raises(WiringError, match=r"shape \(2,\).*shape \(2, 3\)"):

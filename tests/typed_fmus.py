@@ -70,16 +70,22 @@ def _variability(type_name: str, causality: str) -> str:
     return "continuous" if type_name in ("Float32", "Float64", "Real") else "discrete"
 
 
+def _feed_variables(types: tuple[str, ...]) -> list[Var]:
+    """An input, a parameter and their copies ``<type>_output``, ``<type>_parameter_output`` per type."""
+    variables = []
+    for t in types:
+        for role in ("input", "parameter"):
+            variables.append(Var(f"{t}_{role}", t, role, _variability(t, role), STARTS[t]))
+        for source in ("input", "parameter"):
+            variables.append(Var(f"{t}_{source}_output".replace("_input", ""), t, "output", _variability(t, "output"),
+                                 feed=f"{t}_{source}"))
+    return variables
+
+
 def feedthrough3() -> Model:
     model = Model("Feedthrough3", 3, ("typed_fmu3.c", "feedthrough3.c"), [Var("time", "Float64", "independent",
                                                                             "continuous")])
-    for t in FMI3_TYPES:
-        for role in ("input", "parameter"):
-            model.variables.append(Var(f"{t}_{role}", t, role, _variability(t, role), STARTS[t]))
-        model.variables.append(Var(f"{t}_output", t, "output", _variability(t, "output"), feed=f"{t}_input"))
-        model.variables.append(Var(f"{t}_parameter_output", t, "output", _variability(t, "output"),
-                                   feed=f"{t}_parameter"))
-    model.variables += [
+    model.variables += _feed_variables(FMI3_TYPES) + [
         Var("Float64_array_input", "Float64", "input", "continuous", "1 2 3 4 5 6", dims=(2, 3)),
         Var("Float64_array_output", "Float64", "output", "continuous", dims=(2, 3), feed="Float64_array_input"),
         Var("Int32_array_input", "Int32", "input", "discrete", "1 2 3", dims=(3,)),
@@ -117,14 +123,7 @@ def stair3() -> Model:
 
 
 def feedthrough2() -> Model:
-    model = Model("Feedthrough2", 2, ("feedthrough2.c",))
-    for t in FMI2_TYPES:
-        for role in ("input", "parameter"):
-            model.variables.append(Var(f"{t}_{role}", t, role, _variability(t, role), STARTS[t]))
-        model.variables.append(Var(f"{t}_output", t, "output", _variability(t, "output"), feed=f"{t}_input"))
-        model.variables.append(Var(f"{t}_parameter_output", t, "output", _variability(t, "output"),
-                                   feed=f"{t}_parameter"))
-    return model
+    return Model("Feedthrough2", 2, ("feedthrough2.c",), _feed_variables(FMI2_TYPES))
 
 
 # ----------------------------------------------------------------------------- generation

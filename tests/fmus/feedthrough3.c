@@ -19,14 +19,4 @@ void model_step(Model *m, double h)
     (void)h;
 }
 
-int model_event_due(Model *m)
-{
-    (void)m;
-    return 0;
-}
-
-void model_update(Model *m, int in_event_mode)
-{
-    (void)m;
-    (void)in_event_mode;
-}
+MODEL_WITHOUT_EVENTS

@@ -44,14 +44,4 @@ void model_step(Model *m, double h)
     for (i = 0; i < nx && i < 16; i++) x[i] += h * dx[i];
 }
 
-int model_event_due(Model *m)
-{
-    (void)m;
-    return 0;
-}
-
-void model_update(Model *m, int in_event_mode)
-{
-    (void)m;
-    (void)in_event_mode;
-}
+MODEL_WITHOUT_EVENTS

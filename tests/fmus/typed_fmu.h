@@ -58,5 +58,9 @@ void model_step(Model *m, double h);
  * (in_event_mode: made in Event Mode at the importer's fmi3UpdateDiscreteStates, else inside doStep). */
 int model_event_due(Model *m);
 void model_update(Model *m, int in_event_mode);
+/* The two for a model without events. */
+#define MODEL_WITHOUT_EVENTS                                                                       \
+    int model_event_due(Model *m) { return (void)m, 0; }                                           \
+    void model_update(Model *m, int in_event_mode) { (void)m, (void)in_event_mode; }
 
 #endif

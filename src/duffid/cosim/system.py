@@ -44,6 +44,32 @@ Step ``k`` (from ``t_k`` to ``t_{k+1}``):
 Under Jacobi every connection delivers the value at ``t_k``, so
 :attr:`Result.delayed` lists every connection.
 
+Variable types and arrays
+-------------------------
+Every FMI 2 and FMI 3 variable type is exchanged (:mod:`duffid.cosim.value_types`): FMI 2
+Real, Integer, Boolean, String, Enumeration; FMI 3 Float32, Float64, Int8 .. UInt64, Boolean,
+String, Binary, Enumeration. A connection joins variables of one kind: the same type, FMI 2
+Real and FMI 3 Float64, FMI 2 Integer and FMI 3 Int32, or two Enumerations with the same items
+(no other conversion is made; a factor or offset applies to Real connections only). Constants
+and samples are checked against the input's type (range of an integer type, 0/1 of a Boolean).
+String values are ``str``, Binary values ``bytes``; both are exchanged by the Python loop
+(``loop="auto"`` takes it; ``loop="compiled"`` names them). :meth:`Result.to_csv` writes Binary
+values as hexadecimal.
+
+FMI 3 arrays (``<Dimension>``, fixed or given by a structural parameter) are recorded element by
+element as ``"comp.y[i,j]"`` (indices from 1, row-major). An array output connects to an array
+input of the same shape (element by element), and an element (``"comp.y[2]"``) to a scalar or to
+an element; an array input of which only some elements are driven gets its start values in the
+others (FMI sets an array whole). Structural parameters given to :meth:`add` are set in
+Configuration Mode before the other parameters and give the shapes of the arrays.
+
+An FMI 3 FMU that declares ``hasEventMode`` is instantiated with ``eventModeUsed``: after
+initialisation and after every ``doStep`` that sets ``eventHandlingNeeded`` the master enters Event
+Mode, calls ``updateDiscreteStates`` until the FMU needs no further update, and returns to Step
+Mode (early returns are not allowed: events fall on the communication grid's next point). Clocks
+(Scheduled Execution, clocked Co-Simulation) are refused when the FMU is added, naming the
+variable; so is an FMU without a Co-Simulation interface.
+
 Failures
 --------
 A status worse than Warning (Discard, Error, Fatal; FMI 2 Pending) from any FMI call,
@@ -367,9 +393,11 @@ class System:
         ----------
         target : str
             ``"component.input"``.
-        source : float, callable or (t, values)
-            A constant; a function ``t -> value`` evaluated at every communication
-            point (e.g. a :class:`duffid.data.signals.Signal`); or samples ``(t, values)``
+        source : constant, callable or (t, values)
+            A constant of the input's type (a number, bool, str, bytes; for an array input
+            a nested sequence of its shape); a function ``t -> value`` evaluated at every
+            communication point (e.g. a :class:`duffid.data.signals.Signal`); or samples
+            ``(t, values)``
             (finite, non-decreasing ``t``; a time given twice marks a step, the second
             value holding from that time on). Every communication point ``t_0 .. t_n``
             must lie within ``[t[0], t[-1]]``; nothing is extrapolated or clipped
@@ -379,9 +407,9 @@ class System:
             the last sample (zero-order hold), "average" gives each step the mean of the
             linear interpolation over it, "sample-of-hold" the sample at each point of the
             staircase that "hold" makes (the mean of the held values before and after it;
-            see :meth:`replay`). Default: "linear" for a Real input of continuous
-            variability, "hold" for a discrete-variability Real input and for Integer and
-            Boolean inputs (as FMI hosts do).
+            see :meth:`replay`). Default: "linear" for a Real or Float32 input of continuous
+            variability, "hold" for a discrete-variability one and for inputs of the other
+            types (as FMI hosts do), which can only hold their samples.
 
         Returns
         -------
@@ -667,18 +695,19 @@ class System:
             Gauss-Seidel only: the stepping order (every component exactly once),
             instead of the derived one.
         record : sequence of str, optional
-            Variables to record (``"component.variable"``): outputs, local variables and
-            externally driven inputs (connected inputs: record their source). Default:
-            every output of every component (Real, Integer, Boolean) and every
-            externally driven input.
+            Variables to record (``"component.variable"``, an array whole or one element
+            ``"component.y[1,2]"``): outputs, local variables and externally driven inputs
+            (connected inputs: record their source). Default: every output of every component
+            (every type; arrays element by element) and every externally driven input.
         progress : bool
             Show a tqdm progress bar (updated in chunks of steps).
         loop : {"auto", "compiled", "python"}
             The inner loop: the macro steps in C over the FMUs' functions (``fmus/cosim``,
             compiled on first use), or in Python. The two give the same trajectories bit
             for bit; the C loop is faster. ``"auto"`` (default) takes the C loop unless a
-            component is a Python FMU (pythonfmu), an input is a Python function, or no C
-            compiler is found; ``"compiled"`` makes those cases an error.
+            component is a Python FMU (pythonfmu), an input is a Python function, a String or
+            Binary value is exchanged or recorded, or no C compiler is found; ``"compiled"``
+            makes those cases an error.
             ``Result.loop`` says which one ran.
 
         Returns
