@@ -155,7 +155,7 @@ def _fake_loop(fake: _Fake, n: int, on_step):
     y_ptr = ctypes.cast(g.ctypes.data, ctypes.POINTER(ctypes.c_double))
     u_source = np.array([0.0, 0.0])  # gathered: g_u[0] -> buf
     sets = [(u_source, np.array([1]), buf, fake.set, (fake.handle, vrs, size, u_ptr), 0, "fmi2SetReal")]
-    steps = [(fake.step, (fake.handle,), 0, "fmi2DoStep", ctypes.c_bool(False), None)]
+    steps = [(fake.step, (fake.handle,), 0, "fmi2DoStep", ctypes.c_bool(False), None, None)]
     gets = [(fake.get, (fake.handle, vrs, size, y_ptr), 0, "fmi2GetReal")]
     moves = [(u_source[1:], table, None, 0, table.strides[0]), (rec, g, None, rec.strides[0], 0)]
     grid = np.arange(n + 1) * 0.5
@@ -178,7 +178,7 @@ def test_c_loop_runs_ends_and_aborts_as_told():
 
     def ends(op, status, k):
         calls.append((op, status, k))
-        return True
+        return compiled_loop.STEP_ENDED
 
     fake = _Fake(at=2, status=2)
     loop, rec, keep = _fake_loop(fake, n, ends)
