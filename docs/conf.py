@@ -32,6 +32,7 @@ extensions = [
     "sphinx_gallery.gen_gallery",
     "cli_reference",
     "api_xref",
+    "plain_math",
 ]
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 exclude_patterns = ["_build", "Thumbs.db", ".DS_Store", "auto_examples/*.ipynb", "auto_examples/*.py",
@@ -42,6 +43,7 @@ html_theme = "furo"
 html_title = f"duffid {release}"
 html_extra_path = [str(REPORT.parent)] if REPORT.is_dir() else []
 html_show_sourcelink = False
+html_math_renderer = "plain"  # no MathJax from a CDN: the pages are read without network
 smartquotes = False  # help strings and code-like text: "--flag" stays two hyphens
 
 myst_heading_anchors = 3
@@ -82,6 +84,7 @@ sphinx_gallery_conf = {
     "matplotlib_animations": False,
     "show_memory": False,
     "min_reported_time": 60,
+    "write_computation_times": False,  # its page loads jQuery and DataTables from CDNs
 }
 
 

@@ -11,7 +11,7 @@ from urllib.parse import unquote, urlsplit
 
 import pytest
 
-__all__ = ["chromium", "screenshot", "rendered_dom", "not_blank", "broken_links"]
+__all__ = ["chromium", "screenshot", "rendered_dom", "not_blank", "broken_links", "external_resources"]
 
 #: No page may reach the network: every host name resolves to nothing.
 _OFFLINE = "--host-resolver-rules=MAP * ~NOTFOUND"
@@ -64,6 +64,7 @@ class _Links(HTMLParser):
         super().__init__()
         self.ids: set[str] = set()
         self.links: list[str] = []
+        self.resources: list[str] = []  # what the browser loads by itself: scripts, styles, images
 
     def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
         values = dict(attrs)
@@ -73,6 +74,10 @@ class _Links(HTMLParser):
         for key in ("href", "src"):
             if values.get(key) and not (tag == "link" and key == "href" and values.get("rel") == "canonical"):
                 self.links.append(values[key])
+        if tag in ("script", "img", "iframe") and values.get("src"):
+            self.resources.append(values["src"])
+        if tag == "link" and values.get("rel") in ("stylesheet", "icon", "preload") and values.get("href"):
+            self.resources.append(values["href"])
 
 
 def _parse(page: Path) -> _Links:
@@ -101,3 +106,13 @@ def broken_links(root: Path) -> list[str]:
                 if unquote(parts.fragment) not in ids:
                     broken.append(f"{page.relative_to(root)}: {link} (no anchor)")
     return broken
+
+
+def external_resources(root: Path) -> list[str]:
+    """Every script, style sheet or image of the pages under ``root`` loaded from another host."""
+    found = []
+    for page in root.rglob("*.html"):
+        for link in _parse(page).resources:
+            if urlsplit(link).scheme or link.startswith("//"):
+                found.append(f"{page.relative_to(root)}: {link}")
+    return found

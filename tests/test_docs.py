@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from html_pages import broken_links, not_blank, rendered_dom, screenshot
+from html_pages import broken_links, external_resources, not_blank, rendered_dom, screenshot
 
 HTML = Path(__file__).resolve().parent.parent / "docs" / "_build" / "html"
 #: Pages every build has: the index links to them.
@@ -30,6 +30,11 @@ def test_every_page_is_there(built):
 def test_internal_links_and_anchors_resolve(built):
     """Without network: every relative href/src of every page names an existing file and anchor."""
     assert not broken_links(built)
+
+
+def test_pages_load_nothing_from_the_network(built):
+    """No script, style sheet or image from a CDN: the site is read offline as built."""
+    assert not external_resources(built)
 
 
 def test_cli_reference_lists_every_command(built):
