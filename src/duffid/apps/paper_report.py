@@ -285,7 +285,9 @@ class _Report:
             "crosses zero are removed by filtering Δi·sgn(Δ).",
             "\"Settles\" is duffid's criterion (within "
             f"{100 * SETTLE_TOLERANCE:g} % of the simulated value to the record's end); the paper's "
-            "\"less than 200 ms\" is read off its plot.",
+            "\"less than 200 ms\" is read off its plot. \"Published from\" is when duffid's assessment "
+            "first trusts the estimates; the robust method's curve is blank (NaN) until its window is "
+            "trusted, so it may publish only at the record's end.",
         ])
 
     def case2(self) -> None:
@@ -495,6 +497,8 @@ def _settling_table(caption: str, results: Mapping[str, Identification], truth: 
             series = r.history.get(p)
             row.append("–" if series is None else _fmt(settling_time(r.t, series, value), 3))
         rows.append(row)
+    rows.append(["published from (duffid's own check)"]
+                + ["never" if r.t_identified is None else _fmt(r.t_identified, 3) for r in results.values()])
     return Table(f"{caption} (time [s] from which it stays within {100 * SETTLE_TOLERANCE:g} % of the plant's value)",
                  ["parameter", *(f"duffid {m}" for m in results)], rows, ident)
 
