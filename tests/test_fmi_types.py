@@ -303,10 +303,12 @@ def test_what_the_master_cannot_honour_is_refused_by_name(typed, tmp_path):
                                           r"copied in the Python loop: a.String_output \(String\)"):
         system.run(0.001, 1e-3, loop="compiled")
     with pytest.raises(WiringError, match=r"component 'a' \(Feedthrough3.fmu\): String_output is String; the container "
-                                          "runtime carries scalar Real/Float64, Integer/Int32 and Boolean"):
+                                          "runtime carries every numeric type, Boolean and Enumeration in its "
+                                          "connections, not String or Binary"):
         system.export_container(tmp_path / "c.fmu", outputs={"x": "b.Float64_output"})
     arrays = System().add("s", typed["StateSpace3"])
-    with pytest.raises(WiringError, match=r"y is an array of Float64; the container runtime carries scalar"):
+    with pytest.raises(WiringError, match=r"y is an array of Float64; the container runtime carries scalar "
+                                          "Real/Float64, Integer/Int32 and Boolean values as its own variables"):
         arrays.export_container(tmp_path / "c.fmu", outputs={"y": "s.y"})
     with pytest.raises(WiringError, match="SSP 1.0 has no arrays"):
         arrays.add("t", typed["StateSpace3"]).connect("s.y[1]", "t.u[1]").to_ssp(tmp_path / "s.ssp", stop_time=1.0,
@@ -339,18 +341,29 @@ def test_configuration_files_carry_typed_constants(typed, tmp_path):
     assert result["f.String_parameter_output"][-1] == "from file"
 
 
-def test_the_container_carries_the_glue_types_of_fmi3_components(typed, tmp_path):
-    """Float64, Int32 and Boolean of FMI 3 components through the container runtime, as fmpy
-    runs the container: the outputs equal System.run's."""
-    f3 = typed["Feedthrough3"]
-    system = System().add("a", f3).add("b", f3)
-    for t in ("Float64", "Int32", "Boolean"):
+def test_the_container_carries_every_numeric_type_and_arrays_in_its_connections(typed, tmp_path):
+    """Inside the container runtime, connections of every FMI 3 type but String and Binary (whole
+    arrays too, and FMI 2 <-> FMI 3 Enumeration), as fmpy runs the container; its own outputs are
+    Float64, Int32 and Boolean (the glue's types) and equal System.run's."""
+    f3, f2 = typed["Feedthrough3"], typed["Feedthrough2"]
+    system = System().add("a", f3).add("b", f3).add("c", f2)
+    for t in NUMERIC3:
         system.connect(f"a.{t}_output", f"b.{t}_input")
-    path = system.export_container(tmp_path / "typed.fmu", step=1e-3, fmi_version=3,
-                                   outputs={"x": "b.Float64_output", "i": "b.Int32_output", "flag": "b.Boolean_output"})
-    assert zipfile.is_zipfile(path)
+    system.connect("a.Float64_array_output", "b.Float64_array_input").connect("b.Enumeration_output", "c.Enumeration_input")
+    system.connect("a.Float64_array_output[2,3]", "c.Real_input")
+    outputs = {"x": "b.Float64_output", "i": "b.Int32_output", "flag": "b.Boolean_output", "y": "c.Real_output",
+               "e": "c.Integer_output"}
+    path = system.export_container(tmp_path / "typed.fmu", step=1e-3, fmi_version=3, outputs=outputs)
     reference = fmpy.simulate_fmu(str(path), stop_time=0.003, output_interval=1e-3)
-    result = system.run(0.003, 1e-3, record=["b.Float64_output", "b.Int32_output", "b.Boolean_output"])
-    assert list(reference["x"][1:]) == list(result["b.Float64_output"][1:]) == [1.5] * 3
-    assert list(reference["i"][1:]) == list(result["b.Int32_output"][1:]) == [-32] * 3
-    assert list(reference["flag"][1:]) == list(result["b.Boolean_output"][1:]) == [True] * 3
+    result = system.run(0.003, 1e-3, record=list(outputs.values()))
+    for name, source in outputs.items():
+        assert list(reference[name][1:]) == list(result[source][1:]), name
+    assert list(reference["x"][1:]) == [1.5] * 3 and list(reference["y"][2:]) == [6.0] * 2
+    # the connections' values inside: b's outputs of every type equal a's (read through System.run)
+    inside = system.run(0.003, 1e-3, record=[f"b.{t}_output" for t in NUMERIC3])
+    assert [inside[f"b.{t}_output"][-1] for t in NUMERIC3] == [float(typed_fmus.STARTS[t]) if t.startswith("Float")
+                                                              else typed_fmus.STARTS[t] == "true" if t == "Boolean"
+                                                              else int(typed_fmus.STARTS[t]) for t in NUMERIC3]
+    with pytest.raises(WiringError, match="the container sets an array input whole"):
+        System().add("s", typed["StateSpace3"]).add("t", typed["StateSpace3"]).connect(
+            "s.y[1]", "t.u[1]").export_container(tmp_path / "e.fmu")

@@ -104,6 +104,7 @@ typedef struct Component {
     void *library;
     void *instance;
     duffid_function f[N_FUNCTIONS];
+    duffid_function io[CONTAINER_N_KINDS][2]; /* get and set of each connection kind (NULL: none) */
     fmi2CallbackFunctions callbacks;   /* FMI 2: must outlive the instance */
     /* doStep outputs of FMI 3 */
     _Bool event_handling_needed, terminate, early_return;
@@ -119,16 +120,12 @@ typedef struct Container {
     duffid_move *posts;
     int n_sets, n_gets, n_posts;
     int *set_component, *get_component;  /* component of each set / get op */
-    /* connection values: Float64 slots and Integer/Boolean slots (int32), FMI 3 Boolean staging */
-    double *reals;
-    int32_t *ints;
-    _Bool *staging;
-    /* set ops' own value buffers and arrays */
+    int *set_kind, *get_kind;            /* connection kind of each set / get op */
+    /* connection values, one buffer per kind; staging of gets whose FMI values differ in size from
+     * their buffer's (FMI 3 Boolean, FMI 2 Enumeration); the set ops' own value arrays */
+    unsigned char *values[CONTAINER_N_KINDS];
+    unsigned char *staging, *set_values;
     unsigned *source_vr, *target_vr;
-    intptr_t *target_slot;
-    double *set_reals;
-    int32_t *set_ints;
-    _Bool *set_bools;
     /* the container inputs and parameters as last passed to the components */
     double *sent;
     unsigned char *sent_valid;
@@ -375,6 +372,17 @@ static int load_component(Instance *inst, Component *k, const char *folder)
         return 1;
     }
     k->stage = STAGE_LOADED;
+    for (i = 0; i < 2 * CONTAINER_N_KINDS; i++) {
+        const char *name = (i % 2 ? container_set_names : container_get_names)[v][i / 2];
+        if (name == NULL) continue;
+        k->io[i / 2][i % 2] = find_function(k->library, name);
+        if (k->io[i / 2][i % 2] == NULL) {
+            fail(k, "its binary %s does not export %s", binary, name);
+            free(binary);
+            free(resources);
+            return 1;
+        }
+    }
     for (i = 0; i < N_FUNCTIONS; i++) {
         const char *name = FUNCTION_NAMES[v][i];
         if (name == NULL) continue;
@@ -534,103 +542,104 @@ static int read_outputs(Instance *inst)
 
 /* ------------------------------------------------------------------ the loop's operations */
 
+/* The loop's conversion of values of `from` bytes into values of `to` bytes. */
+static int conversion(size_t from, size_t to)
+{
+    if (from == to) return DUFFID_COPY;
+    if (from == 4 && to == 1) return DUFFID_INT32_TO_BOOL;
+    if (from == 1 && to == 4) return DUFFID_BOOL_TO_INT32;
+    return from == 8 ? DUFFID_INT64_TO_INT32 : DUFFID_INT32_TO_INT64;
+}
+
 /* Builds the set, step, get and post operations of the internal steps; nonzero on lack of memory. */
 static int build_ops(Container *c)
 {
     const size_t ns = CONTAINER_N_SOURCES, nt = CONTAINER_N_TARGETS;
-    size_t i, j;
-    int n_real = 0, n_int = 0;
+    size_t i, j, count[CONTAINER_N_KINDS] = {0}, n_source_values = 0, staged = 0, set_at = 0;
+    int kind;
     for (i = 0; i < ns; i++) {
-        if (container_sources[i].type == VARTYPE_FLOAT64 && container_sources[i].slot + 1 > n_real)
-            n_real = container_sources[i].slot + 1;
-        if (container_sources[i].type != VARTYPE_FLOAT64 && container_sources[i].slot + 1 > n_int)
-            n_int = container_sources[i].slot + 1;
+        const ContainerSource *s = &container_sources[i];
+        if ((size_t)(s->slot + s->n) > count[s->kind]) count[s->kind] = (size_t)(s->slot + s->n);
+        n_source_values += (size_t)s->n;
     }
-    c->reals = (double *)calloc((size_t)n_real + 1, sizeof(double));
-    c->ints = (int32_t *)calloc((size_t)n_int + 1, sizeof(int32_t));
-    c->staging = (_Bool *)calloc((size_t)n_int + 1, sizeof(_Bool));
+    for (kind = 0; kind < CONTAINER_N_KINDS; kind++) {
+        c->values[kind] = (unsigned char *)calloc(count[kind] + 1, container_buffer_size[kind]);
+        if (c->values[kind] == NULL) return 1;
+    }
+    c->staging = (unsigned char *)calloc(n_source_values + 1, 8);
+    c->set_values = (unsigned char *)calloc(CONTAINER_N_TARGET_VALUES + 1, 8);
     c->source_vr = (unsigned *)calloc(ns + 1, sizeof(unsigned));
     c->target_vr = (unsigned *)calloc(nt + 1, sizeof(unsigned));
-    c->target_slot = (intptr_t *)calloc(nt + 1, sizeof(intptr_t));
-    c->set_reals = (double *)calloc(nt + 1, sizeof(double));
-    c->set_ints = (int32_t *)calloc(nt + 1, sizeof(int32_t));
-    c->set_bools = (_Bool *)calloc(nt + 1, sizeof(_Bool));
     c->gets = (duffid_io_op *)calloc(ns + 1, sizeof(duffid_io_op));
     c->get_component = (int *)calloc(ns + 1, sizeof(int));
+    c->get_kind = (int *)calloc(ns + 1, sizeof(int));
     c->posts = (duffid_move *)calloc(ns + 1, sizeof(duffid_move));
     c->sets = (duffid_io_op *)calloc(nt + 1, sizeof(duffid_io_op));
     c->set_component = (int *)calloc(nt + 1, sizeof(int));
-    if (!c->reals || !c->ints || !c->staging || !c->source_vr || !c->target_vr || !c->target_slot || !c->set_reals ||
-        !c->set_ints || !c->set_bools || !c->gets || !c->get_component || !c->posts || !c->sets || !c->set_component)
+    c->set_kind = (int *)calloc(nt + 1, sizeof(int));
+    if (!c->staging || !c->set_values || !c->source_vr || !c->target_vr || !c->gets || !c->get_component ||
+        !c->get_kind || !c->posts || !c->sets || !c->set_component || !c->set_kind)
         return 1;
     for (i = 0; i < ns; i++) c->source_vr[i] = container_sources[i].vr;
-    for (i = 0; i < nt; i++) {
-        c->target_vr[i] = container_targets[i].vr;
-        c->target_slot[i] = container_targets[i].slot;
-    }
-    /* gets: one per run of sources of one component and type (their slots are consecutive) */
+    for (i = 0; i < nt; i++) c->target_vr[i] = container_targets[i].vr;
+    /* gets: one per run of sources of one component and kind (their slots are consecutive) */
     for (i = 0; i < ns; i = j) {
         const ContainerSource *s = &container_sources[i];
         Component *k = &c->comps[s->component];
-        int fmi3 = k->info->fmi_version == 3, f;
+        const int v = k->info->fmi_version == 3;
+        const size_t fmi_size = container_fmi_size[v][s->kind], size = container_buffer_size[s->kind];
+        unsigned char *destination = c->values[s->kind] + (size_t)s->slot * size;
         duffid_io_op *op = &c->gets[c->n_gets];
-        for (j = i + 1; j < ns && container_sources[j].component == s->component && container_sources[j].type == s->type;
-             j++) {
-        }
-        f = s->type == VARTYPE_FLOAT64 ? F_GET_REAL : s->type == VARTYPE_BOOLEAN ? F_GET_BOOL : F_GET_INT;
-        op->function = k->f[f];
+        size_t n_values = 0;
+        for (j = i; j < ns && container_sources[j].component == s->component && container_sources[j].kind == s->kind;
+             j++)
+            n_values += (size_t)container_sources[j].n;
+        op->function = k->io[s->kind][0];
         op->instance = k->instance;
         op->vr = c->source_vr + i;
         op->n = j - i;
-        op->fmi3 = fmi3;
+        op->n_values = n_values;
+        op->fmi3 = v;
         op->convert = DUFFID_COPY;
-        if (s->type == VARTYPE_FLOAT64) {
-            op->value = c->reals + s->slot;
-        } else if (s->type == VARTYPE_BOOLEAN && fmi3) { /* 1-byte Booleans, then copied as int32 */
+        if (fmi_size == size) {
+            op->value = destination;
+        } else { /* into staging, then converted into the kind's buffer */
             duffid_move *m = &c->posts[c->n_posts++];
-            op->value = c->staging + s->slot;
-            m->destination = (char *)(c->ints + s->slot);
-            m->source = (const char *)(c->staging + s->slot);
-            m->n = j - i;
-            m->itemsize = 1;
-            m->convert = DUFFID_BOOL_TO_INT32;
-        } else {
-            op->value = c->ints + s->slot;
+            op->value = c->staging + staged;
+            m->destination = (char *)destination;
+            m->source = (const char *)(c->staging + staged);
+            m->n = n_values;
+            m->itemsize = fmi_size;
+            m->convert = conversion(fmi_size, size);
+            staged += n_values * 8; /* 8-byte aligned for the next run */
         }
+        c->get_kind[c->n_gets] = s->kind;
         c->get_component[c->n_gets++] = s->component;
     }
-    /* sets: one per run of targets of one component and type, gathered from the slots */
+    /* sets: one per run of targets of one component and kind, gathered from the slots */
     for (i = 0; i < nt; i = j) {
         const ContainerTarget *t = &container_targets[i];
         Component *k = &c->comps[t->component];
-        int fmi3 = k->info->fmi_version == 3, f;
+        const int v = k->info->fmi_version == 3;
+        const size_t fmi_size = container_fmi_size[v][t->kind], size = container_buffer_size[t->kind];
         duffid_io_op *op = &c->sets[c->n_sets];
-        for (j = i + 1; j < nt && container_targets[j].component == t->component && container_targets[j].type == t->type;
-             j++) {
-        }
-        f = t->type == VARTYPE_FLOAT64 ? F_SET_REAL : t->type == VARTYPE_BOOLEAN ? F_SET_BOOL : F_SET_INT;
-        op->function = k->f[f];
+        size_t n_values = 0;
+        for (j = i; j < nt && container_targets[j].component == t->component && container_targets[j].kind == t->kind;
+             j++)
+            n_values += (size_t)container_targets[j].n;
+        op->function = k->io[t->kind][1];
         op->instance = k->instance;
         op->vr = c->target_vr + i;
         op->n = j - i;
-        op->fmi3 = fmi3;
-        op->gather_index = c->target_slot + i;
-        if (t->type == VARTYPE_FLOAT64) {
-            op->value = c->set_reals + i;
-            op->gather_source = (const char *)c->reals;
-            op->itemsize = sizeof(double);
-            op->convert = DUFFID_COPY;
-        } else {
-            op->gather_source = (const char *)c->ints;
-            op->itemsize = sizeof(int32_t);
-            if (t->type == VARTYPE_BOOLEAN && fmi3) {
-                op->value = c->set_bools + i;
-                op->convert = DUFFID_INT32_TO_BOOL;
-            } else {
-                op->value = c->set_ints + i;
-                op->convert = DUFFID_COPY;
-            }
-        }
+        op->n_values = n_values;
+        op->fmi3 = v;
+        op->gather_index = container_target_slots + t->first;
+        op->gather_source = (const char *)c->values[t->kind];
+        op->itemsize = size;
+        op->value = c->set_values + set_at;
+        op->convert = conversion(size, fmi_size);
+        set_at += n_values * 8;
+        c->set_kind[c->n_sets] = t->kind;
         c->set_component[c->n_sets++] = t->component;
     }
     for (i = 0; i < N_COMPONENTS; i++) {
@@ -697,14 +706,13 @@ static void loop_failed(Container *c, int rc, int op, int status, long k_failed,
     double t = c->grid[k_failed];
     if (rc == DUFFID_LOOP_SET_FAILED) {
         Component *k = &c->comps[c->set_component[op]];
-        fail(k, "%s of its connected inputs returned %s at t = %.17g", FUNCTION_NAMES[k->info->fmi_version - 2]
-             [c->sets[op].function == k->f[F_SET_REAL] ? F_SET_REAL : c->sets[op].function == k->f[F_SET_BOOL]
-              ? F_SET_BOOL : F_SET_INT], status_name(status), t);
+        fail(k, "%s of its connected inputs returned %s at t = %.17g",
+             container_set_names[k->info->fmi_version - 2][c->set_kind[op]], status_name(status), t);
     } else if (rc == DUFFID_LOOP_GET_FAILED) {
         Component *k = &c->comps[c->get_component[op]];
-        fail(k, "%s of its connected outputs returned %s at t = %.17g", FUNCTION_NAMES[k->info->fmi_version - 2]
-             [c->gets[op].function == k->f[F_GET_REAL] ? F_GET_REAL : c->gets[op].function == k->f[F_GET_BOOL]
-              ? F_GET_BOOL : F_GET_INT], status_name(status), n == 0 ? t : c->grid[k_failed + 1]);
+        fail(k, "%s of its connected outputs returned %s at t = %.17g",
+             container_get_names[k->info->fmi_version - 2][c->get_kind[op]], status_name(status),
+             n == 0 ? t : c->grid[k_failed + 1]);
     } else {
         Component *k = &c->comps[op];
         if (status >= FMU_ERROR) k->stage = STAGE_TERMINATED; /* after Error: free or reset only */
@@ -783,15 +791,13 @@ static void free_data(Instance *inst)
     free(c->posts);
     free(c->set_component);
     free(c->get_component);
-    free(c->reals);
-    free(c->ints);
+    for (i = 0; i < CONTAINER_N_KINDS; i++) free(c->values[i]);
     free(c->staging);
+    free(c->set_values);
     free(c->source_vr);
     free(c->target_vr);
-    free(c->target_slot);
-    free(c->set_reals);
-    free(c->set_ints);
-    free(c->set_bools);
+    free(c->set_kind);
+    free(c->get_kind);
     free(c->sent);
     free(c->sent_valid);
     free(c->grid);

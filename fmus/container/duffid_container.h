@@ -4,7 +4,8 @@
  *
  * The container's own variables (names, start values, causality, variability, types) are the
  * usual tables of the shared glue (fmus/common/fmu_model.h); value reference 0 is the time.
- * Types are the glue's VARTYPE_* codes (Float64, Integer/Int32, Boolean).
+ * Their types are the glue's VARTYPE_* codes (Float64, Integer/Int32, Boolean); the connections
+ * inside carry more kinds (below).
  */
 #ifndef DUFFID_CONTAINER_H
 #define DUFFID_CONTAINER_H
@@ -20,23 +21,28 @@ typedef struct {
     const char *token;             /* guid / instantiationToken */
 } ContainerComponent;
 
-/* The connection sources, sorted by (component, type): each one value read after every
- * internal step into slot `slot` of the buffer of its type (Float64, or Integer/Boolean). */
+/* The connection sources, sorted by (component, kind): each a variable of n values (an array has
+ * several) read after every internal step into slots slot .. slot + n - 1 of the buffer of its kind.
+ * The kinds (Float64, Integer/Int32, Boolean, Float32, Int8 .. UInt64, Enumeration) and their FMI
+ * functions are the generated tables container_buffer_size, container_get_names,
+ * container_set_names and container_fmi_size (CONTAINER_N_KINDS). */
 typedef struct {
     int component;
     unsigned vr;
-    int type;
+    int kind;
     int slot;
+    int n;
 } ContainerSource;
 
-/* The connection targets, sorted by (component, type): set from slot `slot` of the buffer of
- * their type after every internal step (and from zeros during initialisation, as the
- * orchestrator does). */
+/* The connection targets, sorted by (component, kind): each a variable of n values set after every
+ * internal step (and from zeros during initialisation, as the orchestrator does) from the slots
+ * container_target_slots[first .. first + n - 1] of the buffer of its kind. */
 typedef struct {
     int component;
     unsigned vr;
-    int type;
-    intptr_t slot;
+    int kind;
+    int first;
+    int n;
 } ContainerTarget;
 
 /* A container variable and one component variable it maps to: an input or parameter is set

@@ -19,10 +19,15 @@ variable, else an error), with the components' unit definitions.
 
 What is exported:
 
-* every component and every connection of the system;
+* every component and every connection of the system: connections of every numeric FMI type
+  (Float64/Real, Float32, Int8 .. UInt64, Integer/Int32), Boolean and Enumeration (FMI 2 <-> FMI 3
+  too), whole arrays included; a connection of String or Binary values, or into one element of an
+  array input, is refused by name (System.run handles those);
 * container inputs: each maps to one or more component inputs
   (``inputs={"r": ["controller.r"], "f": ["plant.f", "estimator.f"]}``);
 * container outputs: each maps to one component output (``outputs={"x": "plant.x"}``);
+  the container's own variables are scalar Real/Float64, Integer/Int32 and Boolean (the shared
+  FMI glue's types; anything else is refused by name);
 * parameters: every parameter value given to :meth:`~duffid.cosim.system.System.add` becomes a
   container parameter named ``"component.parameter"`` whose start value is that value
   (the container sets its parameters into its components before their initialisation, so
@@ -62,6 +67,8 @@ their own, as under the orchestrator).
 """
 from __future__ import annotations
 
+import ctypes
+import itertools
 import math
 import os
 import re
@@ -82,11 +89,12 @@ from ..cbuild import (
     resolve_platforms,
 )
 from ..errors import WiringError
-from ..fmu.c_model import TYPE_CODES, config_header, retype
+from ..fmu.c_model import config_header, retype
 from ..fmu.fmi_xml import FmuInfo, model_description_fmi2, model_description_fmi3
 from ..fmu.package import COMMON_FILES, fmi_include_dir, token_from, write_zip
 from ..fmu.variables import FmuVariable
 from .elements import WiredSystem, with_article
+from .value_types import FMI_FUNCTIONS
 
 __all__ = ["CONTAINER_GENERATION_TOOL", "RUNTIME_FILES", "export_container", "carried_kind"]
 
@@ -96,8 +104,17 @@ CONTAINER_GENERATION_TOOL = "duffid.cosim.container (duffid's container runtime,
 RUNTIME_FILES = {"container": ("duffid_container.c", "duffid_container.h"),
                  "cosim": ("duffid_cosim_loop.c", "duffid_cosim_loop.h")}
 _CONFIG = "container_fmu_config.h"
-#: The container's type of each component variable kind (fmus/common VARTYPE_* names).
+#: The container's type of each component variable kind (fmus/common VARTYPE_* names): what its own
+#: variables (inputs, outputs, parameters) can be.
 _GLUE_TYPE = {"Real": "Float64", "Integer": "Integer", "Boolean": "Boolean"}
+#: The kinds of the connections inside the container, in the order of their codes (the first three
+#: are the glue's VARTYPE_* codes): per FMI version the get and set functions and the bytes of one
+#: value they exchange (None: the version has no such type); the container's buffer of a kind
+#: holds values of the first size given (Boolean as int32, Enumeration as int64).
+_KINDS = ("Real", "Integer", "Boolean", "Float32", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64", "UInt64",
+          "Enumeration")
+_BUFFER_SIZES = {"Real": 8, "Integer": 4, "Boolean": 4, "Float32": 4, "Int8": 1, "UInt8": 1, "Int16": 2, "UInt16": 2,
+                 "UInt32": 4, "Int64": 8, "UInt64": 8, "Enumeration": 8}
 
 
 @dataclass
@@ -171,18 +188,22 @@ def _identifier(stem: str) -> str:
     return ident if not ident[0].isdigit() else "_" + ident
 
 
-def carried_kind(comp: Any, var: Any, role: str) -> str:
+def carried_kind(comp: Any, var: Any, role: str, inside: bool = False) -> str:
     """The kind of a component variable the container exchanges, or WiringError naming the
-    component, its FMU, the variable and why: the container runtime (on the shared FMI glue,
-    whose values are doubles) carries scalar Real/Float64, Integer/Int32 and Boolean values
-    only, not the other FMI 3 types, String, Binary, Enumeration or arrays (run such systems
-    with System.run)."""
+    component, its FMU, the variable and why. Its own variables (inputs, outputs, parameters: the
+    shared FMI glue holds doubles) are scalar Real/Float64, Integer/Int32 and Boolean; connections
+    ``inside`` it also carry Float32, Int8 .. UInt64 and Enumeration, and arrays; neither carries
+    String or Binary (run such systems with System.run)."""
     kind = comp.kind(var, "exported")
+    if inside and kind in _KINDS:
+        return kind
     if kind not in _GLUE_TYPE or var.dimensions:
         what = f"an array of {var.type}" if var.dimensions else var.type
-        raise WiringError(f"{role} {comp.where()}: {var.name} is {what}; the container runtime carries scalar "
-                          "Real/Float64, Integer/Int32 and Boolean values only (run the system with System.run, "
-                          "or leave the variable out of the container)")
+        carried = ("scalar Real/Float64, Integer/Int32 and Boolean values as its own variables, and Float32, "
+                   "Int8 .. UInt64 and Enumeration (arrays too) in its connections only" if not inside else
+                   "every numeric type, Boolean and Enumeration in its connections, not String or Binary")
+        raise WiringError(f"{role} {comp.where()}: {var.name} is {what}; the container runtime carries {carried} "
+                          "(run the system with System.run, or leave the variable out of the container)")
     return kind
 
 
@@ -205,8 +226,12 @@ def _plan(system: WiredSystem, inputs: Mapping[str, str | Sequence[str]] | None,
         return comp, var, carried_kind(comp, var, role)
 
     for conn in system.wiring.connections:
-        for full in (conn.source, conn.target):
-            resolve(full, f"the connection {conn}:")
+        ends = [system.wiring.channel(full, "connection") for full in (conn.source, conn.target)]
+        for comp, var, _ in ends:
+            carried_kind(comp, var, f"the connection {conn}:", inside=True)
+        if ends[1][2] is not None:
+            raise WiringError(f"the connection {conn}: the container sets an array input whole; connect the whole "
+                              "array, or run the system with System.run")
     connected = {c.target for c in system.wiring.connections}
     for name, targets in (inputs or {}).items():
         entries = []
@@ -308,32 +333,60 @@ def _header(system: WiredSystem, variables: list[_Variable], table: list[FmuVari
     component_rows = [f"{{{_c_string(c.name)}, {_c_string(c.path.name)}, "
                       f"{_c_string(c.md.coSimulation.modelIdentifier)}, {c.version}, "
                       f"{_c_string(c.md.guid if c.version == 2 else c.md.instantiationToken)}}}" for c in comps]
-    # connection sources: unique, sorted by (component, type); slots per buffer (Float64 / int32)
-    kinds = {}
+    # connection sources: unique variables, sorted by (component, kind); n values each, in the buffer of their kind
+    ends = {}
     for conn in system.wiring.connections:
         for full in (conn.source, conn.target):
-            comp, var = system.wiring.lookup(full, "connection")
-            kinds[full] = (order[comp.name], var.valueReference, TYPE_CODES[_GLUE_TYPE[comp.kind(var, "connected")]])
-    sources = sorted({kinds[c.source] for c in system.wiring.connections}, key=lambda s: (s[0], s[2], s[1]))
-    slots, counts = {}, {0: 0, 1: 0}
-    for s in sources:
-        buffer = 0 if s[2] == TYPE_CODES["Float64"] else 1
-        slots[s] = counts[buffer]
-        counts[buffer] += 1
-    targets = sorted(((kinds[c.target], slots[kinds[c.source]]) for c in system.wiring.connections),
-                     key=lambda t: (t[0][0], t[0][2], t[0][1]))
+            comp, var, index = system.wiring.channel(full, "connection")
+            ends[full] = (order[comp.name], var.valueReference, _KINDS.index(comp.kind(var, "connected")),
+                          comp.size(var), index)
+    sources = sorted({ends[c.source][:4] for c in system.wiring.connections}, key=lambda s: (s[0], s[2], s[1]))
+    slots, counts = {}, [0] * len(_KINDS)
+    for source in sources:
+        slots[source] = counts[source[2]]
+        counts[source[2]] += source[3]
+    # connection targets: one per input variable, each value gathered from a slot of its kind's buffer
+    gathers: dict[tuple, list[int]] = {}
+    for conn in system.wiring.connections:
+        source, target = ends[conn.source], ends[conn.target]
+        first = slots[source[:4]] + (source[4] or 0)
+        gathers[target[:4]] = [first + i for i in range(target[3])] if source[4] is None and target[4] is None else [first]
+    targets = sorted(gathers, key=lambda t: (t[0], t[2], t[1]))
+    starts = list(itertools.accumulate([len(gathers[t]) for t in targets], initial=0))
     links = [(vr, comp, cvr, full) for vr, var in enumerate(variables, start=1) for comp, cvr, full in var.links]
     text += (f"\n/* The container's description (duffid_container.h). */\n#define CONTAINER_STEP {float(step)!r}\n"
              + array("ContainerComponent", "components", component_rows, "CONTAINER_N_COMPONENTS")
-             + array("ContainerSource", "sources", [f"{{{c}, {vr}u, {t}, {slots[(c, vr, t)]}}}" for c, vr, t in sources],
-                     "CONTAINER_N_SOURCES")
-             + array("ContainerTarget", "targets", [f"{{{c}, {vr}u, {t}, {slot}}}" for (c, vr, t), slot in targets],
+             + _kind_tables()
+             + array("ContainerSource", "sources", [f"{{{c}, {vr}u, {k}, {slots[(c, vr, k, n)]}, {n}}}"
+                                                    for c, vr, k, n in sources], "CONTAINER_N_SOURCES")
+             + array("ContainerTarget", "targets", [f"{{{c}, {vr}u, {k}, {first}, {len(gathers[(c, vr, k, n)])}}}"
+                                                    for (c, vr, k, n), first in zip(targets, starts)],
                      "CONTAINER_N_TARGETS")
+             + array("intptr_t", "target_slots", [str(slot) for t in targets for slot in gathers[t]],
+                     "CONTAINER_N_TARGET_VALUES")
              + array("ContainerLink", "links", [f"{{{vr}u, {c}, {cvr}u}}" for vr, c, cvr, _ in links],
                      "CONTAINER_N_LINKS")
              + "static const char *const container_link_names[] = {\n    "
              + (",\n    ".join(_c_string(full) for *_, full in links) or '""') + "\n};\n")
     return text + "\n#endif\n"
+
+
+def _kind_tables() -> str:
+    """The C tables of the connection kinds (duffid_container.c reads them): buffer sizes, and per
+    FMI version the get/set function names and value sizes (:data:`FMI_FUNCTIONS`)."""
+    def names(version: int, which: int) -> str:
+        return ", ".join(_c_string(FMI_FUNCTIONS[version][k][which]) if k in FMI_FUNCTIONS[version] else "NULL"
+                         for k in _KINDS)
+
+    def sizes(version: int) -> str:
+        return ", ".join(str(ctypes.sizeof(FMI_FUNCTIONS[version][k][2])) if k in FMI_FUNCTIONS[version] else "0"
+                         for k in _KINDS)
+
+    return (f"#define CONTAINER_N_KINDS {len(_KINDS)}\n"
+            f"static const size_t container_buffer_size[] = {{{', '.join(str(_BUFFER_SIZES[k]) for k in _KINDS)}}};\n"
+            f"static const char *const container_get_names[2][CONTAINER_N_KINDS] = {{{{{names(2, 0)}}}, {{{names(3, 0)}}}}};\n"
+            f"static const char *const container_set_names[2][CONTAINER_N_KINDS] = {{{{{names(2, 1)}}}, {{{names(3, 1)}}}}};\n"
+            f"static const size_t container_fmi_size[2][CONTAINER_N_KINDS] = {{{{{sizes(2)}}}, {{{sizes(3)}}}}};\n")
 
 
 def _unit_elements(system: WiredSystem) -> dict[str, ET.Element]:
