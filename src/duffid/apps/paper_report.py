@@ -239,7 +239,8 @@ class _Report:
             f"The paper's sweep is fast ({rate:g} Hz/s): the response never builds up to the steady jump "
             f"of a Duffing resonance, so the distortion stays small "
             f"({self.notes.link('simulation', 'notes: eta and the sweep rate')}). A slower sweep "
-            "(benchmarks/nonlinearity.py --amplitude-table) drops eta below 0.9 only near the escape amplitude.",
+            f"(benchmarks/nonlinearity.py --amplitude-table) drops eta below {P.ETA_THRESHOLD:g} only near the "
+            "escape amplitude.",
             "Band edges: computed as the paper does (FRF set to zero outside the excited band) the same plant "
             f"without its cubic spring (kp = 0) already reads eta = {linear.eta_uncorrected:.5f} under this sweep, "
             f"not 1; the corrected column extends the FRF with a fitted linear model ({linear.eta:.5f} for it).",
@@ -281,11 +282,12 @@ class _Report:
             + (f"leaves its potential well at {escape:.2f} s" if np.isfinite(escape) else "stays bounded")
             + f" ({self.notes.link('simulation', 'notes')}); the paper's experiment was short or had end stops.",
             f"The paper method follows eqs. (12)–(19) with the corrected eq. (12) "
-            f"({self.notes.link('typos', 'notes: typos in the printed equations')}); its sign flips where Δ "
-            "crosses zero are removed by filtering Δi·sgn(Δ).",
+            f"({self.notes.link('typos', 'notes: typos in the printed equations')}) and eq. (19) as printed: its "
+            "estimate flips sign where the determinant Δ crosses zero (the spikes of its curves); the option "
+            f"sign_in_numerator applies the notes' fix ({self.notes.link('simulation', 'notes')}).",
             "\"Settles\" is duffid's criterion (within "
             f"{100 * SETTLE_TOLERANCE:g} % of the simulated value to the record's end); the paper's "
-            "\"less than 200 ms\" is read off its plot. \"Published from\" is when duffid's assessment "
+            "time of Figure 8 is read off its plot. \"Published from\" is when duffid's assessment "
             "first trusts the estimates; the robust method's curve is blank (NaN) until its window is "
             "trusted, so it may publish only at the record's end.",
         ])
@@ -356,7 +358,7 @@ class _Report:
             f"duffid runs {len(amplitudes)} of the paper's {P.AMPLITUDES_2DOF} amplitudes (every second one) to keep "
             "the report under two minutes; each sweep with its ring-down is several seconds of simulation.",
             f"As for Figure 6, the paper's fast sweep ({rate:g} Hz/s, 0 to {top:.1f} Hz here) keeps the distortion "
-            f"small: eta only falls to {lowest:.4f}; the paper's visible distortion from about 3 N on a real rig "
+            f"small: eta only falls to {lowest:.4f}; the visible distortion of the paper's Figure 11 on a real rig "
             "includes unmodelled dynamics and noise that the simulated chain does not have "
             f"({self.notes.link('simulation', 'notes')}).",
         ])
