@@ -290,6 +290,15 @@ def test_what_the_master_cannot_honour_is_refused_by_name(typed, tmp_path):
     with pytest.raises(WiringError, match=r"'a.Float32_output' \(Float32\) to 'b.Float64_input' \(Float64\): types "
                                           "differ"):
         system.connect("a.Float32_output", "b.Float64_input")
+    other = tmp_path / "OtherItems.fmu"  # the same FMU whose enumeration has another third item
+    with zipfile.ZipFile(f3) as source, zipfile.ZipFile(other, "w") as target:
+        for item in source.infolist():
+            data = source.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b'name="Option3" value="3"', b'name="Option4" value="4"')
+            target.writestr(item, data)
+    with pytest.raises(WiringError, match=r"their enumerations have different items .*\('Option3', 3\).*\('Option4', 4\)"):
+        system.add("o", other).connect("a.Enumeration_output", "o.Enumeration_input")
     with pytest.raises(WiringError, match=r"UInt8; 256 is outside its range \[0, 255\]"):
         system.set_input("a.UInt8_input", 256)
     with pytest.raises(WiringError, match=r"Int16; got 1.5 \(not an integer\)"):
@@ -339,6 +348,32 @@ def test_configuration_files_carry_typed_constants(typed, tmp_path):
     assert [result[f"f.Int32_array_output[{i}]"][-1] for i in (1, 2, 3)] == [4, 5, 6]
     assert [result[f"f.Float64_array_output[2,{j}]"][-1] for j in (1, 2, 3)] == [4.0, 0.5, 6.0]
     assert result["f.String_parameter_output"][-1] == "from file"
+
+
+def test_the_command_line_runs_a_toml_system_of_every_type(typed, tmp_path, capsys):
+    from duffid.cli import main
+
+    config = tmp_path / "system.toml"
+    config.write_text(f'''[components.f]
+fmu = "{typed["Feedthrough3"].as_posix()}"
+[components.s]
+fmu = "{typed["StateSpace3"].as_posix()}"
+parameters = {{ m = 2, B = [[0, 0], [0, 1]], D = [[0, 0], [0, 0]] }}
+[inputs]
+"f.Binary_input" = "beef"
+"f.String_input" = "toml text"
+"s.u" = [1.0, 2.0]
+[run]
+stop_time = 0.002
+step = 0.001
+''')
+    assert main(["cosim", str(config), "-o", str(tmp_path / "out.csv")]) == 0
+    shown = capsys.readouterr().out
+    assert "f.String_output                  final 'toml text'" in shown
+    assert "f.Binary_output                  final beef" in shown and "s.u[2]" in shown
+    header, first = (tmp_path / "out.csv").read_text().splitlines()[:2]
+    assert header.endswith(",s.u[1],s.u[2],s.y[1],s.y[2]") and '"f.Float64_array_output[2,3]"' in header
+    assert ",beef," in first
 
 
 def test_the_container_carries_every_numeric_type_and_arrays_in_its_connections(typed, tmp_path):

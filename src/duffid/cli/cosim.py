@@ -120,6 +120,7 @@ def _run(args: argparse.Namespace) -> int:
     if result.ended is not None:
         print(f"the simulation ended early: {result.ended}")
     for name in result.names:
-        values = result[name]
-        print(f"  {name:<32} final {values[-1]:.6g}")
+        final = result[name][-1]  # a String as text, a Binary in hexadecimal (as in the CSV file)
+        shown = final.hex() if isinstance(final, bytes) else repr(final) if isinstance(final, str) else f"{final:.6g}"
+        print(f"  {name:<32} final {shown}")
     return 0
