@@ -193,117 +193,50 @@ fmi2Status fmi2Reset(fmi2Component c)
     return fmi2OK;
 }
 
-fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
-{
-    Model2 *m = (Model2 *)c;
-    size_t j;
-    if (bad(m, "fmi2GetReal", vr, nvr, value)) return fmi2Error;
-    for (j = 0; j < nvr; j++) {
-        int i = access(m, "fmi2GetReal", vr[j], T_FLOAT64, T_FLOAT64, 0);
-        if (i < 0) return fmi2Error;
-        value[j] = m->real[i];
+/* fmi2Get<Name> / fmi2Set<Name> of variables of the types a or b, values in m-><store>[index]. */
+#define GET_SET(Name, Type, a, b, store, assign)                                                             \
+    fmi2Status fmi2Get##Name(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, Type value[])       \
+    {                                                                                                        \
+        Model2 *m = (Model2 *)c;                                                                             \
+        size_t j;                                                                                            \
+        if (bad(m, "fmi2Get" #Name, vr, nvr, value)) return fmi2Error;                                       \
+        for (j = 0; j < nvr; j++) {                                                                          \
+            int i = access(m, "fmi2Get" #Name, vr[j], a, b, 0);                                              \
+            if (i < 0) return fmi2Error;                                                                     \
+            value[j] = m->store[i];                                                                          \
+        }                                                                                                    \
+        return fmi2OK;                                                                                       \
+    }                                                                                                        \
+    fmi2Status fmi2Set##Name(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const Type value[]) \
+    {                                                                                                        \
+        Model2 *m = (Model2 *)c;                                                                             \
+        size_t j;                                                                                            \
+        if (bad(m, "fmi2Set" #Name, vr, nvr, value)) return fmi2Error;                                       \
+        for (j = 0; j < nvr; j++) {                                                                          \
+            int i = access(m, "fmi2Set" #Name, vr[j], a, b, 1);                                              \
+            if (i < 0 || assign(m, i, value[j])) return fmi2Error;                                           \
+        }                                                                                                    \
+        calculate(m);                                                                                        \
+        return fmi2OK;                                                                                       \
     }
-    return fmi2OK;
+
+static int assign_real(Model2 *m, int i, fmi2Real value) { return m->real[i] = value, 0; }
+static int assign_integer(Model2 *m, int i, fmi2Integer value) { return m->integer[i] = value, 0; }
+static int assign_boolean(Model2 *m, int i, fmi2Boolean value) { return m->integer[i] = value != 0, 0; }
+static int assign_string(Model2 *m, int i, fmi2String value)
+{
+    if (value == NULL) {
+        say(m, fmi2Error, "fmi2SetString: a NULL string");
+        return 1;
+    }
+    put_string(&m->string[i], value);
+    return 0;
 }
 
-fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[])
-{
-    Model2 *m = (Model2 *)c;
-    size_t j;
-    if (bad(m, "fmi2GetInteger", vr, nvr, value)) return fmi2Error;
-    for (j = 0; j < nvr; j++) {
-        int i = access(m, "fmi2GetInteger", vr[j], T_INT32, T_ENUMERATION, 0);
-        if (i < 0) return fmi2Error;
-        value[j] = m->integer[i];
-    }
-    return fmi2OK;
-}
-
-fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[])
-{
-    Model2 *m = (Model2 *)c;
-    size_t j;
-    if (bad(m, "fmi2GetBoolean", vr, nvr, value)) return fmi2Error;
-    for (j = 0; j < nvr; j++) {
-        int i = access(m, "fmi2GetBoolean", vr[j], T_BOOLEAN, T_BOOLEAN, 0);
-        if (i < 0) return fmi2Error;
-        value[j] = m->integer[i];
-    }
-    return fmi2OK;
-}
-
-fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[])
-{
-    Model2 *m = (Model2 *)c;
-    size_t j;
-    if (bad(m, "fmi2GetString", vr, nvr, value)) return fmi2Error;
-    for (j = 0; j < nvr; j++) {
-        int i = access(m, "fmi2GetString", vr[j], T_STRING, T_STRING, 0);
-        if (i < 0) return fmi2Error;
-        value[j] = m->string[i];
-    }
-    return fmi2OK;
-}
-
-fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
-{
-    Model2 *m = (Model2 *)c;
-    size_t j;
-    if (bad(m, "fmi2SetReal", vr, nvr, value)) return fmi2Error;
-    for (j = 0; j < nvr; j++) {
-        int i = access(m, "fmi2SetReal", vr[j], T_FLOAT64, T_FLOAT64, 1);
-        if (i < 0) return fmi2Error;
-        m->real[i] = value[j];
-    }
-    calculate(m);
-    return fmi2OK;
-}
-
-fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[])
-{
-    Model2 *m = (Model2 *)c;
-    size_t j;
-    if (bad(m, "fmi2SetInteger", vr, nvr, value)) return fmi2Error;
-    for (j = 0; j < nvr; j++) {
-        int i = access(m, "fmi2SetInteger", vr[j], T_INT32, T_ENUMERATION, 1);
-        if (i < 0) return fmi2Error;
-        m->integer[i] = value[j];
-    }
-    calculate(m);
-    return fmi2OK;
-}
-
-fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[])
-{
-    Model2 *m = (Model2 *)c;
-    size_t j;
-    if (bad(m, "fmi2SetBoolean", vr, nvr, value)) return fmi2Error;
-    for (j = 0; j < nvr; j++) {
-        int i = access(m, "fmi2SetBoolean", vr[j], T_BOOLEAN, T_BOOLEAN, 1);
-        if (i < 0) return fmi2Error;
-        m->integer[i] = value[j] != 0;
-    }
-    calculate(m);
-    return fmi2OK;
-}
-
-fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[])
-{
-    Model2 *m = (Model2 *)c;
-    size_t j;
-    if (bad(m, "fmi2SetString", vr, nvr, value)) return fmi2Error;
-    for (j = 0; j < nvr; j++) {
-        int i = access(m, "fmi2SetString", vr[j], T_STRING, T_STRING, 1);
-        if (i < 0) return fmi2Error;
-        if (value[j] == NULL) {
-            say(m, fmi2Error, "fmi2SetString: a NULL string");
-            return fmi2Error;
-        }
-        put_string(&m->string[i], value[j]);
-    }
-    calculate(m);
-    return fmi2OK;
-}
+GET_SET(Real, fmi2Real, T_FLOAT64, T_FLOAT64, real, assign_real)
+GET_SET(Integer, fmi2Integer, T_INT32, T_ENUMERATION, integer, assign_integer)
+GET_SET(Boolean, fmi2Boolean, T_BOOLEAN, T_BOOLEAN, integer, assign_boolean)
+GET_SET(String, fmi2String, T_STRING, T_STRING, string, assign_string)
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint)

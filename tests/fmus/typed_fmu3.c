@@ -383,20 +383,23 @@ void fmi3FreeInstance(fmi3Instance instance)
     free(m);
 }
 
-fmi3Status fmi3EnterConfigurationMode(fmi3Instance instance)
+/* A change of mode allowed from the modes `from`. */
+static fmi3Status switch_mode(fmi3Instance instance, const char *function, int from, int to)
 {
     Model *m = (Model *)instance;
-    if (check(m, "fmi3EnterConfigurationMode", M_INSTANTIATED) != fmi3OK) return fmi3Error;
-    m->mode = M_CONFIGURATION;
+    if (check(m, function, from) != fmi3OK) return fmi3Error;
+    m->mode = to;
     return fmi3OK;
+}
+
+fmi3Status fmi3EnterConfigurationMode(fmi3Instance instance)
+{
+    return switch_mode(instance, "fmi3EnterConfigurationMode", M_INSTANTIATED, M_CONFIGURATION);
 }
 
 fmi3Status fmi3ExitConfigurationMode(fmi3Instance instance)
 {
-    Model *m = (Model *)instance;
-    if (check(m, "fmi3ExitConfigurationMode", M_CONFIGURATION) != fmi3OK) return fmi3Error;
-    m->mode = M_INSTANTIATED;
-    return fmi3OK;
+    return switch_mode(instance, "fmi3ExitConfigurationMode", M_CONFIGURATION, M_INSTANTIATED);
 }
 
 fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,
@@ -423,10 +426,7 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance instance)
 
 fmi3Status fmi3Terminate(fmi3Instance instance)
 {
-    Model *m = (Model *)instance;
-    if (check(m, "fmi3Terminate", M_STEP | M_EVENT) != fmi3OK) return fmi3Error;
-    m->mode = M_TERMINATED;
-    return fmi3OK;
+    return switch_mode(instance, "fmi3Terminate", M_STEP | M_EVENT, M_TERMINATED);
 }
 
 fmi3Status fmi3Reset(fmi3Instance instance)
@@ -479,10 +479,9 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
 fmi3Status fmi3EnterEventMode(fmi3Instance instance)
 {
     Model *m = (Model *)instance;
-    if (check(m, "fmi3EnterEventMode", M_STEP) != fmi3OK) return fmi3Error;
-    if (!m->event_mode_used) return fail(m, "%s: %s", "fmi3EnterEventMode", "the instance was made with eventModeUsed false");
-    m->mode = M_EVENT;
-    return fmi3OK;
+    if (m != NULL && !m->event_mode_used)
+        return fail(m, "%s: %s", "fmi3EnterEventMode", "the instance was made with eventModeUsed false");
+    return switch_mode(instance, "fmi3EnterEventMode", M_STEP, M_EVENT);
 }
 
 fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discreteStatesNeedUpdate,
@@ -505,10 +504,7 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
 
 fmi3Status fmi3EnterStepMode(fmi3Instance instance)
 {
-    Model *m = (Model *)instance;
-    if (check(m, "fmi3EnterStepMode", M_EVENT) != fmi3OK) return fmi3Error;
-    m->mode = M_STEP;
-    return fmi3OK;
+    return switch_mode(instance, "fmi3EnterStepMode", M_EVENT, M_STEP);
 }
 
 /* ------------------------------------------------------------------ getters and setters */
