@@ -77,13 +77,14 @@ def test_every_fmi3_type_is_set_connected_and_recorded_as_fmpy_reads_it(typed):
     """Constants of every type into a, a's outputs connected to b's inputs of the same type
     (arrays whole): b's outputs are what fmpy's getters return after fmpy set the same values
     with its setters, type for type."""
-    system = System().add("a", typed["Feedthrough3"]).add("b", typed["Feedthrough3"])
+    system = System().add("a", typed["Feedthrough3"]).add("b", typed["Feedthrough3"]).add("c", typed["Feedthrough2"])
     for t in FMI3:
         system.set_input(f"a.{t}_input", VALUES[t]).connect(f"a.{t}_output", f"b.{t}_input")
+    system.connect("b.String_output", "c.String_input").connect("b.Enumeration_output", "c.Enumeration_input")
     system.set_input("a.Float64_array_input", [[9, 8, 7], [6, 5, 4]]).set_input("a.Int32_array_input", [-1, 0, 1])
     system.connect("a.Float64_array_output", "b.Float64_array_input")
     system.connect("a.Int32_array_output", "b.Int32_array_input")
-    result = system.run(0.002, 1e-3)
+    result = system.run(0.003, 1e-3)
     assert result.loop == "python"  # String and Binary values are copied in Python
     reference = _fmpy_feedthrough(typed["Feedthrough3"], {
         **{f"{t}_input": VALUES[t] for t in FMI3},
@@ -94,6 +95,7 @@ def test_every_fmi3_type_is_set_connected_and_recorded_as_fmpy_reads_it(typed):
     assert [result[f"b.Float64_array_output[{i},{j}]"][-1] for i in (1, 2) for j in (1, 2, 3)] == \
         reference[-1]["Float64_array_output"] == [9, 8, 7, 6, 5, 4]
     assert [result[f"b.Int32_array_output[{i}]"][-1] for i in (1, 2, 3)] == reference[-1]["Int32_array_output"]
+    assert result["c.String_output"][-1] == VALUES["String"] and result["c.Enumeration_output"][-1] == 3  # FMI 3 -> 2
     dtypes = {"Float32": np.float32, "UInt64": np.uint64, "Int8": np.int8, "Boolean": np.bool_,
               "Enumeration": np.int64, "String": object, "Binary": object}
     for t, dtype in dtypes.items():
