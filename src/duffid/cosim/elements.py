@@ -1,5 +1,6 @@
-"""The elements of a co-simulated system: components (FMUs) and their variables,
-connections, external inputs, and what a run returns (results, failures, errors)."""
+"""The elements of a co-simulated system: components (FMUs) and their variables (of every
+FMI type, arrays by element: :mod:`duffid.cosim.value_types`), connections, external inputs, and
+what a run returns (results, failures, errors)."""
 from __future__ import annotations
 
 import csv
@@ -18,11 +19,12 @@ from .value_types import DTYPES, VARIABLE_KINDS, check_value, csv_text, element_
 
 __all__ = ["InputSource", "VARIABLE_KINDS", "STATUS_NAMES", "NAME_RE", "N_MESSAGES", "N_REPORTED", "DTYPES",
            "WiringError", "Connection", "Failure", "CosimError", "Result", "with_article", "suggest", "unit_of",
-           "Component", "typed_parameter", "typed_parameter_values", "External", "check_external_value", "sampled_on_grid",
-           "INTERPOLATIONS", "ORDERINGS", "Wiring", "WiredSystem", "SystemLike"]
+           "Component", "typed_parameter", "typed_parameter_values", "External", "check_external_value",
+           "sampled_on_grid", "INTERPOLATIONS", "ORDERINGS", "Wiring", "WiredSystem", "SystemLike"]
 
-#: Source of an external input: a constant, a function of time, or samples ``(t, values)``.
-InputSource = Union[float, Callable[[float], float], tuple]
+#: Source of an external input: a constant (of the input's type: a number, bool, str, bytes, or a
+#: nested sequence for an array), a function of time, or samples ``(t, values)``.
+InputSource = Union[float, int, bool, str, bytes, Sequence, Callable[[float], Any], tuple]
 
 STATUS_NAMES = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 #: Accepted values of ``System.run(ordering=...)``.

@@ -143,9 +143,11 @@ def flat_index(index: tuple[int, ...], shape: Sequence[int], where: str) -> int:
     """The row-major position of the element ``index`` (from 1) of an array of ``shape``, or
     ValueError naming ``where``."""
     if len(index) != len(shape):
-        raise ValueError(f"{where}: {len(index)} indices given, the variable has {len(shape)} dimension(s) {tuple(shape)}")
+        raise ValueError(f"{where}: {len(index)} indices given, the variable has {len(shape)} dimension(s) "
+                         f"{tuple(shape)}")
     if any(not 1 <= i <= n for i, n in zip(index, shape)):
-        raise ValueError(f"{where}: index {list(index)} is outside the variable's shape {tuple(shape)} (indices from 1)")
+        raise ValueError(f"{where}: index {list(index)} is outside the variable's shape {tuple(shape)} "
+                         "(indices from 1)")
     return int(np.ravel_multi_index(tuple(i - 1 for i in index), tuple(shape)))
 
 
