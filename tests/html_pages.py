@@ -2,6 +2,7 @@
 screenshot and its DOM; the internal links of a folder of pages are checked without network."""
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 import tempfile
@@ -11,7 +12,8 @@ from urllib.parse import unquote, urlsplit
 
 import pytest
 
-__all__ = ["chromium", "screenshot", "rendered_dom", "not_blank", "broken_links", "external_resources"]
+__all__ = ["chromium", "screenshot", "printed_pages", "rendered_dom", "not_blank", "broken_links",
+           "external_resources"]
 
 #: No page may reach the network: every host name resolves to nothing.
 _OFFLINE = "--host-resolver-rules=MAP * ~NOTFOUND"
@@ -37,6 +39,13 @@ def screenshot(page: Path, png: Path, size: tuple[int, int] = (1200, 2400)) -> P
     done = _run(page, f"--window-size={size[0]},{size[1]}", f"--screenshot={png}")
     assert png.is_file(), f"chromium wrote no screenshot of {page}: {done.stderr[-2000:]}"
     return png
+
+
+def printed_pages(page: Path, pdf: Path) -> int:
+    """Print ``page`` to ``pdf`` as chromium does (A4/Letter, print style sheet); its number of pages."""
+    done = _run(page, "--no-pdf-header-footer", f"--print-to-pdf={pdf}")
+    assert pdf.is_file(), f"chromium printed nothing of {page}: {done.stderr[-2000:]}"
+    return len(re.findall(rb"/Type\s*/Page[^s]", pdf.read_bytes()))
 
 
 def rendered_dom(page: Path) -> str:

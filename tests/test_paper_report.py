@@ -17,7 +17,7 @@ from duffid.apps import paper_published as P
 from duffid.apps.paper_report import build_paper_report, expected_matrices, settling_time
 from duffid.apps.report_html import Page, Table, markdown_to_html
 from duffid.cli import main
-from html_pages import broken_links, not_blank, rendered_dom, screenshot
+from html_pages import broken_links, not_blank, printed_pages, rendered_dom, screenshot
 
 #: The report's tables (ids of <table>), one per table of the paper and per data-based figure with numbers.
 TABLES = ("table-1-values", "table-2-values", "table-3-values", "table-4-values", "table-5-values",
@@ -148,3 +148,4 @@ def test_report_in_a_browser(report, tmp_path):
     for ident in TABLES:
         assert f'id="{ident}"' in dom, ident
     assert dom.count("<img") >= len(FIGURES)
+    assert printed_pages(page, tmp_path / "report.pdf") >= 5  # printable: the whole page, its figures
