@@ -83,6 +83,7 @@ static void gather(char *dst, const char *src, const intptr_t *index, size_t n, 
 static int io_call(const duffid_io_op *op)
 {
     const size_t n_values = op->n_values ? op->n_values : op->n;
+    if (op->call != NULL) return op->call();
     if (op->gather_index != NULL)
         gather((char *)op->value, op->gather_source, op->gather_index, n_values, op->itemsize, op->convert);
     if (op->fmi3)
@@ -94,7 +95,9 @@ static void move(const duffid_move *m, long row)
 {
     char *dst = m->destination + row * m->destination_stride;
     const char *src = m->source + row * m->source_stride;
-    if (m->index != NULL)
+    if (m->call != NULL)
+        m->call(row);
+    else if (m->index != NULL)
         gather(dst, src, m->index, m->n, m->itemsize, m->convert);
     else
         convert_values(dst, src, m->n, m->itemsize, m->convert);

@@ -43,6 +43,8 @@ typedef struct {
     const intptr_t *gather_index;
     size_t itemsize; /* bytes per value of gather_source */
     size_t n_values; /* FMI 3: values of the n variables (arrays have several); 0: n (scalars) */
+    int (*call)(void); /* non-NULL: the caller's own operation instead of the above (String and Binary
+                        * values, which the caller copies); it returns an FMI status */
 } duffid_io_op;
 
 /* A doStep call; FMI 3 writes its three flags and the last successful time. */
@@ -69,6 +71,7 @@ typedef struct {
     size_t itemsize; /* bytes per value of source */
     ptrdiff_t destination_stride, source_stride;
     int convert;
+    int (*call)(long row); /* non-NULL: the caller's own copy for row `row` instead of the above */
 } duffid_move;
 
 /* One stage of a macro step: sets, doSteps, gets and conversions [lo, hi) (Jacobi: one stage

@@ -16,14 +16,13 @@ The library is compiled on first use with the one C build helper
 from __future__ import annotations
 
 import ctypes
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
 from ..assets import fmu_sources
 from ..cbuild import cached_library
 from ..errors import CompilerNotFoundError
-from .value_types import OBJECT_KINDS
 
 __all__ = ["CompiledLoop", "load", "obstacles", "LOOP_MODES", "DONE", "SET_FAILED", "GET_FAILED", "ABORTED", "ENDED",
            "STEP_ENDED", "STEP_ABORT", "EVENT_HANDLED"]
@@ -48,7 +47,7 @@ _P = ctypes.c_void_p
 class _IoOp(ctypes.Structure):
     _fields_ = [("function", _P), ("instance", _P), ("vr", _P), ("n", ctypes.c_size_t), ("value", _P),
                 ("fmi3", ctypes.c_int), ("convert", ctypes.c_int), ("gather_source", _P),
-                ("gather_index", _P), ("itemsize", ctypes.c_size_t), ("n_values", ctypes.c_size_t)]
+                ("gather_index", _P), ("itemsize", ctypes.c_size_t), ("n_values", ctypes.c_size_t), ("call", _P)]
 
 
 class _StepOp(ctypes.Structure):
@@ -59,7 +58,7 @@ class _StepOp(ctypes.Structure):
 class _Move(ctypes.Structure):
     _fields_ = [("destination", _P), ("source", _P), ("index", _P), ("n", ctypes.c_size_t),
                 ("itemsize", ctypes.c_size_t), ("destination_stride", ctypes.c_ssize_t),
-                ("source_stride", ctypes.c_ssize_t), ("convert", ctypes.c_int)]
+                ("source_stride", ctypes.c_ssize_t), ("convert", ctypes.c_int), ("call", _P)]
 
 
 class _Stage(ctypes.Structure):
@@ -68,6 +67,8 @@ class _Stage(ctypes.Structure):
 
 
 _CALLBACK = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_long)
+_IO_CALL = ctypes.CFUNCTYPE(ctypes.c_int)                  # an own operation: () -> FMI status
+_MOVE_CALL = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_long)  # an own copy: (row) -> 0
 _LIBRARY: list[ctypes.CDLL | None] = []
 
 
@@ -96,24 +97,18 @@ def load() -> ctypes.CDLL | None:
     return _LIBRARY[0]
 
 
-def obstacles(components: Iterable[Any], externals: Iterable[Any], connections: Iterable[Any] = (),
-              exchanged: Mapping[str, str] | None = None) -> list[str]:
+def obstacles(components: Iterable[Any], externals: Iterable[Any], connections: Iterable[Any] = ()) -> list[str]:
     """Why the compiled loop cannot run a system, in words (empty: it can): a component that
     is a Python FMU (pythonfmu runs Python inside its FMI calls), an input that is a Python
     function (called every step), a connection with a factor or offset (an SSP linear
-    transformation: the C loop only copies values), a String or Binary value among the
-    ``exchanged`` ones (name -> kind: the FMU owns the memory its getters return, valid until
-    its next call, so the values are copied into Python objects), no C compiler (checked last,
-    by building the loop)."""
+    transformation: the C loop only copies values), no C compiler (checked last, by building
+    the loop). String and Binary values do not stop it: their calls and copies (into Python
+    objects: an FMU owns the memory its getters return, valid until its next call) are called
+    back from the C loop."""
     reasons = [f"component {c.name!r} is a Python FMU (pythonfmu)" for c in components
                if (c.md.generationTool or "").startswith("PythonFMU")]
     reasons += [f"the input {e.target} is a Python function" for e in externals if e.mode == "function"]
     reasons += [f"the connection {c} has a factor or offset" for c in connections if c.transformed]
-    objects = [f"{name} ({kind})" for name, kind in (exchanged or {}).items() if kind in OBJECT_KINDS]
-    if objects:
-        reasons.append(f"String and Binary values are copied in the Python loop: {', '.join(objects[:4])}"
-                       + (f" and {len(objects) - 4} more" if len(objects) > 4 else "")
-                       + " (record= without them lets the compiled loop run the rest)")
     if not reasons and load() is None:
         reasons.append("no C compiler was found to build it")
     return reasons
@@ -156,7 +151,10 @@ class CompiledLoop:
         ``event`` flag (FMI 3 eventHandlingNeeded) is given for an FMU that uses Event Mode.
     moves : sequence of (destination, source, index, destination_stride, source_stride)
         Copies after every macro step for row ``k + 1``: the input tables' rows and the
-        recorded rows (arrays; strides in bytes; index None or an intp array).
+        recorded rows (arrays; strides in bytes; index None or an intp array), or ``(copy,)``
+        with a Python function ``copy(row)`` (String and Binary values, Python objects).
+        A set or get with no arguments is a Python function too (``() -> status``, the
+        runner's String and Binary calls), called back from C.
     on_step : callable
         ``on_step(step_op, status, k) -> int``: :data:`STEP_ENDED` when the FMU ended the
         simulation (complete the macro step, then stop), :data:`STEP_ABORT` to abort,
@@ -204,8 +202,27 @@ class CompiledLoop:
         self.callback = _CALLBACK(callback)
         self.failed_step, self.failed_op, self.failed_status = ctypes.c_long(0), ctypes.c_int(0), ctypes.c_int(0)
 
+    def _own(self, function: Callable[..., int], kind: Any, failed: int) -> int:
+        """The address of a C callback running the Python ``function`` (an exception is kept for
+        :meth:`run` to raise, and the callback returns ``failed``)."""
+        def call(*args: Any) -> int:
+            try:
+                status = function(*args)
+                return status if isinstance(status, int) else 0  # a copy returns no status
+            except BaseException as exc:  # noqa: BLE001 - re-raised by run() once the C loop has returned
+                self.exception = self.exception or exc
+                return failed
+
+        callback = kind(call)
+        self._keep.append(callback)
+        return ctypes.cast(callback, ctypes.c_void_p).value
+
     def _io(self, function: Any, args: tuple, source: np.ndarray | None, index: np.ndarray | None,
             buffer: np.ndarray | None) -> _IoOp:
+        if not args:  # the runner's own operation (String and Binary values): called back
+            op = _IoOp()
+            op.call = self._own(function, _IO_CALL, 3)
+            return op
         handle, vrs, size, ptr = args[:4]
         fmi3 = len(args) == 5
         op = _IoOp(_function(function), handle.value, _address(vrs), size.value, _address(ptr), int(fmi3))
@@ -227,8 +244,12 @@ class CompiledLoop:
         op.event_mode = int(event is not None)
         return op
 
-    def _move(self, destination: np.ndarray, source: np.ndarray, index: np.ndarray | None,
-              destination_stride: int, source_stride: int) -> _Move:
+    def _move(self, destination: np.ndarray | Callable[[int], Any], source: np.ndarray | None = None,
+              index: np.ndarray | None = None, destination_stride: int = 0, source_stride: int = 0) -> _Move:
+        if callable(destination):  # the runner's own copy of row k + 1 (Python objects): called back
+            move = _Move()
+            move.call = self._own(destination, _MOVE_CALL, 0)
+            return move
         if index is not None:
             index = np.ascontiguousarray(index, dtype=np.intp)
             self._keep.append(index)

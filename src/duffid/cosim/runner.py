@@ -156,13 +156,12 @@ class Runner:
 
     def __init__(self, system: WiredSystem, grid: np.ndarray, step: float, ordering: str, sequence: list[str],
                  delayed: list[Connection], names: list[str], sampled: dict[str, np.ndarray],
-                 progress: bool, loop: str = "auto", exchanged: dict[str, str] | None = None) -> None:
+                 progress: bool, loop: str = "auto") -> None:
         self.system, self.grid, self.step = system, grid, step
         self.loop_mode, self.loop_used = loop, "python"
         self.n = len(grid) - 1
         self.ordering, self.sequence, self.delayed, self.names = ordering, sequence, delayed, names
         self.sampled, self.progress = sampled, progress
-        self.exchanged = exchanged or {}
         comps = list(system.wiring.components.values())
         self.instances = [_Instance(c, i) for i, c in enumerate(comps)]
         self.index = {c.name: i for i, c in enumerate(comps)}
@@ -683,11 +682,19 @@ class Runner:
         Python, and a C compiler (else None: the Python loop)."""
         if self.loop_mode == "python" or compiled_loop.obstacles(
                 [inst.comp for inst in self.instances], self.system.wiring.externals.values(),
-                self.system.wiring.connections, self.exchanged):
+                self.system.wiring.connections):
             return None  # System.run refused loop="compiled" for these
-        moves = [(view, table, None, 0, table.strides[0]) for view, table in self.tables.values()]
-        moves += [(rec, self.g[kind], None if identity else idx, rec.strides[0], 0)
-                  for kind, (rec, idx, identity) in self.records.items()]
+        moves: list[tuple] = []
+        for kind, (view, table) in self.tables.items():
+            if kind in OBJECT_KINDS:  # Python objects: copied by Python, called back from the C loop
+                moves.append((lambda row, view=view, table=table: view.__setitem__(Ellipsis, table[row]),))
+            else:
+                moves.append((view, table, None, 0, table.strides[0]))
+        for kind, (rec, idx, identity) in self.records.items():
+            if kind in OBJECT_KINDS:
+                moves.append((lambda row, rec=rec, idx=idx, g=self.g[kind]: np.take(g, idx, out=rec[row]),))
+            else:
+                moves.append((rec, self.g[kind], None if identity else idx, rec.strides[0], 0))
 
         def on_step(op: int, status: int, k: int) -> int:
             _, _, ci, fname, term, flags, event = loop.step_entries[op]

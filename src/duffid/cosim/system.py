@@ -52,9 +52,8 @@ String, Binary, Enumeration. A connection joins variables of one kind: the same 
 Real and FMI 3 Float64, FMI 2 Integer and FMI 3 Int32, or two Enumerations with the same items
 (no other conversion is made; a factor or offset applies to Real connections only). Constants
 and samples are checked against the input's type (range of an integer type, 0/1 of a Boolean).
-String values are ``str``, Binary values ``bytes``; both are exchanged by the Python loop
-(``loop="auto"`` takes it; ``loop="compiled"`` names them). :meth:`Result.to_csv` writes Binary
-values as hexadecimal.
+String values are ``str``, Binary values ``bytes`` (the compiled loop calls back into Python for
+their calls and copies). :meth:`Result.to_csv` writes Binary values as hexadecimal.
 
 FMI 3 arrays (``<Dimension>``, fixed or given by a structural parameter) are recorded element by
 element as ``"comp.y[i,j]"`` (indices from 1, row-major). An array output connects to an array
@@ -705,9 +704,9 @@ class System:
             The inner loop: the macro steps in C over the FMUs' functions (``fmus/cosim``,
             compiled on first use), or in Python. The two give the same trajectories bit
             for bit; the C loop is faster. ``"auto"`` (default) takes the C loop unless a
-            component is a Python FMU (pythonfmu), an input is a Python function, a String or
-            Binary value is exchanged or recorded, or no C compiler is found; ``"compiled"``
-            makes those cases an error.
+            component is a Python FMU (pythonfmu), an input is a Python function, or no C
+            compiler is found; ``"compiled"`` makes those cases an error (String and Binary
+            values are copied by Python, called back from the C loop).
             ``Result.loop`` says which one ran.
 
         Returns
@@ -762,9 +761,8 @@ class System:
             delayed = self._delayed(sequence)
         warnings: list[str] = []
         names = self._record_names(record, warnings)
-        exchanged = self._exchanged_kinds(names)
         if loop == "compiled":
-            reasons = obstacles(self._components.values(), self._externals.values(), self._connections, exchanged)
+            reasons = obstacles(self._components.values(), self._externals.values(), self._connections)
             if reasons:
                 raise WiringError("loop='compiled' cannot run this system: " + "; ".join(reasons))
         for comp in self._components.values():
@@ -775,19 +773,10 @@ class System:
                                 "outputs change only every internal step (a staircase)")
         grid = float(start_time) + np.arange(n + 1) * float(step)
         sampled = {t: sampled_on_grid(e, grid) for t, e in self._externals.items() if e.mode == "sampled"}
-        runner = Runner(self, grid, float(step), ordering, sequence, delayed, names, sampled, progress, loop, exchanged)
+        runner = Runner(self, grid, float(step), ordering, sequence, delayed, names, sampled, progress, loop)
         result = runner.execute()
         result.warnings = warnings
         return result
-
-    def _exchanged_kinds(self, names: Sequence[str]) -> dict[str, str]:
-        """Every value a run reads, sets or records (connection ends, external inputs, recorded
-        names) -> its kind."""
-        kinds: dict[str, str] = {}
-        for full in [*names, *self._externals, *(end for c in self._connections for end in (c.source, c.target))]:
-            comp, var, _ = self._channel(full, "variable")
-            kinds[full] = comp.kind(var, "exchanged")
-        return kinds
 
     def _record_names(self, record: Sequence[str] | None, warnings: list[str]) -> list[str]:
         """The recorded values' names (an array's elements ``comp.y[i,j]``), checked."""

@@ -36,7 +36,7 @@ VARIABLE_KINDS = {"Real": "Real", "Float64": "Real", "Float32": "Float32", "Inte
 DTYPES = {"Real": np.float64, "Float32": np.float32, "Integer": np.int32, "Int8": np.int8, "UInt8": np.uint8,
           "Int16": np.int16, "UInt16": np.uint16, "UInt32": np.uint32, "Int64": np.int64, "UInt64": np.uint64,
           "Boolean": np.int32, "Enumeration": np.int64, "String": object, "Binary": object}
-#: Kinds held as Python objects (exchanged by the Python loop only).
+#: Kinds held as Python objects (copied by Python; the compiled loop calls back for them).
 OBJECT_KINDS = ("String", "Binary")
 FLOAT_KINDS = ("Real", "Float32")
 INTEGER_KINDS = ("Integer", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64", "UInt64", "Enumeration")
