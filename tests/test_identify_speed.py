@@ -103,3 +103,20 @@ def test_the_bootstrap_draws_the_same_noise_as_one_sequence(record):
     rng = np.random.default_rng(0)
     for x in seen:
         np.testing.assert_array_equal(x, record.x + rng.standard_normal(record.x.shape) * 1e-3)
+
+
+def test_one_percent_of_isolated_glitches_are_excluded_and_the_values_published():
+    plant = Duffing1()
+    rec = measure(simulate(plant, Multisine(8.0, 0.5, 10.0, 4.0, phases="random", seed=1), 8.0, 1e-3),
+                  pulses_per_cm=None, snr_db=40, seed=2)
+    rng = np.random.default_rng(5)
+    x = rec.x.copy()
+    where = rng.choice(np.arange(5, len(x) - 5), size=len(x) // 100, replace=False)
+    x[where, 0] += rng.choice([-1, 1], size=len(where)) * rng.uniform(0.2, 3, size=len(where)) * np.ptp(x)
+    result = identify(Record(rec.t, rec.f, x, source="glitches"), plant, progress=False)
+    a = result.assessment
+    assert len(a.fit["outliers"]) >= 0.9 * len(where)
+    assert a.identified
+    for name, value in result.parameters.items():  # within 3 stated errors of the truth
+        truth = plant.parameters[name]
+        assert abs(value - truth) <= 3 * a.uncertainty[name] * abs(truth), name
