@@ -23,23 +23,31 @@ typedef struct {
     double *z, *z_next, *work;
 } simulation;
 
+/* The state from sample i - 1 to sample i (substeps RK4 steps; with its sensitivities). */
+static void advance(simulation *s, long i, int sensitivities)
+{
+    for (int k = 0; k < s->substeps; k++) {
+        const double *u = s->stages + ((i - 1) * s->substeps + k) * 3 * s->nf;
+        double *swap;
+        if (sensitivities)
+            duffid_segment_step_sens(s->z, u, s->p, s->h, s->z_next, s->work);
+        else
+            duffid_segment_step(s->z, u, s->p, s->h, s->z_next, s->work);
+        swap = s->z; s->z = s->z_next; s->z_next = swap;
+    }
+}
+
 /* Simulate samples 0..count-1 from z0 (2n) without sensitivities; the sum of squared scaled
  * errors against x (count x n) over the first `fit` samples; displacements to out if not NULL. */
 static double simulate_plain(simulation *s, const double *z0, const double *x, long count, long fit,
                              double scale_x, double *out)
 {
-    int n = s->n, width = 3 * s->nf;
+    int n = s->n;
     double cost = 0.0;
     memcpy(s->z, z0, (size_t)(2 * n) * sizeof(double));
     for (long i = 0; i < count; i++) {
-        if (i > 0) {
-            for (int k = 0; k < s->substeps; k++) {
-                const double *u = s->stages + ((i - 1) * s->substeps + k) * width;
-                double *swap;
-                duffid_segment_step(s->z, u, s->p, s->h, s->z_next, s->work);
-                swap = s->z; s->z = s->z_next; s->z_next = swap;
-            }
-        }
+        if (i > 0)
+            advance(s, i, 0);
         for (int d = 0; d < n; d++) {
             if (out != NULL)
                 out[i * n + d] = s->z[d];
@@ -59,7 +67,7 @@ static double simulate_plain(simulation *s, const double *z0, const double *x, l
 static double normal_equations(simulation *s, const double *z0, const double *x, long fit, double scale_x,
                                const double *scales, double *a, double *g)
 {
-    int n = s->n, m = 2 * n, width = 3 * s->nf;
+    int n = s->n, m = 2 * n;
     long size = m + (long)m * m;
     double cost = 0.0;
     memset(s->z, 0, (size_t)size * sizeof(double));
@@ -69,14 +77,8 @@ static double normal_equations(simulation *s, const double *z0, const double *x,
     memset(a, 0, (size_t)(m * m) * sizeof(double));
     memset(g, 0, (size_t)m * sizeof(double));
     for (long i = 0; i < fit; i++) {
-        if (i > 0) {
-            for (int k = 0; k < s->substeps; k++) {
-                const double *u = s->stages + ((i - 1) * s->substeps + k) * width;
-                double *swap;
-                duffid_segment_step_sens(s->z, u, s->p, s->h, s->z_next, s->work);
-                swap = s->z; s->z = s->z_next; s->z_next = swap;
-            }
-        }
+        if (i > 0)
+            advance(s, i, 1);
         for (int d = 0; d < n; d++) {
             double r = (s->z[d] - x[i * n + d]) / scale_x, row[64];
             for (int c = 0; c < m; c++) {
