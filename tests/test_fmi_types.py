@@ -313,10 +313,10 @@ def test_what_the_master_cannot_honour_is_refused_by_name(typed, tmp_path):
     with pytest.raises(WiringError, match="parameter A: A is an array of shape"):
         System().add("s", typed["StateSpace3"], parameters={"A": [1.0, 2.0]})
     system.connect("a.String_output", "b.String_input")
-    with pytest.raises(WiringError, match=r"component 'a' \(Feedthrough3.fmu\): String_output is String; the container "
-                                          "runtime carries every numeric type, Boolean and Enumeration in its "
-                                          "connections, not String or Binary"):
-        system.export_container(tmp_path / "c.fmu", outputs={"x": "b.Float64_output"})
+    with pytest.raises(WiringError, match=r"component 'b' \(Feedthrough3.fmu\): String_output is String; the container "
+                                          "runtime carries scalar Real/Float64, Integer/Int32 and Boolean values as "
+                                          "its own variables"):
+        system.export_container(tmp_path / "c.fmu", outputs={"text": "b.String_output"})
     arrays = System().add("s", typed["StateSpace3"])
     with pytest.raises(WiringError, match=r"y is an array of Float64; the container runtime carries scalar "
                                           "Real/Float64, Integer/Int32 and Boolean values as its own variables"):
@@ -378,24 +378,26 @@ step = 0.001
     assert ",beef," in first
 
 
-def test_the_container_carries_every_numeric_type_and_arrays_in_its_connections(typed, tmp_path):
-    """Inside the container runtime, connections of every FMI 3 type but String and Binary (whole
-    arrays too, and FMI 2 <-> FMI 3 Enumeration), as fmpy runs the container; its own outputs are
-    Float64, Int32 and Boolean (the glue's types) and equal System.run's."""
+def test_the_container_carries_every_type_and_arrays_in_its_connections(typed, tmp_path):
+    """Inside the container runtime, connections of every FMI 3 type (whole arrays too, FMI 2 <->
+    FMI 3 Enumeration and String), as fmpy runs the container; its own outputs are Float64, Int32
+    and Boolean (the glue's types) and equal System.run's."""
     f3, f2 = typed["Feedthrough3"], typed["Feedthrough2"]
     system = System().add("a", f3).add("b", f3).add("c", f2)
-    for t in NUMERIC3:
+    for t in FMI3:
         system.connect(f"a.{t}_output", f"b.{t}_input")
     system.connect("a.Float64_array_output", "b.Float64_array_input").connect("b.Enumeration_output", "c.Enumeration_input")
-    system.connect("a.Float64_array_output[2,3]", "c.Real_input")
+    system.connect("a.Float64_array_output[2,3]", "c.Real_input").connect("b.String_output", "c.String_input")
     outputs = {"x": "b.Float64_output", "i": "b.Int32_output", "flag": "b.Boolean_output", "y": "c.Real_output",
-               "e": "c.Integer_output"}
+               "e": "c.Integer_output", "text": "b.String_input_length", "bytes": "b.Binary_input_length"}
     path = system.export_container(tmp_path / "typed.fmu", step=1e-3, fmi_version=3, outputs=outputs)
     reference = fmpy.simulate_fmu(str(path), stop_time=0.003, output_interval=1e-3)
     result = system.run(0.003, 1e-3, record=list(outputs.values()))
     for name, source in outputs.items():
         assert list(reference[name][1:]) == list(result[source][1:]), name
     assert list(reference["x"][1:]) == [1.5] * 3 and list(reference["y"][2:]) == [6.0] * 2
+    # String and Binary values crossed inside: b's inputs have the lengths of a's ("hello", 0a0b)
+    assert list(reference["text"][1:]) == [5] * 3 and list(reference["bytes"][1:]) == [2] * 3
     # the connections' values inside: b's outputs of every type equal a's (read through System.run)
     inside = system.run(0.003, 1e-3, record=[f"b.{t}_output" for t in NUMERIC3])
     assert [inside[f"b.{t}_output"][-1] for t in NUMERIC3] == [float(typed_fmus.STARTS[t]) if t.startswith("Float")

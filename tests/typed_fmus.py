@@ -89,7 +89,9 @@ def feedthrough3() -> Model:
         Var("Float64_array_input", "Float64", "input", "continuous", "1 2 3 4 5 6", dims=(2, 3)),
         Var("Float64_array_output", "Float64", "output", "continuous", dims=(2, 3), feed="Float64_array_input"),
         Var("Int32_array_input", "Int32", "input", "discrete", "1 2 3", dims=(3,)),
-        Var("Int32_array_output", "Int32", "output", "discrete", dims=(3,), feed="Int32_array_input")]
+        Var("Int32_array_output", "Int32", "output", "discrete", dims=(3,), feed="Int32_array_input"),
+        Var("String_input_length", "Int32", "output", "discrete"),     # bytes of String_input
+        Var("Binary_input_length", "Int32", "output", "discrete")]     # bytes of Binary_input
     return model
 
 

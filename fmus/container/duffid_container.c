@@ -124,8 +124,11 @@ typedef struct Container {
     /* connection values, one buffer per kind; staging of gets whose FMI values differ in size from
      * their buffer's (FMI 3 Boolean, FMI 2 Enumeration); the set ops' own value arrays */
     unsigned char *values[CONTAINER_N_KINDS];
+    size_t count[CONTAINER_N_KINDS];     /* values in each buffer */
     unsigned char *staging, *set_values;
     unsigned *source_vr, *target_vr;
+    struct ObjectOp *object_ops;         /* the String and Binary gets and sets (the container copies them) */
+    int n_object_ops;
     /* the container inputs and parameters as last passed to the components */
     double *sent;
     unsigned char *sent_valid;
@@ -542,6 +545,100 @@ static int read_outputs(Instance *inst)
 
 /* ------------------------------------------------------------------ the loop's operations */
 
+/* A get or set of String or Binary values, which the container copies into memory it owns (an FMU's
+ * own is valid only until its next call): an operation of the loop's own (duffid_io_op.call). */
+typedef struct ObjectOp {
+    Component *k;
+    int kind, fmi3, setting;
+    const unsigned *vr;
+    size_t nvr, n_values;
+    unsigned char *buffer;  /* the kind's buffer: char * (String) or ContainerBinary (Binary) values */
+    size_t slot;            /* get: the first slot written */
+    const intptr_t *slots;  /* set: the slot of each value */
+    void **pointers;        /* scratch: a pointer per value */
+    size_t *sizes;          /* scratch: a size per value (Binary) */
+} ObjectOp;
+
+/* Replaces *owned by a copy of `size` bytes of `data` (plus a terminating zero); nonzero without memory. */
+static int own_copy(unsigned char **owned, const void *data, size_t size)
+{
+    unsigned char *copy = (unsigned char *)malloc(size + 1);
+    if (copy == NULL) return 1;
+    if (size > 0) memcpy(copy, data, size);
+    copy[size] = 0;
+    free(*owned);
+    *owned = copy;
+    return 0;
+}
+
+static int string_op(ObjectOp *o)
+{
+    char **values = (char **)o->buffer;
+    const duffid_function f = o->k->io[o->kind][o->setting];
+    size_t i;
+    int status;
+    if (o->setting) {
+        for (i = 0; i < o->n_values; i++) {
+            const char *v = values[o->slots[i]];
+            o->pointers[i] = (void *)(v != NULL ? v : "");
+        }
+        return o->fmi3 ? ((fmi3SetStringTYPE *)f)(o->k->instance, o->vr, o->nvr, (const fmi3String *)o->pointers,
+                                                  o->n_values)
+                       : ((fmi2SetStringTYPE *)f)(o->k->instance, o->vr, o->nvr, (const fmi2String *)o->pointers);
+    }
+    status = o->fmi3 ? ((fmi3GetStringTYPE *)f)(o->k->instance, o->vr, o->nvr, (fmi3String *)o->pointers, o->n_values)
+                     : ((fmi2GetStringTYPE *)f)(o->k->instance, o->vr, o->nvr, (fmi2String *)o->pointers);
+    for (i = 0; status <= 1 && i < o->n_values; i++) {
+        const char *v = o->pointers[i] != NULL ? (const char *)o->pointers[i] : "";
+        if (own_copy((unsigned char **)&values[o->slot + i], v, strlen(v))) return fmi3Error;
+    }
+    return status;
+}
+
+static int binary_op(ObjectOp *o)
+{
+    ContainerBinary *values = (ContainerBinary *)o->buffer;
+    const duffid_function f = o->k->io[o->kind][o->setting];
+    size_t i;
+    int status;
+    if (o->setting) {
+        for (i = 0; i < o->n_values; i++) {
+            const ContainerBinary *b = &values[o->slots[i]];
+            o->pointers[i] = (void *)(b->data != NULL ? b->data : (unsigned char *)"");
+            o->sizes[i] = b->size;
+        }
+        return ((fmi3SetBinaryTYPE *)f)(o->k->instance, o->vr, o->nvr, o->sizes, (const fmi3Binary *)o->pointers,
+                                       o->n_values);
+    }
+    status = ((fmi3GetBinaryTYPE *)f)(o->k->instance, o->vr, o->nvr, o->sizes, (fmi3Binary *)o->pointers, o->n_values);
+    for (i = 0; status <= 1 && i < o->n_values; i++) {
+        ContainerBinary *b = &values[o->slot + i];
+        if (own_copy(&b->data, o->pointers[i] != NULL ? o->pointers[i] : "", o->pointers[i] != NULL ? o->sizes[i] : 0))
+            return fmi3Error;
+        b->size = o->pointers[i] != NULL ? o->sizes[i] : 0;
+    }
+    return status;
+}
+
+static int object_op(void *context)
+{
+    ObjectOp *o = (ObjectOp *)context;
+    return o->kind == CONTAINER_KIND_STRING ? string_op(o) : binary_op(o);
+}
+
+/* Makes `op` the String or Binary operation o (scratch for n values); nonzero without memory. */
+static int object_io(duffid_io_op *op, ObjectOp *o)
+{
+    o->pointers = (void **)calloc(o->n_values + 1, sizeof(void *));
+    o->sizes = (size_t *)calloc(o->n_values + 1, sizeof(size_t));
+    if (o->pointers == NULL || o->sizes == NULL) return 1;
+    op->call = object_op;
+    op->context = o;
+    return 0;
+}
+
+static int is_object_kind(int kind) { return kind == CONTAINER_KIND_STRING || kind == CONTAINER_KIND_BINARY; }
+
 /* The loop's conversion of values of `from` bytes into values of `to` bytes. */
 static int conversion(size_t from, size_t to)
 {
@@ -565,7 +662,10 @@ static int build_ops(Container *c)
     for (kind = 0; kind < CONTAINER_N_KINDS; kind++) {
         c->values[kind] = (unsigned char *)calloc(count[kind] + 1, container_buffer_size[kind]);
         if (c->values[kind] == NULL) return 1;
+        c->count[kind] = count[kind];
     }
+    c->object_ops = (ObjectOp *)calloc(ns + nt + 1, sizeof(ObjectOp));
+    if (c->object_ops == NULL) return 1;
     c->staging = (unsigned char *)calloc(n_source_values + 1, 8);
     c->set_values = (unsigned char *)calloc(CONTAINER_N_TARGET_VALUES + 1, 8);
     c->source_vr = (unsigned *)calloc(ns + 1, sizeof(unsigned));
@@ -601,7 +701,12 @@ static int build_ops(Container *c)
         op->n_values = n_values;
         op->fmi3 = v;
         op->convert = DUFFID_COPY;
-        if (fmi_size == size) {
+        if (is_object_kind(s->kind)) { /* copied by the container */
+            ObjectOp *o = &c->object_ops[c->n_object_ops++];
+            o->k = k, o->kind = s->kind, o->fmi3 = v, o->setting = 0, o->vr = op->vr, o->nvr = op->n;
+            o->n_values = n_values, o->buffer = c->values[s->kind], o->slot = (size_t)s->slot;
+            if (object_io(op, o)) return 1;
+        } else if (fmi_size == size) {
             op->value = destination;
         } else { /* into staging, then converted into the kind's buffer */
             duffid_move *m = &c->posts[c->n_posts++];
@@ -639,6 +744,13 @@ static int build_ops(Container *c)
         op->value = c->set_values + set_at;
         op->convert = conversion(size, fmi_size);
         set_at += n_values * 8;
+        if (is_object_kind(t->kind)) { /* copied by the container */
+            ObjectOp *o = &c->object_ops[c->n_object_ops++];
+            o->k = k, o->kind = t->kind, o->fmi3 = v, o->setting = 1, o->vr = op->vr, o->nvr = op->n;
+            o->n_values = n_values, o->buffer = c->values[t->kind], o->slots = op->gather_index;
+            op->gather_index = NULL;
+            if (object_io(op, o)) return 1;
+        }
         c->set_kind[c->n_sets] = t->kind;
         c->set_component[c->n_sets++] = t->component;
     }
@@ -791,7 +903,19 @@ static void free_data(Instance *inst)
     free(c->posts);
     free(c->set_component);
     free(c->get_component);
-    for (i = 0; i < CONTAINER_N_KINDS; i++) free(c->values[i]);
+    for (i = 0; i < CONTAINER_N_KINDS; i++) {
+        size_t j;
+        for (j = 0; c->values[i] != NULL && j < c->count[i]; j++) {
+            if (i == CONTAINER_KIND_STRING) free(((char **)c->values[i])[j]);
+            if (i == CONTAINER_KIND_BINARY) free(((ContainerBinary *)c->values[i])[j].data);
+        }
+        free(c->values[i]);
+    }
+    for (i = 0; c->object_ops != NULL && i < c->n_object_ops; i++) {
+        free(c->object_ops[i].pointers);
+        free(c->object_ops[i].sizes);
+    }
+    free(c->object_ops);
     free(c->staging);
     free(c->set_values);
     free(c->source_vr);

@@ -10,6 +10,7 @@
 #ifndef DUFFID_CONTAINER_H
 #define DUFFID_CONTAINER_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 /* A component: an FMU unpacked in resources/<name>/ of the container. */
@@ -44,6 +45,12 @@ typedef struct {
     int first;
     int n;
 } ContainerTarget;
+
+/* A Binary value the container holds (its connections of FMI 3 Binary values copy them). */
+typedef struct {
+    size_t size;
+    unsigned char *data;
+} ContainerBinary;
 
 /* A container variable and one component variable it maps to: an input or parameter is set
  * into each of its targets, an output read from its one source. */

@@ -83,7 +83,7 @@ static void gather(char *dst, const char *src, const intptr_t *index, size_t n, 
 static int io_call(const duffid_io_op *op)
 {
     const size_t n_values = op->n_values ? op->n_values : op->n;
-    if (op->call != NULL) return op->call();
+    if (op->call != NULL) return op->call(op->context);
     if (op->gather_index != NULL)
         gather((char *)op->value, op->gather_source, op->gather_index, n_values, op->itemsize, op->convert);
     if (op->fmi3)

@@ -43,8 +43,10 @@ typedef struct {
     const intptr_t *gather_index;
     size_t itemsize; /* bytes per value of gather_source */
     size_t n_values; /* FMI 3: values of the n variables (arrays have several); 0: n (scalars) */
-    int (*call)(void); /* non-NULL: the caller's own operation instead of the above (String and Binary
-                        * values, which the caller copies); it returns an FMI status */
+    int (*call)(void *context); /* non-NULL: the caller's own operation instead of the above (String
+                                 * and Binary values, which the caller copies), given `context`; it
+                                 * returns an FMI status */
+    void *context;
 } duffid_io_op;
 
 /* A doStep call; FMI 3 writes its three flags and the last successful time. */

@@ -47,7 +47,8 @@ _P = ctypes.c_void_p
 class _IoOp(ctypes.Structure):
     _fields_ = [("function", _P), ("instance", _P), ("vr", _P), ("n", ctypes.c_size_t), ("value", _P),
                 ("fmi3", ctypes.c_int), ("convert", ctypes.c_int), ("gather_source", _P),
-                ("gather_index", _P), ("itemsize", ctypes.c_size_t), ("n_values", ctypes.c_size_t), ("call", _P)]
+                ("gather_index", _P), ("itemsize", ctypes.c_size_t), ("n_values", ctypes.c_size_t), ("call", _P),
+                ("context", _P)]
 
 
 class _StepOp(ctypes.Structure):
@@ -67,7 +68,7 @@ class _Stage(ctypes.Structure):
 
 
 _CALLBACK = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_long)
-_IO_CALL = ctypes.CFUNCTYPE(ctypes.c_int)                  # an own operation: () -> FMI status
+_IO_CALL = ctypes.CFUNCTYPE(ctypes.c_int, _P)              # an own operation: (context) -> FMI status
 _MOVE_CALL = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_long)  # an own copy: (row) -> 0
 _LIBRARY: list[ctypes.CDLL | None] = []
 
@@ -221,7 +222,7 @@ class CompiledLoop:
             buffer: np.ndarray | None) -> _IoOp:
         if not args:  # the runner's own operation (String and Binary values): called back
             op = _IoOp()
-            op.call = self._own(function, _IO_CALL, 3)
+            op.call = self._own(lambda context: function(), _IO_CALL, 3)
             return op
         handle, vrs, size, ptr = args[:4]
         fmi3 = len(args) == 5

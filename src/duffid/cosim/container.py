@@ -19,10 +19,10 @@ variable, else an error), with the components' unit definitions.
 
 What is exported:
 
-* every component and every connection of the system: connections of every numeric FMI type
-  (Float64/Real, Float32, Int8 .. UInt64, Integer/Int32), Boolean and Enumeration (FMI 2 <-> FMI 3
-  too), whole arrays included; a connection of String or Binary values, or into one element of an
-  array input, is refused by name (System.run handles those);
+* every component and every connection of the system: connections of every FMI type
+  (Float64/Real, Float32, Int8 .. UInt64, Integer/Int32, Boolean, Enumeration (FMI 2 <-> FMI 3 too),
+  String and Binary, copied into memory the container owns), whole arrays included; a connection
+  into one element of an array input is refused by name (System.run handles it);
 * container inputs: each maps to one or more component inputs
   (``inputs={"r": ["controller.r"], "f": ["plant.f", "estimator.f"]}``);
 * container outputs: each maps to one component output (``outputs={"x": "plant.x"}``);
@@ -112,9 +112,12 @@ _GLUE_TYPE = {"Real": "Float64", "Integer": "Integer", "Boolean": "Boolean"}
 #: value they exchange (None: the version has no such type); the container's buffer of a kind
 #: holds values of the first size given (Boolean as int32, Enumeration as int64).
 _KINDS = ("Real", "Integer", "Boolean", "Float32", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64", "UInt64",
-          "Enumeration")
-_BUFFER_SIZES = {"Real": 8, "Integer": 4, "Boolean": 4, "Float32": 4, "Int8": 1, "UInt8": 1, "Int16": 2, "UInt16": 2,
-                 "UInt32": 4, "Int64": 8, "UInt64": 8, "Enumeration": 8}
+          "Enumeration", "String", "Binary")
+#: C expressions of the bytes per value of each kind's buffer (String: an owned copy, Binary: its
+#: size and an owned copy of its bytes).
+_BUFFER_SIZES = {"Real": "8", "Integer": "4", "Boolean": "4", "Float32": "4", "Int8": "1", "UInt8": "1", "Int16": "2",
+                 "UInt16": "2", "UInt32": "4", "Int64": "8", "UInt64": "8", "Enumeration": "8",
+                 "String": "sizeof(char *)", "Binary": "sizeof(ContainerBinary)"}
 
 
 @dataclass
@@ -192,16 +195,15 @@ def carried_kind(comp: Any, var: Any, role: str, inside: bool = False) -> str:
     """The kind of a component variable the container exchanges, or WiringError naming the
     component, its FMU, the variable and why. Its own variables (inputs, outputs, parameters: the
     shared FMI glue holds doubles) are scalar Real/Float64, Integer/Int32 and Boolean; connections
-    ``inside`` it also carry Float32, Int8 .. UInt64 and Enumeration, and arrays; neither carries
-    String or Binary (run such systems with System.run)."""
+    ``inside`` it carry every type (String and Binary values copied into memory the container
+    owns) and arrays."""
     kind = comp.kind(var, "exported")
     if inside and kind in _KINDS:
         return kind
     if kind not in _GLUE_TYPE or var.dimensions:
         what = f"an array of {var.type}" if var.dimensions else var.type
-        carried = ("scalar Real/Float64, Integer/Int32 and Boolean values as its own variables, and Float32, "
-                   "Int8 .. UInt64 and Enumeration (arrays too) in its connections only" if not inside else
-                   "every numeric type, Boolean and Enumeration in its connections, not String or Binary")
+        carried = ("scalar Real/Float64, Integer/Int32 and Boolean values as its own variables; the other types "
+                   "(arrays too) in its connections only")
         raise WiringError(f"{role} {comp.where()}: {var.name} is {what}; the container runtime carries {carried} "
                           "(run the system with System.run, or leave the variable out of the container)")
     return kind
@@ -327,7 +329,7 @@ def _header(system: WiredSystem, variables: list[_Variable], table: list[FmuVari
     text = text.rsplit("#endif", 1)[0]
 
     def array(ctype: str, name: str, rows: list[str], count: str) -> str:
-        body = ",\n    ".join(rows) if rows else "{0}"  # C has no empty arrays (count says 0)
+        body = ",\n    ".join(rows) if rows else "0" if ctype == "intptr_t" else "{0}"  # C has no empty arrays
         return f"#define {count} {len(rows)}\nstatic const {ctype} container_{name}[] = {{\n    {body}\n}};\n"
 
     component_rows = [f"{{{_c_string(c.name)}, {_c_string(c.path.name)}, "
@@ -382,8 +384,9 @@ def _kind_tables() -> str:
         return ", ".join(str(ctypes.sizeof(FMI_FUNCTIONS[version][k][2])) if k in FMI_FUNCTIONS[version] else "0"
                          for k in _KINDS)
 
-    return (f"#define CONTAINER_N_KINDS {len(_KINDS)}\n"
-            f"static const size_t container_buffer_size[] = {{{', '.join(str(_BUFFER_SIZES[k]) for k in _KINDS)}}};\n"
+    return (f"#define CONTAINER_N_KINDS {len(_KINDS)}\n#define CONTAINER_KIND_STRING {_KINDS.index('String')}\n"
+            f"#define CONTAINER_KIND_BINARY {_KINDS.index('Binary')}\n"
+            f"static const size_t container_buffer_size[] = {{{', '.join(_BUFFER_SIZES[k] for k in _KINDS)}}};\n"
             f"static const char *const container_get_names[2][CONTAINER_N_KINDS] = {{{{{names(2, 0)}}}, {{{names(3, 0)}}}}};\n"
             f"static const char *const container_set_names[2][CONTAINER_N_KINDS] = {{{{{names(2, 1)}}}, {{{names(3, 1)}}}}};\n"
             f"static const size_t container_fmi_size[2][CONTAINER_N_KINDS] = {{{{{sizes(2)}}}, {{{sizes(3)}}}}};\n")
