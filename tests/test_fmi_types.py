@@ -13,6 +13,7 @@ import fmpy
 import numpy as np
 import pytest
 from fmpy.fmi3 import FMU3Slave
+from fmpy.validation import validate_fmu
 
 import typed_fmus
 from duffid.cosim.config import load_config
@@ -35,6 +36,7 @@ def typed(tmp_path_factory):
             (typed_fmus.feedthrough3(), typed_fmus.statespace3(), typed_fmus.feedthrough2())}
     fmus["Stair3"] = typed_fmus.build(typed_fmus.stair3(), folder, cosimulation_attributes=' hasEventMode="true"')
     clock = '<Clock name="tick" valueReference="900" causality="input" variability="discrete" intervalVariability="triggered"/>'
+    assert all(validate_fmu(str(path)) == [] for path in fmus.values())  # every FMU duffid makes passes
     fmus["Clocked"] = typed_fmus.build(typed_fmus.feedthrough3(), folder / "clocked", description_only=True,
                                        extra_variables=clock)
     return fmus
@@ -391,6 +393,7 @@ def test_the_container_carries_every_type_and_arrays_in_its_connections(typed, t
     outputs = {"x": "b.Float64_output", "i": "b.Int32_output", "flag": "b.Boolean_output", "y": "c.Real_output",
                "e": "c.Integer_output", "text": "b.String_input_length", "bytes": "b.Binary_input_length"}
     path = system.export_container(tmp_path / "typed.fmu", step=1e-3, fmi_version=3, outputs=outputs)
+    assert validate_fmu(str(path)) == []
     reference = fmpy.simulate_fmu(str(path), stop_time=0.003, output_interval=1e-3)
     result = system.run(0.003, 1e-3, record=list(outputs.values()))
     for name, source in outputs.items():
