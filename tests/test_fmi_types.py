@@ -143,9 +143,11 @@ def test_compiled_loop_equals_python_loop_for_every_type_arrays_and_elements(typ
     system.set_input("a.Float64_array_input", [[1, 2, 3], [4, 5, 6]]).set_input("a.UInt64_input", 2**64 - 1)
     system.set_input("a.Enumeration_input", (np.array([0, 1.5e-3, 1.5e-3, 1.0]), [1, 1, 3, 3]))
     runs = {loop: system.run(0.004, 1e-3, loop=loop) for loop in ("python", "compiled")}
-    assert runs["compiled"].loop == "compiled"
+    seidel = {loop: system.run(0.004, 1e-3, loop=loop, ordering="gauss-seidel") for loop in ("python", "compiled")}
+    assert runs["compiled"].loop == seidel["compiled"].loop == "compiled"
     for name in runs["python"].names:
         assert np.array_equal(runs["python"][name], runs["compiled"][name]), name
+        assert np.array_equal(seidel["python"][name], seidel["compiled"][name]), name
     r = runs["compiled"]
     assert list(r["d.Enumeration_output"]) == [0, 0, 1, 1, 1] and list(r["c.Enumeration_output"]) == [0, 1, 1, 1, 3]
     assert list(r["b.Int32_array_output[2]"][1:]) == [-32] * 4            # from c.Integer_output
