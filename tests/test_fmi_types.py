@@ -408,6 +408,17 @@ def test_the_container_carries_every_type_and_arrays_in_its_connections(typed, t
     assert [inside[f"b.{t}_output"][-1] for t in NUMERIC3] == [float(typed_fmus.STARTS[t]) if t.startswith("Float")
                                                               else typed_fmus.STARTS[t] == "true" if t == "Boolean"
                                                               else int(typed_fmus.STARTS[t]) for t in NUMERIC3]
+    # structural parameters and arrays given to add() are fixed in the container (Configuration Mode)
+    sized = (System().add("p", typed["StateSpace3"])
+             .add("q", typed["StateSpace3"], parameters={"m": 2, "B": [[1, 0], [0, 1]], "D": [[0, 0], [0, 0.5]],
+                                                         "x0": [0.5, 0.0]})
+             .add("f", f3, parameters={"UInt64_parameter": 2**64 - 1, "String_parameter": "fixed"})
+             .connect("p.y", "q.u").connect("q.y[2]", "f.Float64_input"))
+    path = sized.export_container(tmp_path / "sized.fmu", step=0.1, fmi_version=2, outputs={"y2": "f.Float64_output"})
+    assert validate_fmu(str(path)) == []
+    reference = fmpy.simulate_fmu(str(path), stop_time=0.4, output_interval=0.1)
+    result = sized.run(0.4, 0.1, record=["f.Float64_output"])
+    assert list(reference["y2"][1:]) == list(result["f.Float64_output"][1:]) and len(set(reference["y2"])) > 2
     with pytest.raises(WiringError, match="the container sets an array input whole"):
         System().add("s", typed["StateSpace3"]).add("t", typed["StateSpace3"]).connect(
             "s.y[1]", "t.u[1]").export_container(tmp_path / "e.fmu")

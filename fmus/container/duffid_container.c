@@ -84,15 +84,17 @@
 
 /* The FMI functions a component must provide, by FMI version. */
 enum { F_INSTANTIATE, F_FREE, F_SETUP, F_ENTER, F_EXIT, F_TERMINATE, F_DO_STEP, F_GET_REAL, F_GET_INT,
-       F_GET_BOOL, F_SET_REAL, F_SET_INT, F_SET_BOOL, F_BOOLEAN_STATUS, F_REAL_STATUS, N_FUNCTIONS };
+       F_GET_BOOL, F_SET_REAL, F_SET_INT, F_SET_BOOL, F_BOOLEAN_STATUS, F_REAL_STATUS, F_ENTER_CONFIGURATION,
+       F_EXIT_CONFIGURATION, N_FUNCTIONS };
 static const char *const FUNCTION_NAMES[2][N_FUNCTIONS] = {
     {"fmi2Instantiate", "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
      "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2DoStep", "fmi2GetReal", "fmi2GetInteger",
      "fmi2GetBoolean", "fmi2SetReal", "fmi2SetInteger", "fmi2SetBoolean", "fmi2GetBooleanStatus",
-     "fmi2GetRealStatus"},
+     "fmi2GetRealStatus", NULL, NULL},
     {"fmi3InstantiateCoSimulation", "fmi3FreeInstance", NULL, "fmi3EnterInitializationMode",
      "fmi3ExitInitializationMode", "fmi3Terminate", "fmi3DoStep", "fmi3GetFloat64", "fmi3GetInt32",
-     "fmi3GetBoolean", "fmi3SetFloat64", "fmi3SetInt32", "fmi3SetBoolean", NULL, NULL}};
+     "fmi3GetBoolean", "fmi3SetFloat64", "fmi3SetInt32", "fmi3SetBoolean", NULL, NULL,
+     "fmi3EnterConfigurationMode", "fmi3ExitConfigurationMode"}};
 
 /* Where a component is in its lifecycle. */
 enum { STAGE_NONE, STAGE_LOADED, STAGE_INSTANTIATED, STAGE_INITIALIZING, STAGE_STEPPING, STAGE_TERMINATED };
@@ -974,6 +976,44 @@ static int instantiate(Instance *inst)
     return 0;
 }
 
+typedef int (*set4_t)(void *, const unsigned *, size_t, const void *);
+typedef int (*set5_t)(void *, const unsigned *, size_t, const void *, size_t);
+
+/* Sets component k's parameter values fixed in the container, the structural ones (in Configuration
+ * Mode, FMI 3) or the others; nonzero (logged) on failure. */
+static int apply_settings(Component *k, int index, int structural)
+{
+    size_t i;
+    int entered = 0, status;
+    for (i = 0; i < CONTAINER_N_SETTINGS; i++) {
+        const ContainerSetting *s = &container_settings[i];
+        const duffid_function f = k->io[s->kind][1];
+        if (s->component != index || s->structural != structural) continue;
+        if (structural && !entered) {
+            status = ((fmi3EnterConfigurationModeTYPE *)k->f[F_ENTER_CONFIGURATION])(k->instance);
+            if (call_failed(k, "fmi3EnterConfigurationMode", status, 0.0)) return 1;
+            entered = 1;
+        }
+        if (s->kind == CONTAINER_KIND_BINARY)
+            status = ((fmi3SetBinaryTYPE *)f)(k->instance, &s->vr, 1, s->sizes, (const fmi3Binary *)s->values,
+                                             (size_t)s->n);
+        else if (k->info->fmi_version == 3)
+            status = ((set5_t)f)(k->instance, &s->vr, 1, s->values, (size_t)s->n);
+        else
+            status = ((set4_t)f)(k->instance, &s->vr, 1, s->values);
+        if (status > 1) {
+            fail(k, "%s of %s (a value fixed in the container) returned %s",
+                 container_set_names[k->info->fmi_version - 2][s->kind], s->name, status_name(status));
+            return 1;
+        }
+    }
+    if (entered) {
+        status = ((fmi3ExitConfigurationModeTYPE *)k->f[F_EXIT_CONFIGURATION])(k->instance);
+        if (call_failed(k, "fmi3ExitConfigurationMode", status, 0.0)) return 1;
+    }
+    return 0;
+}
+
 static int enter_initialization(Instance *inst)
 {
     Container *c = (Container *)inst->model_data;
@@ -986,6 +1026,7 @@ static int enter_initialization(Instance *inst)
                                                                 inst->stop_time);
             if (call_failed(k, "fmi2SetupExperiment", status, inst->start_time)) return 1;
         }
+        if (apply_settings(k, i, 1) != 0 || apply_settings(k, i, 0) != 0) return 1;
     }
     if (pass_values(inst, CAUSALITY_PARAMETER, 1) != 0) return 1;
     for (i = 0; i < N_COMPONENTS; i++) {

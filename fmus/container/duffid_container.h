@@ -52,6 +52,21 @@ typedef struct {
     unsigned char *data;
 } ContainerBinary;
 
+/* A parameter value given to System.add that the container does not expose (a structural parameter,
+ * an array, a type other than the glue's): set into its component before initialisation, a structural
+ * one in Configuration Mode. values: n values as the FMI set function takes them (Binary: n pointers,
+ * with their sizes). */
+typedef struct {
+    const char *name;              /* "component.parameter", for messages */
+    int component;
+    unsigned vr;
+    int kind;
+    int structural;
+    int n;
+    const void *values;
+    const size_t *sizes;
+} ContainerSetting;
+
 /* A container variable and one component variable it maps to: an input or parameter is set
  * into each of its targets, an output read from its one source. */
 typedef struct {

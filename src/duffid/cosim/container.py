@@ -209,11 +209,25 @@ def carried_kind(comp: Any, var: Any, role: str, inside: bool = False) -> str:
     return kind
 
 
+@dataclass
+class _Setting:
+    """A parameter value given to ``System.add`` that the container cannot expose as its own
+    variable (a structural parameter, an array, a type other than the glue's): fixed in it, set
+    before initialisation (a structural one in Configuration Mode)."""
+
+    index: int                     # the component's
+    component: Any
+    variable: Any
+    value: Any                     # as typed_parameter returns it (an array: a flat list)
+
+
 def _plan(system: WiredSystem, inputs: Mapping[str, str | Sequence[str]] | None, outputs: Mapping[str, str] | None,
-          parameters: Mapping[str, str | Sequence[str]] | None) -> list[_Variable]:
-    """The container variables, checked (WiringError for anything the container cannot carry)."""
+          parameters: Mapping[str, str | Sequence[str]] | None) -> tuple[list[_Variable], list[_Setting]]:
+    """The container variables, checked (WiringError for anything the container cannot carry), and
+    the parameter values fixed in it."""
     order = {name: i for i, name in enumerate(system.wiring.components)}
     variables: list[_Variable] = []
+    settings: list[_Setting] = []
     used: set[str] = {"time"}
 
     def add(var: _Variable) -> _Variable:
@@ -277,9 +291,14 @@ def _plan(system: WiredSystem, inputs: Mapping[str, str | Sequence[str]] | None,
                                     for name, t in (parameters or {}).items()}
     covered = {full for targets in exposed.values() for full in targets}
     for comp in system.wiring.components.values():
-        for pname in comp.parameters:
+        for pname, value in comp.parameters.items():
             full = f"{comp.name}.{pname}"
-            if full not in covered:
+            var = comp.variables[pname]
+            if full in covered:
+                continue
+            if var.causality == "structuralParameter" or var.dimensions or comp.kind(var, "set") not in _GLUE_TYPE:
+                settings.append(_Setting(order[comp.name], comp, var, value))  # fixed in the container
+            else:
                 exposed[full] = [full]
     for name, targets in exposed.items():
         entries, starts = [], []
@@ -303,7 +322,7 @@ def _plan(system: WiredSystem, inputs: Mapping[str, str | Sequence[str]] | None,
                             _one_unit([e[1] for e in entries], f"container parameter {name!r}")
                             if kind == "Real" else None))
         par.links = [(order[c.name], v.valueReference, full) for (c, v, _), full in zip(entries, targets)]
-    return variables
+    return variables, settings
 
 
 def _table(variables: list[_Variable]) -> list[FmuVariable]:
@@ -319,8 +338,8 @@ def _table(variables: list[_Variable]) -> list[FmuVariable]:
     return table
 
 
-def _header(system: WiredSystem, variables: list[_Variable], table: list[FmuVariable], identifier: str, token: str,
-            step: float) -> str:
+def _header(system: WiredSystem, variables: list[_Variable], settings: list[_Setting], table: list[FmuVariable],
+            identifier: str, token: str, step: float) -> str:
     """The generated container_fmu_config.h: the glue's tables and the container's description."""
     comps = list(system.wiring.components.values())
     order = {c.name: i for i, c in enumerate(comps)}
@@ -366,6 +385,7 @@ def _header(system: WiredSystem, variables: list[_Variable], table: list[FmuVari
                      "CONTAINER_N_TARGETS")
              + array("intptr_t", "target_slots", [str(slot) for t in targets for slot in gathers[t]],
                      "CONTAINER_N_TARGET_VALUES")
+             + _settings_table(settings)
              + array("ContainerLink", "links", [f"{{{vr}u, {c}, {cvr}u}}" for vr, c, cvr, _ in links],
                      "CONTAINER_N_LINKS")
              + "static const char *const container_link_names[] = {\n    "
@@ -390,6 +410,54 @@ def _kind_tables() -> str:
             f"static const char *const container_get_names[2][CONTAINER_N_KINDS] = {{{{{names(2, 0)}}}, {{{names(3, 0)}}}}};\n"
             f"static const char *const container_set_names[2][CONTAINER_N_KINDS] = {{{{{names(2, 1)}}}, {{{names(3, 1)}}}}};\n"
             f"static const size_t container_fmi_size[2][CONTAINER_N_KINDS] = {{{{{sizes(2)}}}, {{{sizes(3)}}}}};\n")
+
+
+#: C types of one value as the FMI set functions take it.
+_C_TYPES = {ctypes.c_double: "double", ctypes.c_float: "float", ctypes.c_int: "int", ctypes.c_int8: "int8_t",
+            ctypes.c_uint8: "uint8_t", ctypes.c_int16: "int16_t", ctypes.c_uint16: "uint16_t",
+            ctypes.c_int32: "int32_t", ctypes.c_uint32: "uint32_t", ctypes.c_int64: "int64_t",
+            ctypes.c_uint64: "uint64_t", ctypes.c_bool: "_Bool", ctypes.c_char_p: "const char *"}
+
+
+def _c_value(kind: str, value: Any) -> str:
+    """A C literal of a parameter value (an integer of 64 bits with its suffix, the least Int64 as
+    an expression, a String as a string literal)."""
+    if kind == "String":
+        return _c_string(value)
+    if kind in ("Real", "Float32"):
+        return repr(float(value))
+    number = int(value)
+    if number == -2**63:
+        return "(-9223372036854775807LL - 1)"
+    return f"{number}{'ULL' if kind == 'UInt64' else 'LL' if kind in ('Int64', 'Enumeration') else ''}"
+
+
+def _settings_table(settings: Sequence[_Setting]) -> str:
+    """The parameter values fixed in the container (container_settings, CONTAINER_N_SETTINGS)."""
+    arrays, rows = [], []
+    for i, s in enumerate(settings):
+        kind = s.component.kind(s.variable, "set")
+        values = s.value if isinstance(s.value, list) else [s.value]
+        sizes = "NULL"
+        if kind == "Binary":
+            for j, v in enumerate(values):
+                arrays.append(f"static const unsigned char container_setting_{i}_{j}[] = "
+                              f"{{{', '.join(str(b) for b in v) or '0'}}};")
+            arrays.append(f"static const unsigned char *const container_setting_{i}[] = "
+                          f"{{{', '.join(f'container_setting_{i}_{j}' for j in range(len(values)))}}};")
+            arrays.append(f"static const size_t container_setting_{i}_sizes[] = {{{', '.join(str(len(v)) for v in values)}}};")
+            sizes = f"container_setting_{i}_sizes"
+        else:
+            ctype = _C_TYPES[FMI_FUNCTIONS[s.component.version][kind][2]]
+            arrays.append(f"static {ctype} const container_setting_{i}[] = "
+                          f"{{{', '.join(_c_value(kind, v) for v in values)}}};")
+        rows.append(f"{{{_c_string(f'{s.component.name}.{s.variable.name}')}, {s.index}, "
+                    f"{s.variable.valueReference}u, {_KINDS.index(kind)}, "
+                    f"{int(s.variable.causality == 'structuralParameter')}, {len(values)}, container_setting_{i}, "
+                    f"{sizes}}}")
+    body = ",\n    ".join(rows) or "{0}"
+    return ("\n".join(arrays) + f"\n#define CONTAINER_N_SETTINGS {len(rows)}\n"
+            f"static const ContainerSetting container_settings[] = {{\n    {body}\n}};\n")
 
 
 def _unit_elements(system: WiredSystem) -> dict[str, ET.Element]:
@@ -510,7 +578,7 @@ def export_container(system: WiredSystem, path: str | os.PathLike[str],
     if not (isinstance(step, (int, float)) and not isinstance(step, bool) and math.isfinite(step) and step > 0):
         raise WiringError(f"step must be a positive number, got {step!r}")
     path = Path(path)
-    variables = _plan(system, inputs, outputs, parameters)
+    variables, settings = _plan(system, inputs, outputs, parameters)
     platforms = _platforms(system)
     identifier = _identifier(path.stem)
     table = _table(variables)
@@ -521,9 +589,10 @@ def export_container(system: WiredSystem, path: str | os.PathLike[str],
     components = {name: comp.path.read_bytes() for name, comp in system.wiring.components.items()}
     token = token_from(f"duffid-container-fmi{fmi_version}", identifier, repr(float(step)), *runtime.values(), *components.values(),
                        *[f"{v.name}|{v.kind}|{v.causality}|{v.start}|{v.unit}|{v.links}" for v in variables],
-                       *[f"{c.source}>{c.target}" for c in system.wiring.connections])
+                       *[f"{c.source}>{c.target}" for c in system.wiring.connections],
+                       *[f"{s.index}|{s.variable.name}|{s.value!r}" for s in settings])
     sources = dict(runtime)
-    sources[_CONFIG] = _header(system, variables, table, identifier, token, step).encode()
+    sources[_CONFIG] = _header(system, variables, settings, table, identifier, token, step).encode()
     c_files = tuple(sorted(n for n in sources if n.endswith(".c")))
     files = {"modelDescription.xml": _model_description(system, identifier, token, table, step, c_files, types,
                                                         fmi_version)}
