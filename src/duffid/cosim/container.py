@@ -33,7 +33,10 @@ What is exported:
   (the container sets its parameters into its components before their initialisation, so
   the values take effect, and an importer may change them); ``parameters={"mass":
   ["plant.m"]}`` exposes further component parameters (start: the add() value or the
-  component's own start) under names of your choice.
+  component's own start) under names of your choice. A value given to add() that the
+  container cannot expose as its own variable (a structural parameter, an array, a type other
+  than Real/Float64, Integer/Int32 and Boolean) is fixed in it instead: set into its component
+  before initialisation, a structural parameter in Configuration Mode.
 
 The states evolve exactly as under ``System.run(ordering="jacobi")`` (the tests check
 equality to 1e-12): the components are set up, given their parameters and initialised as
