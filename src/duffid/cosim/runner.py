@@ -1,12 +1,15 @@
 """The run of a :class:`duffid.cosim.system.System`: instantiation, the fixed-step master loops,
 recording, failure handling and clean-up (private; see :mod:`duffid.cosim.system`).
 
-The inner loop works on preallocated buffers: one value buffer per variable type holds
-every needed output (each component's outputs contiguous, read with one raw FMI get call
-per type straight into it) and the external input values; each component's inputs are
-gathered from it with ``np.take(..., out=...)`` into a preallocated buffer and set with
-one raw set call per type; recording copies the buffer into a preallocated row. The raw
-ctypes functions that fmpy loaded are called directly and their status is checked here.
+The inner loop works on preallocated buffers: one value buffer per kind of value
+(:mod:`duffid.cosim.value_types`) holds every needed output (each component's outputs
+contiguous, an array's values one slot each, read with one raw FMI get call per kind straight
+into it) and the external input values; each component's inputs are gathered from it with
+``np.take(..., out=...)`` into a preallocated buffer and set with one raw set call per kind;
+recording copies the buffer into a preallocated row. The raw ctypes functions that fmpy loaded
+are called directly and their status is checked here. String and Binary values are Python
+objects, got and set by :mod:`duffid.cosim.object_io`. An FMI 3 FMU with Event Mode has its
+events handled between steps (:meth:`Runner._event`).
 """
 from __future__ import annotations
 
