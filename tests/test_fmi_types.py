@@ -289,6 +289,19 @@ def test_event_mode_is_used_where_the_fmu_declares_it(typed, loop):
     assert list(result["s.event_updates"]) == list(result["s.counter"]) and not any(reference["event_updates"])
 
 
+def test_the_container_runs_event_mode_as_the_orchestrator_does(typed, tmp_path):
+    """Stair3 inside the container: its events handled in Event Mode between internal steps, the
+    counter as System.run's."""
+    system = System().add("s", typed["Stair3"])
+    path = system.export_container(tmp_path / "stair.fmu", step=0.1, fmi_version=3,
+                                   outputs={"counter": "s.counter", "updates": "s.event_updates"})
+    assert validate_fmu(str(path)) == []
+    reference = fmpy.simulate_fmu(str(path), stop_time=1.0, output_interval=0.2)   # two internal steps each
+    result = system.run(1.0, 0.1)
+    assert list(reference["counter"]) == list(result["s.counter"][::2]) == [0, 1, 2, 3, 4, 5]
+    assert list(reference["updates"]) == list(reference["counter"])
+
+
 # ------------------------------------------------------------------ refusals, named
 def test_what_the_master_cannot_honour_is_refused_by_name(typed, tmp_path):
     with pytest.raises(WiringError, match=r"component 'c' \(Feedthrough3_description.fmu\): variable 'tick' is a "

@@ -85,16 +85,17 @@
 /* The FMI functions a component must provide, by FMI version. */
 enum { F_INSTANTIATE, F_FREE, F_SETUP, F_ENTER, F_EXIT, F_TERMINATE, F_DO_STEP, F_GET_REAL, F_GET_INT,
        F_GET_BOOL, F_SET_REAL, F_SET_INT, F_SET_BOOL, F_BOOLEAN_STATUS, F_REAL_STATUS, F_ENTER_CONFIGURATION,
-       F_EXIT_CONFIGURATION, N_FUNCTIONS };
+       F_EXIT_CONFIGURATION, F_ENTER_EVENT, F_UPDATE_DISCRETE, F_ENTER_STEP, N_FUNCTIONS };
 static const char *const FUNCTION_NAMES[2][N_FUNCTIONS] = {
     {"fmi2Instantiate", "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
      "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2DoStep", "fmi2GetReal", "fmi2GetInteger",
      "fmi2GetBoolean", "fmi2SetReal", "fmi2SetInteger", "fmi2SetBoolean", "fmi2GetBooleanStatus",
-     "fmi2GetRealStatus", NULL, NULL},
+     "fmi2GetRealStatus", NULL, NULL, NULL, NULL, NULL},
     {"fmi3InstantiateCoSimulation", "fmi3FreeInstance", NULL, "fmi3EnterInitializationMode",
      "fmi3ExitInitializationMode", "fmi3Terminate", "fmi3DoStep", "fmi3GetFloat64", "fmi3GetInt32",
      "fmi3GetBoolean", "fmi3SetFloat64", "fmi3SetInt32", "fmi3SetBoolean", NULL, NULL,
-     "fmi3EnterConfigurationMode", "fmi3ExitConfigurationMode"}};
+     "fmi3EnterConfigurationMode", "fmi3ExitConfigurationMode", "fmi3EnterEventMode", "fmi3UpdateDiscreteStates",
+     "fmi3EnterStepMode"}};
 
 /* Where a component is in its lifecycle. */
 enum { STAGE_NONE, STAGE_LOADED, STAGE_INSTANTIATED, STAGE_INITIALIZING, STAGE_STEPPING, STAGE_TERMINATED };
@@ -417,8 +418,8 @@ static int load_component(Instance *inst, Component *k, const char *folder)
                                                                     inst->logging_on ? fmi2True : fmi2False);
     } else {
         k->instance = ((fmi3InstantiateCoSimulationTYPE *)k->f[F_INSTANTIATE])(
-            info->name, info->token, resources, fmi3False, inst->logging_on ? fmi3True : fmi3False, fmi3False,
-            fmi3False, NULL, 0, k, logger3, NULL);
+            info->name, info->token, resources, fmi3False, inst->logging_on ? fmi3True : fmi3False,
+            info->event_mode ? fmi3True : fmi3False, fmi3False, NULL, 0, k, logger3, NULL);
     }
     free(uri);
     free(resources);
@@ -766,6 +767,7 @@ static int build_ops(Container *c)
         op->terminate = &k->terminate;
         op->early_return = &k->early_return;
         op->last_successful_time = &k->last_successful_time;
+        op->event_mode = k->info->event_mode;
     }
     /* an internal step: doSteps, gets, posts; then sets.  Initialisation: gets, posts; then sets. */
     memset(c->stages, 0, sizeof c->stages);
@@ -835,6 +837,35 @@ static void loop_failed(Container *c, int rc, int op, int status, long k_failed,
     }
 }
 
+/* The events of component k (with Event Mode) at time t: Event Mode entered (unless `entered`), the
+ * discrete states updated until settled, back to Step Mode; nonzero (logged) on failure. A request to
+ * end the simulation in the update is refused as a failure (the container ends only at a doStep). */
+static int handle_events(Component *k, double t, int entered)
+{
+    fmi3Boolean again = fmi3True, terminate = fmi3False, nominals, values, defined;
+    fmi3Float64 next;
+    int status, i;
+    if (!entered) {
+        status = ((fmi3EnterEventModeTYPE *)k->f[F_ENTER_EVENT])(k->instance);
+        if (call_failed(k, "fmi3EnterEventMode", status, t)) return 1;
+    }
+    for (i = 0; again && i < 100; i++) {
+        status = ((fmi3UpdateDiscreteStatesTYPE *)k->f[F_UPDATE_DISCRETE])(k->instance, &again, &terminate, &nominals,
+                                                                           &values, &defined, &next);
+        if (call_failed(k, "fmi3UpdateDiscreteStates", status, t)) return 1;
+        if (terminate) {
+            fail(k, "asked to end the simulation in Event Mode at t = %.17g, which the container does not allow", t);
+            return 1;
+        }
+    }
+    if (again) {
+        fail(k, "its discrete states still need an update after 100 calls of fmi3UpdateDiscreteStates at t = %.17g", t);
+        return 1;
+    }
+    status = ((fmi3EnterStepModeTYPE *)k->f[F_ENTER_STEP])(k->instance);
+    return call_failed(k, "fmi3EnterStepMode", status, t);
+}
+
 /* Runs internal steps 0 .. n-1 on c->grid (n = 0: the connections only, no doStep); 0 when they
  * all ran, 1 (logged) on failure, -1 when a component asked to end the simulation in internal
  * step j: the other components then complete step j (Jacobi), the connected outputs are read
@@ -857,7 +888,25 @@ static int run_loop(Instance *inst, long n, double *reached)
         const double t = c->grid[j];
         Component *k = &c->comps[op];
         double r;
-        duffid_stage rest;
+        duffid_stage rest, after[2];
+        if (k->info->event_mode && status <= 1 && !k->terminate &&
+            k->event_handling_needed) {
+            /* its events, then the rest of internal step j (later doSteps, gets; the sets unless a component
+             * asked to end), then the internal steps after it */
+            if (handle_events(k, t + CONTAINER_STEP, 0)) return 1;
+            memset(after, 0, sizeof after);
+            after[0].step_lo = op + 1;
+            after[0].step_hi = N_COMPONENTS;
+            after[0].get_hi = c->n_gets;
+            after[0].post_hi = c->n_posts;
+            after[1].set_hi = c->n_sets;
+            rc = duffid_cosim_run(c->grid, j, j + 1, CONTAINER_STEP, after, ended ? 1 : 2, c->sets, c->steps, c->gets,
+                                  c->posts, NULL, 0, stop_on_step, &k_failed, &op, &status);
+            if (rc == DUFFID_LOOP_DONE && !ended && j + 1 < n)
+                rc = duffid_cosim_run(c->grid, j + 1, n, CONTAINER_STEP, c->stages, 2, c->sets, c->steps, c->gets,
+                                      c->posts, NULL, 0, stop_on_step, &k_failed, &op, &status);
+            continue;
+        }
         if (!asked_to_end(k, status, t, &r)) {
             loop_failed(c, rc, op, status, k_failed, n);
             return 1;
@@ -1070,6 +1119,8 @@ static int exit_initialization(Instance *inst)
         else
             status = ((fmi3ExitInitializationModeTYPE *)k->f[F_EXIT])(k->instance);
         if (call_failed(k, FUNCTION_NAMES[k->info->fmi_version - 2][F_EXIT], status, inst->start_time)) return 1;
+        /* FMI 3 with Event Mode leaves initialisation in Event Mode */
+        if (k->info->event_mode && handle_events(k, inst->start_time, 1)) return 1;
         k->stage = STAGE_STEPPING;
     }
     c->grid[0] = inst->start_time;

@@ -20,6 +20,7 @@ typedef struct {
     const char *model_identifier;  /* its binary: binaries/<platform>/<model_identifier><suffix> */
     int fmi_version;               /* 2 or 3 (co-simulation) */
     const char *token;             /* guid / instantiationToken */
+    int event_mode;                /* FMI 3 hasEventMode: run with eventModeUsed, its events handled */
 } ContainerComponent;
 
 /* The connection sources, sorted by (component, kind): each a variable of n values (an array has

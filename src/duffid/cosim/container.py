@@ -66,7 +66,9 @@ complete it, the container's outputs are read then, and the container asks to en
 as an FMI 2 FMU does (``Discard``, ``fmi2GetBooleanStatus(fmi2Terminated)`` true,
 ``fmi2LastSuccessfulTime`` the earliest time reached by a component that asked), which fmpy and
 :meth:`~duffid.cosim.system.System.run` take as the end of the run. The container ignores a tolerance given to it (its components use
-their own, as under the orchestrator).
+their own, as under the orchestrator). An FMI 3 component that declares ``hasEventMode`` runs with
+Event Mode as under the orchestrator: its events are handled after the internal step in which it
+asks (``updateDiscreteStates`` until settled), and after its initialisation.
 """
 from __future__ import annotations
 
@@ -356,7 +358,8 @@ def _header(system: WiredSystem, variables: list[_Variable], settings: list[_Set
 
     component_rows = [f"{{{_c_string(c.name)}, {_c_string(c.path.name)}, "
                       f"{_c_string(c.md.coSimulation.modelIdentifier)}, {c.version}, "
-                      f"{_c_string(c.md.guid if c.version == 2 else c.md.instantiationToken)}}}" for c in comps]
+                      f"{_c_string(c.md.guid if c.version == 2 else c.md.instantiationToken)}, "
+                      f"{int(c.event_mode)}}}" for c in comps]
     # connection sources: unique variables, sorted by (component, kind); n values each, in the buffer of their kind
     ends = {}
     for conn in system.wiring.connections:
