@@ -433,6 +433,9 @@ def test_the_container_carries_every_type_and_arrays_in_its_connections(typed, t
     result = sized.run(0.4, 0.1, record=["q.y"])
     # f feeds its input through: the container's output, read after its inputs are set, is q.y[2] now
     assert list(reference["y2"][1:]) == list(result["q.y[2]"][1:]) and len(set(reference["y2"])) > 2
+    with pytest.raises(WiringError, match=r"container output source 'q.y\[2\]': component 'q' \(StateSpace3.fmu\): an "
+                                          "element of the array y"):
+        sized.export_container(tmp_path / "e.fmu", outputs={"y2": "q.y[2]"})
     with pytest.raises(WiringError, match="the container sets an array input whole"):
         System().add("s", typed["StateSpace3"]).add("t", typed["StateSpace3"]).connect(
             "s.y[1]", "t.u[1]").export_container(tmp_path / "e.fmu")

@@ -242,8 +242,16 @@ def _plan(system: WiredSystem, inputs: Mapping[str, str | Sequence[str]] | None,
         variables.append(var)
         return var
 
+    def find(full: str, role: str) -> tuple[Any, Any]:
+        if isinstance(full, str) and "[" in full and system.wiring.channel is not None:  # an array element
+            comp, var, _ = system.wiring.channel(full, role)
+            raise WiringError(f"{role} {full!r}: {comp.where()}: an element of the array {var.name}; the container's "
+                              "own variables map to whole scalar variables (connect the element to a component "
+                              "inside, or run the system with System.run)")
+        return system.wiring.lookup(full, role)
+
     def resolve(full: str, role: str) -> tuple[Any, Any, str]:
-        comp, var = system.wiring.lookup(full, role)
+        comp, var = find(full, role)
         return comp, var, carried_kind(comp, var, role)
 
     for conn in system.wiring.connections:
@@ -257,7 +265,7 @@ def _plan(system: WiredSystem, inputs: Mapping[str, str | Sequence[str]] | None,
     for name, targets in (inputs or {}).items():
         entries = []
         for full in _as_list(targets, f"container input {name!r}"):
-            comp, var = system.wiring.lookup(full, "container input target")
+            comp, var = find(full, "container input target")
             if var.causality != "input":
                 raise WiringError(f"container input {name!r}: {full} is {with_article(var.causality)}, not an input")
             if full in connected:
@@ -285,7 +293,7 @@ def _plan(system: WiredSystem, inputs: Mapping[str, str | Sequence[str]] | None,
     for name, source in outputs.items():
         if not isinstance(source, str):
             raise WiringError(f"container output {name!r} must map to one 'component.output'")
-        comp, var = system.wiring.lookup(source, "container output source")
+        comp, var = find(source, "container output source")
         if var.causality != "output":
             raise WiringError(f"container output {name!r}: {source} is {with_article(var.causality)}, not an output")
         comp, var, kind = resolve(source, "container output source")
@@ -308,7 +316,7 @@ def _plan(system: WiredSystem, inputs: Mapping[str, str | Sequence[str]] | None,
     for name, targets in exposed.items():
         entries, starts = [], []
         for full in targets:
-            comp, var = system.wiring.lookup(full, "container parameter target")
+            comp, var = find(full, "container parameter target")
             if var.causality != "parameter" or var.variability not in ("fixed", "tunable"):
                 raise WiringError(f"container parameter {name!r}: {full} is {with_article(var.causality)} "
                                   f"({var.variability}), not a settable parameter")
