@@ -37,6 +37,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/silverbox.py
 	$(BIN)/python benchmarks/cosim.py
 	$(BIN)/python benchmarks/trust.py
+	$(BIN)/python benchmarks/speed.py
 	$(BIN)/python benchmarks/platforms.py
 	$(BIN)/python benchmarks/equations.py
 	$(BIN)/python benchmarks/campaign.py
