@@ -120,3 +120,23 @@ def test_one_percent_of_isolated_glitches_are_excluded_and_the_values_published(
     for name, value in result.parameters.items():  # within 3 stated errors of the truth
         truth = plant.parameters[name]
         assert abs(value - truth) <= 3 * a.uncertainty[name] * abs(truth), name
+
+
+def test_the_progress_bar_counts_every_run(record, monkeypatch):
+    bars = []
+
+    class Bar:
+        def __init__(self, total, disable, **kwargs):
+            self.total, self.disable, self.n = total, disable, 0
+            bars.append(self)
+
+        def update(self, n):
+            self.n += n
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr("duffid.identification.trust.tqdm", Bar)
+    identify(record, Duffing1(), jobs=1, progress=True)
+    # two estimator runs, the simulation, 8 replicates, the half rate
+    assert len(bars) == 1 and not bars[0].disable and bars[0].n == bars[0].total == 12
