@@ -207,7 +207,7 @@ def run_online(record: Record, model: Any, truth: dict[str, float]) -> dict[str,
 
 def _cell(row: dict[str, Any]) -> str:
     if row["status"] != "published":
-        return {"not excited": "not exc.", "uncertain": "uncert.", "lost": "lost"}[row["status"]]
+        return {"not excited": "not exc.", "uncertain": "uncert.", "lost": "lost", "changed": "changed"}[row["status"]]
     return f"{100 * row['error']:+.2f}%"
 
 

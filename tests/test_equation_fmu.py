@@ -204,7 +204,7 @@ def test_c_equation_fmu_equals_the_online_identifier_and_identify(tmp_path, reco
     assert md.fmiVersion == f"{version}.0" and md.coSimulation.canHandleVariableCommunicationStepSize is False
     variables = {v.name: v for v in md.modelVariables}
     units = {v.name: v.unit for v in md.modelVariables}
-    assert [v.name for v in md.modelVariables if v.causality == "input"] == ["x", "f"]
+    assert [v.name for v in md.modelVariables if v.causality == "input"] == ["x", "f", "enable", "reset"]
     assert (units["x"], units["f"], units["c_hat"], units["kp_hat"], units["k_nominal"]) == \
         ("m", "N", "N.s/m3", "N/m3", "N/m")
     assert variables["c_status"].type == ("Integer" if version == 2 else "Int32")
@@ -238,7 +238,8 @@ def test_c_equation_fmu_with_two_forces_a_ring_down_and_the_paper_method(tmp_pat
     fmu = c_fmus.build_equation_fmu(TWO_FORCES, tmp_path, name="TwoForces", columns=TWO_FORCES_COLUMNS,
                                     backend="c")
     md = fmpy.read_model_description(str(fmu))
-    assert [v.name for v in md.modelVariables if v.causality == "input"] == ["x1", "x2", "f1", "f2"]
+    assert [v.name for v in md.modelVariables if v.causality == "input"] == ["x1", "x2", "f1", "f2", "enable",
+                                                                              "reset"]
     estimates = _assert_fmu_equals_identifier(simulate_record(fmu, two, ["x1", "x2", "f1", "f2"]),
                                               EquationModel(TWO_FORCES, TWO_FORCES_COLUMNS), two)
     assert estimates[-1].identified
@@ -248,7 +249,8 @@ def test_c_equation_fmu_with_two_forces_a_ring_down_and_the_paper_method(tmp_pat
     fmu = c_fmus.build_equation_fmu(ring, tmp_path, name="RingDown", backend="c")
     inputs = [v.name for v in fmpy.read_model_description(str(fmu)).modelVariables if v.causality == "input"]
     sig = ring_model.regressor.signals
-    assert inputs == list(sig.x_names) + list(sig.f_names)
+    assert inputs == list(sig.x_names) + list(sig.f_names) + ["enable", "reset"]
+    inputs = inputs[:-2]
     assert _assert_fmu_equals_identifier(simulate_record(fmu, ring_record, inputs), EquationModel(ring),
                                          ring_record)[-1].identified
     fmu = c_fmus.build_equation_fmu(DAMPING, tmp_path, name="Damping", backend="c")

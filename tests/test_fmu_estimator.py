@@ -72,16 +72,21 @@ def test_interface(fmus, model_name, version):
     assert md.fmiVersion == f"{version}.0" and md.coSimulation is not None and md.modelExchange is None
     model = Duffing1() if model_name == "duffing1" else Duffing2()
     variables = {v.name: v for v in md.modelVariables}
-    assert [v.name for v in md.modelVariables if v.causality == "input"] == INPUTS[model_name]
+    assert [v.name for v in md.modelVariables if v.causality == "input"] == INPUTS[model_name] + ["enable", "reset"]
+    assert variables["enable"].type == variables["reset"].type == "Boolean"
+    assert variables["enable"].start in ("true", "1", True) and variables["reset"].start in ("false", "0", False)
     outputs = [v.name for v in md.modelVariables if v.causality == "output"]
     assert outputs == [f"{n}_hat" for n in model.parameters] + ["identified", "condition", "uncertainty",
                                                                    "window_length"] + [
-        f"{n}_status" for n in model.parameters] + ["outliers"]
+        f"{n}_status" for n in model.parameters] + ["outliers"] + [
+        f"{n}_std_error" for n in model.parameters] + ["residual"]
+    assert variables["k_std_error" if model_name == "duffing1" else "k1_std_error"].unit == "N/m"
     assert len(md.outputs) == len(outputs)
     for name in model.parameters:
         assert float(variables[f"{name}_nominal"].start) == 0.0  # no prior: the data give the scale
         assert variables[f"{name}_status"].type == ("Integer" if version == 2 else "Int32")
         assert "1 published" in variables[f"{name}_status"].description
+        assert "4 changed" in variables[f"{name}_status"].description
     assert float(variables["method"].start) == 0.0 and float(variables["window"].start) == 0.0
     assert float(variables["gamma"].start) == 20.0 and float(variables["forgetting"].start) == 0.0
     assert variables["k_hat" if model_name == "duffing1" else "k1_hat"].unit == "N/m"

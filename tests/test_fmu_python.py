@@ -49,10 +49,11 @@ def test_interface(fmus, model_name, inputs, outputs):
     md = fmpy.read_model_description(str(fmus[model_name]))
     assert md.coSimulation is not None and md.fmiVersion == "2.0"
     variables = {v.name: v for v in md.modelVariables}
-    assert [v.name for v in md.modelVariables if v.causality == "input"] == inputs
+    assert [v.name for v in md.modelVariables if v.causality == "input"] == inputs + ["enable", "reset"]
+    assert variables["enable"].type == variables["reset"].type == "Boolean"
     out = [v.name for v in md.modelVariables if v.causality == "output"]
     assert out == outputs + ["identified", "condition", "uncertainty", "window_length"] + [
-        f"{n[:-4]}_status" for n in outputs] + ["outliers"]
+        f"{n[:-4]}_status" for n in outputs] + ["outliers"] + [f"{n[:-4]}_std_error" for n in outputs] + ["residual"]
     assert all(variables[name].initial == "exact" for name in out)
     assert variables["identified"].type == "Boolean"
     assert np.isnan(float(variables[outputs[0]].start))

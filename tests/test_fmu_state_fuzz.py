@@ -34,6 +34,7 @@ from fmu_helpers import SANITIZE, SANITIZER_REPORT, sanitizer_compiler
 from duffid import Duffing1, Duffing2, Step, measure, simulate
 from duffid.assets import fmu_sources
 from duffid.fmu.package import fmi_include_dir
+from duffid.identification.engine import STATUSES
 
 pytestmark = pytest.mark.slow
 
@@ -90,8 +91,10 @@ def _input_rows(name: str, inputs: list[str], n: int) -> np.ndarray:
     if name.startswith("DuffingEstimator"):
         model, force = (Duffing1(), Step(14.0)) if name.endswith("1") else (Duffing2(), Step(6.0))
         record = measure(simulate(model, force, n * DT, DT))
+        # enable: a short pause in the middle (the window restarts after it); reset: once, late
         columns = {**{f"x{i + 1}": record.x[:n, i] for i in range(record.x.shape[1])}, "f": record.f[:n, 0],
-                   "f1": record.f[:n, 0]}
+                   "f1": record.f[:n, 0], "enable": ((t < 0.4 * t[-1]) | (t > 0.45 * t[-1])).astype(float),
+                   "reset": (np.arange(n) == int(0.9 * n)).astype(float)}
         columns.setdefault("x", columns["x1"])
         return np.column_stack([columns[v] for v in inputs])
     if name.startswith("AdaptiveController"):
@@ -115,10 +118,10 @@ def _output_range(name: str, var, start: dict[str, float]) -> tuple[float, float
         return 0.0, 1.0, False
     if name.startswith("DuffingEstimator"):
         if var.name.endswith("_status"):
-            return 0.0, 3.0, False
+            return 0.0, float(len(STATUSES) - 1), False
         if var.name == "outliers":
             return 0.0, 2.0**31 - 1, False
-        if var.name in ("condition", "uncertainty"):
+        if var.name in ("condition", "uncertainty", "residual") or var.name.endswith("_std_error"):
             return 0.0, math.inf, True
         if var.name == "window_length":
             return 0.0, big, True

@@ -54,6 +54,8 @@ def _probes(record):
     from duffid.identification.buffered import BufferedIdentifier, identify_buffered
     from duffid.identification.c_buffered import CBufferedIdentifier
     from duffid.identification.c_core import CIdentifier
+    from duffid.identification.changes import find_changes, identify_segments
+    from duffid.identification.dispatch import final_estimates
     from duffid.identification.engine import OnlineIdentifier
     from duffid.identification.equation import identify_equation
     from duffid.identification.refine import refine
@@ -75,6 +77,8 @@ def _probes(record):
         "duffid.identification.c_buffered.CBufferedIdentifier.__init__":
             lambda: CBufferedIdentifier(plant, record.dt, "legendre", **{BOGUS: 1}),
         "duffid.identification.c_core.CIdentifier.__init__": lambda: CIdentifier(plant, record.dt, **{BOGUS: 1}),
+        "duffid.identification.changes.find_changes": lambda: find_changes(record, plant, **{BOGUS: 1}),
+        "duffid.identification.changes.identify_segments": lambda: identify_segments(record, plant, **{BOGUS: 1}),
         "duffid.identification.engine.OnlineIdentifier.__init__":
             lambda: OnlineIdentifier(plant, record.dt, **{BOGUS: 1}),
         "duffid.identification.equation.identify_equation":
@@ -83,6 +87,7 @@ def _probes(record):
             lambda: refine(record, plant, dict(plant.parameters), **{BOGUS: 1}),
         "duffid.identification.trust.identify": lambda: identify(record, plant, **{BOGUS: 1}),
         "duffid.identification.dispatch.run_estimator": lambda: run_estimator(record, plant, **{BOGUS: 1}),
+        "duffid.identification.dispatch.final_estimates": lambda: final_estimates(record, plant, **{BOGUS: 1}),
         "duffid.models.chain.Chain.with_parameters": lambda: Chain.with_parameters(plant, **{BOGUS: 1.0}),
     }
 

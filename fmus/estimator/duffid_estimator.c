@@ -133,7 +133,15 @@ typedef struct { /* the state of one block of the description */
     duffid_real *theta, *rse, *share; /* n_unknowns each */
     duffid_real *R;                   /* robust: accumulated factor of [A D], p x p (p = n + 1) */
     duffid_real *V;                   /* right singular vectors of the last solve (warm start) */
-    duffid_real cond, rhs_share, rows;
+    duffid_real *R_recent, *V_recent; /* the change test's recent factor (p x p) and its V (n x n) */
+    duffid_real *departure;           /* n: recent - accumulated solution in combined errors */
+    duffid_real cond, rhs_share, rows, rows_recent, residual;
+    int64_t departed;                 /* samples the departure has mattered in a row, saturated
+                                       * at settle */
+    int64_t surprised;                /* ... the prediction error surprising, the same */
+    int64_t resume;                   /* after a change: the first sample whose window follows it */
+    int64_t recent_resume;            /* ... after a surprise: the same for the recent estimate */
+    int warm_recent;
     duffid_real rounding;             /* float: the rows' relative rounding error (their average) */
     int warm;                         /* V is from the previous sample */
     integrators_t reg, det;           /* paper */
@@ -151,6 +159,7 @@ struct duffid_estimator {
     int auto_window;
     int n_rows, degree;
     duffid_real lam, sqrt_lam, inv_cap;
+    duffid_real change_threshold;          /* 0: no change test */
     int64_t settle_count;
     int row_a[DUFFID_MAX_ROWS], row_b[DUFFID_MAX_ROWS], raw_b[DUFFID_MAX_ROWS];
     duffid_real norm[DUFFID_MAX_ROWS];
@@ -176,12 +185,19 @@ struct duffid_estimator {
     int64_t *settled;                      /* canonical order, saturated at settle_count */
     int64_t *unsettled;                    /* canonical order, saturated at settle_count */
     int *status;                           /* canonical order, DUFFID_STATUS_* */
+    int *fresh;                            /* canonical order: restarted since last published */
+    duffid_real *value;                    /* canonical order: the latest published value */
+    int *changed_now;                      /* canonical order: restarted at this sample: -1 no,
+                                            * 0 (uncertain) or 1 (changed) */
     duffid_real *held;                     /* public order */
     int has_last_x;                        /* signs of velocity (identification._Channels) */
     duffid_real last_x[DUFFID_MAX_DOF], sgn[DUFFID_MAX_DOF];
 
     /* robust */
     long target;
+    int regrow;                             /* after duffid_hold: the window grows again */
+    duffid_real lam_recent, sqrt_lam_recent; /* the change test's forgetting (follows target) */
+    duffid_real last_L;                     /* the window length of this sample's rows */
     long head;                              /* ring position of the newest sample */
     duffid_real *ring;                      /* (capacity + 2) x n_ch */
     duffid_real *acc, *mom, *fact;          /* (degree + 1) x n_ch each */
@@ -200,7 +216,7 @@ struct duffid_estimator {
     duffid_real rounding;                   /* float: the rows' relative rounding error at this sample */
 
     /* workspace of one update (no allocation, no large stack frames) */
-    duffid_real *g, *B, *W, *U, *Rinv, *scale, *u_in, *Ap, *Dp, *Aw, *lin;
+    duffid_real *g, *B, *B_copy, *W, *U, *Rinv, *scale, *u_in, *Ap, *Dp, *Aw, *lin;
     duffid_real *canon, *canon_rse, *canon_share;
     double *chan_work;                      /* a generated channel function's (double) */
 
@@ -832,6 +848,9 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
     CARVE(&c, est->settled, np);
     CARVE(&c, est->unsettled, np);
     CARVE(&c, est->status, np);
+    CARVE(&c, est->fresh, np);
+    CARVE(&c, est->value, np);
+    CARVE(&c, est->changed_now, np);
     CARVE(&c, est->held, np);
     CARVE(&c, est->canon, np);
     CARVE(&c, est->canon_rse, np);
@@ -847,6 +866,9 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
         CARVE(&c, eq->share, n);
         CARVE(&c, eq->V, n * n);
         CARVE(&c, eq->R, robust ? p * p : 0);
+        CARVE(&c, eq->R_recent, robust ? p * p : 0);
+        CARVE(&c, eq->V_recent, robust ? n * n : 0);
+        CARVE(&c, eq->departure, n);
         if (!robust) {
             integrators_t *it = &eq->reg;
             int k;
@@ -874,6 +896,7 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
         CARVE(&c, est->leave_phi, D + 1);
         CARVE(&c, est->E, s->n_rows * N_ORD * n_ch);
         CARVE(&c, est->B, rows_max * p_max);
+        CARVE(&c, est->B_copy, rows_max * p_max);
         CARVE(&c, est->W, p_max * p_max);
     } else {
         CARVE(&c, est->E, (n_max + 2) * N_ORD * n_ch);
@@ -1040,6 +1063,7 @@ static void build_structure(duffid_estimator *est, const shape_t *s)
                 job[4] = d == 2 && est->raw_b[r] >= 0 ? r : -1;
             }
         }
+        est->change_threshold = est->cfg.change_threshold;
         settle = round_half_even(est->cfg.settle / est->cfg.dt);
         est->settle_count = settle < RC(1.0) ? 1 : (settle > RC(4e18) ? (int64_t)4e18 : (int64_t)settle);
     }
@@ -1144,7 +1168,7 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
         bad = "model";
         goto done;
     }
-    STATE_SAME(settle_count) STATE_SAME(dt) STATE_SAME(max_condition)
+    STATE_SAME(settle_count) STATE_SAME(change_threshold) STATE_SAME(dt) STATE_SAME(max_condition)
     STATE_SAME(max_uncertainty) STATE_SAME(min_time) STATE_SAME(deadband)
     STATE_SAME(capacity) STATE_SAME(auto_window) STATE_SAME(n_rows) STATE_SAME(degree) STATE_SAME(lam)
     STATE_SAME(sqrt_lam) STATE_SAME(inv_cap) STATE_SAME(row_a) STATE_SAME(row_b) STATE_SAME(raw_b)
@@ -1157,6 +1181,11 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     }
     for (i = 0; i < est->n_eq; i++) {
         STATE_RANGE(est->eq[i].warm, 0, 1)
+        STATE_RANGE(est->eq[i].warm_recent, 0, 1)
+        STATE_RANGE(est->eq[i].departed, 0, est->settle_count)
+        STATE_RANGE(est->eq[i].surprised, 0, est->settle_count)
+        STATE_RANGE(est->eq[i].resume, 0, limit)
+        STATE_RANGE(est->eq[i].recent_resume, 0, limit)
         if (cfg.method == DUFFID_PAPER) {
             STATE_SAME(eq[i].reg.n_in)
             STATE_SAME(eq[i].reg.depth) STATE_SAME(eq[i].det.n_in) STATE_SAME(eq[i].det.depth)
@@ -1189,8 +1218,12 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
         const int64_t *settled = (const int64_t *)(dyn + ((const char *)fresh->settled - dynamic_base(fresh)));
         const int64_t *unsettled = (const int64_t *)(dyn + ((const char *)fresh->unsettled - dynamic_base(fresh)));
         const int *status = (const int *)(dyn + ((const char *)fresh->status - dynamic_base(fresh)));
+        const int *restarted = (const int *)(dyn + ((const char *)fresh->fresh - dynamic_base(fresh)));
+        const int *changed_now = (const int *)(dyn + ((const char *)fresh->changed_now - dynamic_base(fresh)));
         for (i = 0; i < est->n_params; i++) {
-            STATE_RANGE(status[i], DUFFID_STATUS_UNCERTAIN, DUFFID_STATUS_LOST)
+            STATE_RANGE(status[i], DUFFID_STATUS_UNCERTAIN, DUFFID_STATUS_CHANGED)
+            STATE_RANGE(restarted[i], 0, 1)
+            STATE_RANGE(changed_now[i], -1, 1)
             STATE_RANGE(steady[i], 0, limit)
             STATE_RANGE(anchored[i], -1, limit)
             STATE_RANGE(settled[i], 0, limit)
@@ -1198,7 +1231,7 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
         }
     }
     for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
-        STATE_RANGE(est->last.status[i], DUFFID_STATUS_UNCERTAIN, DUFFID_STATUS_LOST)
+        STATE_RANGE(est->last.status[i], DUFFID_STATUS_UNCERTAIN, DUFFID_STATUS_CHANGED)
     }
     STATE_RANGE(est->last.n_parameters, 0, DUFFID_MAX_PARAMS)
     STATE_RANGE(est->last.identified, 0, 1)
@@ -1207,6 +1240,7 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     if (cfg.method == DUFFID_ROBUST) {
         const long N = est->capacity;
         STATE_RANGE(est->target, 1, N)
+        STATE_RANGE(est->regrow, 0, 1)
         STATE_RANGE(est->head, 0, N + 1)
         STATE_RANGE(est->start, 0, n + 1)
         STATE_RANGE(n - est->start, -1, (int64_t)N)
@@ -1279,6 +1313,41 @@ static void integrators_reset(integrators_t *it)
     it->count = 0;
 }
 
+/* OnlineIdentifier._set_target: the full window length and the change test's memory */
+static void set_target(duffid_estimator *est, long samples)
+{
+    const duffid_real tau = est->cfg.change_memory > RC(0.0)
+                                ? est->cfg.change_memory
+                                : RC(DUFFID_CHANGE_WINDOWS) * (duffid_real)samples * est->dt;
+    est->target = samples;
+    est->lam_recent = R_EXP(-est->dt / tau);
+    est->sqrt_lam_recent = R_SQRT(est->lam_recent);
+}
+
+static void count_up(int64_t *counter, int64_t limit)
+{
+    if (*counter < limit) {
+        (*counter)++;
+    }
+}
+
+/* the change test's per-equation state of _EquationState.clear */
+static void clear_change(equation_t *eq, int n)
+{
+    int u;
+    for (u = 0; u < n; u++) {
+        eq->departure[u] = RC(0.0);
+    }
+    eq->departed = 0;
+    eq->surprised = 0;
+    eq->resume = 0;
+    eq->recent_resume = 0;
+    eq->residual = R_NAN;
+    eq->warm_recent = 0;
+}
+
+static void guard_reset(duffid_estimator *est);
+
 void duffid_reset(duffid_estimator *est)
 {
     int i, u;
@@ -1291,14 +1360,7 @@ void duffid_reset(duffid_estimator *est)
     memset(est->last_x, 0, sizeof est->last_x);
     memset(est->sgn, 0, sizeof est->sgn);
     est->received = -1;
-    memset(est->gh, 0, sizeof est->gh);
-    est->g_count = 0;
-    for (i = 0; i < DUFFID_MAX_DOF; i++) {
-        est->g_mean[i] = RC(0.0);
-        est->g_lo[i] = R_INF;
-        est->g_hi[i] = -R_INF;
-        est->g_step[i] = R_INF;
-    }
+    guard_reset(est);
     est->pending = 0;
     est->outliers = 0;
     est->outlier_t = R_NAN;
@@ -1306,9 +1368,11 @@ void duffid_reset(duffid_estimator *est)
     est->outlier_replaced_by = R_NAN;
     est->outlier_column = -1;
     memset(&est->last, 0, sizeof est->last);
+    est->last.residual = R_NAN;
     for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
         est->last.parameters[i] = R_NAN;
         est->last.current[i] = R_NAN;
+        est->last.std_errors[i] = R_NAN;
         est->last.status[i] = DUFFID_STATUS_UNCERTAIN;
     }
     for (i = 0; i < est->n_params; i++) {
@@ -1318,6 +1382,9 @@ void duffid_reset(duffid_estimator *est)
         est->settled[i] = 0;
         est->unsettled[i] = 0;
         est->status[i] = DUFFID_STATUS_UNCERTAIN;
+        est->fresh[i] = 0;
+        est->value[i] = R_NAN;
+        est->changed_now[i] = -1;
         est->held[i] = R_NAN;
     }
     if (est->cfg.method == DUFFID_ROBUST) {
@@ -1330,14 +1397,17 @@ void duffid_reset(duffid_estimator *est)
         for (i = 0; i < SHADOWS; i++) {
             est->shadow_from[i] = i == 0 ? 0 : -1;
         }
-        est->target = est->capacity;
+        set_target(est, est->capacity);
+        est->regrow = 0;
         est->poly_L = -1;
         est->corr_L = -1;
         est->leave_i = -1;
         for (i = 0; i < est->n_eq; i++) {
             const int p = est->m.blocks[i].n_unknowns + 1;
             memset(est->eq[i].R, 0, (size_t)(p * p) * sizeof(duffid_real));
+            memset(est->eq[i].R_recent, 0, (size_t)(p * p) * sizeof(duffid_real));
             est->eq[i].rows = RC(0.0);
+            est->eq[i].rows_recent = RC(0.0);
         }
     } else {
         for (i = 0; i < est->n_eq; i++) {
@@ -1351,6 +1421,7 @@ void duffid_reset(duffid_estimator *est)
             est->eq[i].rse[u] = R_INF;
             est->eq[i].share[u] = R_NAN;
         }
+        clear_change(&est->eq[i], est->m.blocks[i].n_unknowns);
         est->eq[i].rhs_share = R_NAN;
         est->eq[i].cond = R_INF;
         est->eq[i].warm = 0;
@@ -1846,20 +1917,156 @@ static void solve_factor(duffid_estimator *est, equation_t *eq, int n, const duf
 #endif
 }
 
+/* engine._relative_residual: ||D - A theta|| over the norm of the force balance of the m
+ * rows B = [A D] (column-major, p = n + 1 columns); NaN for a non-finite theta */
+static duffid_real relative_residual(const duffid_real *B, int m, int n, const duffid_real *theta)
+{
+    duffid_real balance = RC(0.0), error = RC(0.0);
+    int r, i;
+    for (i = 0; i < n; i++) {
+        if (!is_finite(theta[i])) {
+            return R_NAN;
+        }
+    }
+    for (r = 0; r < m; r++) {
+        duffid_real d = B[n * m + r], predicted = RC(0.0);
+        for (i = 0; i < n; i++) {
+            const duffid_real term = B[i * m + r] * theta[i];
+            predicted += term;
+            balance += term * term;
+        }
+        balance += d * d;
+        error += (d - predicted) * (d - predicted);
+    }
+    return balance > RC(0.0) ? R_SQRT(error) / R_SQRT(balance) : R_NAN;
+}
+
+/* engine._relative_fit: the same for every row the p x p factor R of [A D] holds */
+static duffid_real relative_fit(const duffid_real *R, int n, const duffid_real *theta)
+{
+    const int p = n + 1;
+    duffid_real balance = RC(0.0);
+    int k, i;
+    for (i = 0; i < n; i++) {
+        duffid_real column = RC(0.0);
+        if (!is_finite(theta[i])) {
+            return R_NAN;
+        }
+        for (k = 0; k <= i; k++) {
+            column += R[k * p + i] * R[k * p + i];
+        }
+        balance += column * theta[i] * theta[i];
+    }
+    for (k = 0; k < p; k++) {
+        balance += R[k * p + n] * R[k * p + n];
+    }
+    return balance > RC(0.0) ? R_FABS(R[n * p + n]) / R_SQRT(balance) : R_NAN;
+}
+
+/* OnlineIdentifier._restart: equation e's data contradict its estimate; its parameters are
+ * marked changed (an unknown in departed, or any for the right-hand side) or uncertain */
+static void restart(duffid_estimator *est, int e, const int *departed)
+{
+    equation_t *eq = &est->eq[e];
+    const int n = est->m.blocks[e].n_unknowns, p = n + 1;
+    int i, k, any = 0;
+    for (i = 0; i < n; i++) {
+        any |= departed[i];
+    }
+    for (i = 0; i < est->n_params; i++) {
+        const duffid_parameter *q = &est->m.params[i];
+        for (k = 0; k < q->n_shares; k++) {
+            if (q->shares[k].block == e) {
+                const int hit = q->shares[k].unknown >= 0 ? departed[q->shares[k].unknown] : any;
+                est->changed_now[i] = est->changed_now[i] == 1 || hit ? 1 : 0;
+            }
+        }
+    }
+    memset(eq->R, 0, (size_t)(p * p) * sizeof(duffid_real));
+    memset(eq->R_recent, 0, (size_t)(p * p) * sizeof(duffid_real));
+    eq->rows = RC(0.0);
+    eq->rows_recent = RC(0.0);
+    singular(eq, n);
+    clear_change(eq, n);
+    eq->resume = eq->recent_resume = est->n + est->target;
+}
+
+/* the change test of _robust_solve after the accumulated solution of equation e was updated
+ * with the m rows B_copy: the recent solution, the departures that matter, the triggers */
+static void change_test(duffid_estimator *est, int e, int m, duffid_real fit)
+{
+    equation_t *eq = &est->eq[e];
+    const int n = est->m.blocks[e].n_unknowns, p = n + 1;
+    duffid_real theta[DUFFID_MAX_UNKNOWNS], rse[DUFFID_MAX_UNKNOWNS], cond;
+    int departed[DUFFID_MAX_UNKNOWNS], i, any = 0;
+    if (est->n < eq->recent_resume) { /* the recent estimate restarted after a surprise */
+        return;
+    }
+    duffid_la_qr_accumulate(eq->R_recent, p, est->sqrt_lam_recent, est->B_copy, m);
+    eq->rows_recent = est->lam_recent * eq->rows_recent + (duffid_real)m;
+    if (duffid_la_solve_factor(n, eq->R_recent, eq->rows_recent, est->last_L, COND_SINGULAR, est->scale, est->U,
+                               est->Rinv, eq->V_recent, &eq->warm_recent, theta, rse, &cond) != 0) {
+        eq->warm_recent = 0;
+        for (i = 0; i < n; i++) {
+            theta[i] = R_NAN;
+        }
+    }
+    for (i = 0; i < n; i++) { /* engine._departure and OnlineIdentifier._departed */
+        const duffid_real combined = duffid_la_hypot(eq->rse[i] * R_FABS(eq->theta[i]), rse[i] * R_FABS(theta[i]));
+        const int ok = is_finite(eq->theta[i]) && is_finite(theta[i]) && is_finite(combined) && combined > RC(0.0);
+        eq->departure[i] = ok ? R_FABS(theta[i] - eq->theta[i]) / combined : RC(0.0);
+        departed[i] = eq->departure[i] > est->change_threshold &&
+                      R_FABS(theta[i] - eq->theta[i]) > RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty * R_FABS(eq->theta[i]);
+        any |= departed[i];
+    }
+    if (any) {
+        count_up(&eq->departed, est->settle_count);
+    } else {
+        eq->departed = 0;
+    }
+    if (eq->residual > RC(DUFFID_CHANGE_SURPRISE) * fit) { /* false while either is NaN */
+        count_up(&eq->surprised, est->settle_count);
+    } else {
+        eq->surprised = 0;
+    }
+    if (eq->departed >= est->settle_count) {
+        restart(est, e, departed);
+    } else if (eq->surprised >= est->settle_count) { /* the recent estimate starts afresh after it */
+        memset(eq->R_recent, 0, (size_t)(p * p) * sizeof(duffid_real));
+        eq->rows_recent = RC(0.0);
+        eq->warm_recent = 0;
+        for (i = 0; i < n; i++) {
+            eq->departure[i] = RC(0.0);
+        }
+        eq->departed = eq->surprised = 0;
+        eq->recent_resume = est->n + est->target;
+    }
+}
+
 /* OnlineIdentifier._robust_step + _robust_solve; returns the window length L */
 static long robust_step(duffid_estimator *est)
 {
     long L = moments_push(est, est->target);
     int full, e, i;
+    if (est->regrow) { /* after duffid_hold: the previous output until the window is full */
+        if (L < est->target) {
+            return -1;
+        }
+        est->regrow = 0;
+    }
     if (L == 0) {
         return 0;
     }
+    est->last_L = (duffid_real)L;
     kernel_entries(est, L);
     full = L >= est->target;
     for (e = 0; e < est->n_eq; e++) {
         equation_t *eq = &est->eq[e];
         const block_t *b = &est->m.blocks[e];
         const int n = b->n_unknowns, p = n + 1, m = b->n_parts * est->n_rows;
+        if (full && est->n < eq->resume) { /* a window that holds samples from before the change */
+            continue;
+        }
         assemble(est, b, est->E, est->n_rows, est->B);
 #if DUFFID_SINGLE /* the rounding of the rows the solution rests on: their average */
         eq->rounding = full ? (est->lam * eq->rows * eq->rounding + (duffid_real)m * est->rounding) /
@@ -1867,9 +2074,21 @@ static long robust_step(duffid_estimator *est)
                             : est->rounding;
 #endif
         if (full) {
+            duffid_real previous[DUFFID_MAX_UNKNOWNS], fit;
+            for (i = 0; i < n; i++) {
+                previous[i] = eq->theta[i];
+            }
+            fit = relative_fit(eq->R, n, previous);
+            eq->residual = relative_residual(est->B, m, n, previous);
+            if (est->change_threshold > RC(0.0)) {
+                memcpy(est->B_copy, est->B, (size_t)(m * p) * sizeof(duffid_real));
+            }
             duffid_la_qr_accumulate(eq->R, p, est->sqrt_lam, est->B, m);
             eq->rows = est->lam * eq->rows + (duffid_real)m;
             solve_factor(est, eq, n, eq->R, eq->rows, (duffid_real)L);
+            if (est->change_threshold > RC(0.0)) {
+                change_test(est, e, m, fit);
+            }
         } else {
             for (i = 0; i < p * p; i++) {
                 est->W[i] = RC(0.0);
@@ -2200,7 +2419,7 @@ static int next_status(int status, int64_t settled, int64_t unsettled, int64_t s
     if (good && share < RC(DUFFID_MIN_SHARE)) {
         return DUFFID_STATUS_NOT_EXCITED;
     }
-    return status == DUFFID_STATUS_LOST ? DUFFID_STATUS_LOST : DUFFID_STATUS_UNCERTAIN;
+    return status == DUFFID_STATUS_LOST || status == DUFFID_STATUS_CHANGED ? status : DUFFID_STATUS_UNCERTAIN;
 }
 
 /* OnlineIdentifier._window_known: masses and linear stiffnesses steady, the rest steady
@@ -2215,13 +2434,6 @@ static int window_known(const duffid_estimator *est)
         }
     }
     return 1;
-}
-
-static void count_up(int64_t *counter, int64_t limit)
-{
-    if (*counter < limit) {
-        (*counter)++;
-    }
 }
 
 /* the model's is_physical: the sign its term needs (canonical index i) */
@@ -2272,6 +2484,17 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
         duffid_real trusted[DUFFID_MAX_PARAMS];
         const int full = window >= est->target;
         const duffid_real tol = RC(0.5) * est->max_uncertainty;
+        for (i = 0; i < np; i++) { /* restarted by the change test */
+            if (est->changed_now[i] >= 0) { /* a value it had is changed */
+                const int had_value = est->status[i] == DUFFID_STATUS_PUBLISHED || est->status[i] == DUFFID_STATUS_LOST ||
+                                      est->status[i] == DUFFID_STATUS_CHANGED;
+                est->status[i] = est->changed_now[i] && had_value ? DUFFID_STATUS_CHANGED : DUFFID_STATUS_UNCERTAIN;
+                est->settled[i] = est->unsettled[i] = est->steady[i] = 0;
+                est->anchor[i] = est->value[i] = R_NAN;
+                est->fresh[i] = 1;
+                est->changed_now[i] = -1;
+            }
+        }
         for (i = 0; i < np; i++) { /* canonical order */
             duffid_real v = est->canon[i];
             duffid_real relative = (is_finite(v) && v != RC(0.0)) ? est->canon_rse[i] : R_INF;
@@ -2283,8 +2506,12 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
             {
                 const int physical = is_physical(est, i, v);
                 const int excited = est->canon_share[i] >= RC(DUFFID_MIN_SHARE) || est->nominal[i] > RC(0.0);
+                /* a held value is withdrawn, too, once the estimate has moved away from it */
+                const int moved = est->status[i] == DUFFID_STATUS_PUBLISHED &&
+                                  !(R_FABS(v - est->value[i]) <=
+                                    RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty * R_FABS(est->value[i]));
                 small = good && excited && physical && relative <= est->max_uncertainty;
-                large = !(good && physical && relative <= RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty);
+                large = moved || !(good && physical && relative <= RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty);
             }
             if (small) {
                 count_up(&est->steady[i], est->settle_count);
@@ -2296,7 +2523,7 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
                 est->anchored[i] = est->n;
             }
             /* n - anchored >= GROWTH_STEADY (1/4) x window, in integers */
-            if (small && (full || 4 * (est->n - est->anchored[i]) >= (int64_t)window)) {
+            if (small && ((full && !est->fresh[i]) || 4 * (est->n - est->anchored[i]) >= (int64_t)window)) {
                 count_up(&est->settled[i], est->settle_count);
             } else {
                 est->settled[i] = 0;
@@ -2309,6 +2536,12 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
             est->status[i] = next_status(est->status[i], est->settled[i], est->unsettled[i], est->settle_count,
                                          good, est->canon_share[i]);
             trusted[i] = est->settled[i] >= est->settle_count ? v : R_NAN;
+            if (is_finite(trusted[i])) {
+                est->value[i] = v;
+            }
+            if (est->status[i] == DUFFID_STATUS_PUBLISHED) {
+                est->fresh[i] = 0;
+            }
         }
         for (i = 0; i < np; i++) {
             int c = est->m.publics[i].canonical;
@@ -2332,6 +2565,18 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
         out->condition = cond;
         out->uncertainty = worst;
         out->window = (duffid_real)window * est->dt;
+        out->residual = R_NAN;
+        for (i = 0; i < est->n_eq; i++) { /* the largest over the equations */
+            if (is_finite(est->eq[i].residual) && !(est->eq[i].residual <= out->residual)) {
+                out->residual = est->eq[i].residual;
+            }
+        }
+        for (i = 0; i < np; i++) {
+            const int c = est->m.publics[i].canonical;
+            out->std_errors[i] = est->cfg.method == DUFFID_ROBUST && is_finite(est->held[i])
+                                     ? R_FABS(est->canon_rse[c] * est->held[i])
+                                     : R_NAN;
+        }
         for (i = 0; i < np; i++) {
             out->current[i] = est->cfg.method == DUFFID_PAPER
                                   ? est->held[i]
@@ -2340,7 +2585,7 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
     }
     if (est->cfg.method == DUFFID_ROBUST && est->auto_window && !est->window_fixed && window_known(est)) {
         est->window_fixed = 1;
-        est->target = auto_window(est, window);
+        set_target(est, auto_window(est, window));
     }
 }
 
@@ -2408,7 +2653,59 @@ static void process(duffid_estimator *est, const duffid_real *x, const duffid_re
 #else
     window = est->cfg.method == DUFFID_ROBUST ? robust_step(est) : paper_step(est);
 #endif
-    publish(est, window, &est->last);
+    if (window >= 0) { /* else held (duffid_hold): est->last stays */
+        publish(est, window, &est->last);
+    }
+}
+
+/* the outlier guard's history (identification._OutlierGuard.reset, its findings kept) */
+static void guard_reset(duffid_estimator *est)
+{
+    int i;
+    memset(est->gh, 0, sizeof est->gh);
+    est->g_count = 0;
+    for (i = 0; i < DUFFID_MAX_DOF; i++) {
+        est->g_mean[i] = RC(0.0);
+        est->g_lo[i] = R_INF;
+        est->g_hi[i] = -R_INF;
+        est->g_step[i] = R_INF;
+    }
+}
+
+int duffid_hold(duffid_estimator *est)
+{
+    int i;
+    if (est == NULL) {
+        return DUFFID_ERR_ARGUMENT;
+    }
+    if (est->cfg.method != DUFFID_ROBUST) {
+        duffid_reset(est);
+        return DUFFID_OK;
+    }
+    if (est->received < 0) {
+        return DUFFID_OK;
+    }
+    if (est->pending) {
+        duffid_flush(est, NULL);
+    }
+    guard_reset(est);
+    est->has_last_x = 0;
+    memset(est->last_x, 0, sizeof est->last_x);
+    memset(est->sgn, 0, sizeof est->sgn);
+    { /* SlidingMoments.reset: the window starts with the next sample */
+        const size_t moments = (size_t)(est->degree + 1) * (size_t)est->n_ch * sizeof(duffid_real);
+        memset(est->acc, 0, moments);
+        memset(est->shadow, 0, SHADOWS * moments);
+        est->start = est->n + 1;
+        for (i = 0; i < SHADOWS; i++) {
+            est->shadow_from[i] = i == 0 ? est->n + 1 : -1;
+        }
+        est->poly_L = -1;
+        est->corr_L = -1;
+        est->leave_i = -1;
+    }
+    est->regrow = 1;
+    return DUFFID_OK;
 }
 
 /* OnlineIdentifier._reported */

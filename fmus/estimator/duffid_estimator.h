@@ -73,6 +73,17 @@ extern "C" {
  *   LOST         it was published and since then its error has been above
  *                DUFFID_LOSS_FACTOR x max_uncertainty (or its value non-physical) for settle
  *                s: the value is withdrawn (NaN).
+ *   CHANGED      the recent data contradict the value it had (the change test: the estimate
+ *                over the recent change_memory s departs from the accumulated one by more
+ *                than change_threshold combined standard errors and by more than a published
+ *                value may move, DUFFID_LOSS_FACTOR x max_uncertainty, for settle s; after a
+ *                window whose prediction error was DUFFID_CHANGE_SURPRISE times that of the
+ *                accumulated rows, the recent estimate starts afresh): the least squares
+ *                restart with the first window after the change, the value is withdrawn
+ *                until it is determined again (the equation's other parameters, and those
+ *                that had no value, are UNCERTAIN meanwhile). A published value is also
+ *                withdrawn (LOST) once the estimate has moved from it by more than
+ *                DUFFID_LOSS_FACTOR x max_uncertainty for settle s.
  * A growing window's estimate is published once it has stayed within max_uncertainty / 2
  * of one value while the window grew by this share of its length (full windows' need not).
  * Without a prior size, only a physical value (mass > 0, damping >= 0) whose term carries
@@ -130,6 +141,10 @@ typedef struct duffid_output {
     duffid_real outlier_t;                      /* the latest: time [s], displacement index, */
     int outlier_column;                    /* value measured and value used (NaN before any) */
     duffid_real outlier_value, outlier_replaced_by;
+    duffid_real std_errors[DUFFID_MAX_PARAMS];  /* public order: standard error of each published
+                                            * value (its unit), NaN where none is published */
+    duffid_real residual;                       /* the window's one-step prediction error relative to
+                                            * its force balance (robust; NaN while none) */
 } duffid_output;
 
 typedef struct duffid_estimator duffid_estimator;
@@ -174,6 +189,14 @@ void duffid_reset(duffid_estimator *est);
  * samples received (0: none yet, and *out is then meaningless). Reads the estimator's fields
  * only, so it also works on a byte copy that duffid_check_state passed. */
 long duffid_latest_output(const duffid_estimator *est, duffid_output *out);
+
+/* The next sample does not follow the previous one (the plant was not excited or a sensor
+ * saturated; the samples in between are not given: the estimator FMUs' enable input). A
+ * sample held back as a suspect outlier is processed first; the window restarts with the next
+ * sample, while the least squares accumulated so far, the statuses and the published values
+ * are kept and reported unchanged until the window is full again (robust method; the paper
+ * method's integrals cannot skip samples: it is reset). OnlineIdentifier.hold. */
+int duffid_hold(duffid_estimator *est);
 
 /* Process a sample held back as a suspect outlier (the end of a record). Returns 1 and
  * fills out (if not NULL) when there was one, 0 otherwise. */

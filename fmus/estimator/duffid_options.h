@@ -29,6 +29,8 @@
  *   gamma: paper: filter gain
  *   quadrature: paper: quadrature of the integrators: 0 adams3, 1 trapezoid
  *   sign_in_numerator: paper: the sign convention of the numerator (sign_in_numerator)
+ *   change_threshold: robust: departure of the recent estimate, in combined standard errors, that marks a change, 0 = none
+ *   change_memory [s]: robust: memory of the change test's recent estimate, 0 = auto
  */
 #define DUFFID_FMU_OPTIONS(X) \
     X(REAL, window, 0.0, 0.0, -1, DUFFID_FOR_ROBUST, "0 (auto) or a positive number of seconds") \
@@ -43,7 +45,9 @@
     X(REAL, settle, 0.01, 0.0, -1, DUFFID_FOR_ROBUST, "a finite number >= 0 (s)") \
     X(REAL, gamma, 20.0, 0.0, -1, DUFFID_FOR_PAPER, "a finite number >= 0") \
     X(CODE, quadrature, 0, 0.0, 1, DUFFID_FOR_PAPER, "0 (adams3) or 1 (trapezoid)") \
-    X(CODE, sign_in_numerator, 0, 0.0, 1, DUFFID_FOR_PAPER, "0 or 1")
+    X(CODE, sign_in_numerator, 0, 0.0, 1, DUFFID_FOR_PAPER, "0 or 1") \
+    X(REAL, change_threshold, 4.0, 0.0, -1, DUFFID_FOR_ROBUST, "0 (none) or a positive number") \
+    X(REAL, change_memory, 0.0, 0.0, -1, DUFFID_FOR_ROBUST, "0 (auto) or a positive number of seconds")
 
 /* Options of the core that are not FMU parameters.
  *   deadband: |dx| <= deadband (displacement units) keeps the previous sign of velocity

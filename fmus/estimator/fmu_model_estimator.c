@@ -21,6 +21,9 @@
  *   then N_OPTIONS           options (fixed parameters; codes are Integer, see below)
  *   then n_params            optional prior sizes <name>_nominal (0: none)
  *   then 1                   sample_period [s]
+ *   then n_params            <name>_std_error (outputs, NaN unless published)
+ *   then 1                   residual (output: the window's relative prediction error)
+ *   then 2                   enable, reset (Boolean inputs: duffid_hold, duffid_reset)
  *
  * Semantics: each doStep(t, h) consumes one sample, the inputs set for time t; h must
  * equal the parameter sample_period (relative difference up to 1e-9), the record's
@@ -87,7 +90,11 @@ enum {
 #define VR_OPT (VR_OUTLIERS + 1)
 #define VR_NOMINAL (VR_OPT + N_OPTIONS)
 #define VR_SAMPLE_PERIOD (VR_NOMINAL + N_PARAMS)
-#define N_VARS_EXPECTED (VR_SAMPLE_PERIOD + 1)
+#define VR_STD_ERROR (VR_SAMPLE_PERIOD + 1)
+#define VR_RESIDUAL (VR_STD_ERROR + N_PARAMS)
+#define VR_ENABLE (VR_RESIDUAL + 1)
+#define VR_RESET (VR_ENABLE + 1)
+#define N_VARS_EXPECTED (VR_RESET + 1)
 
 typedef char estimator_layout_check[(N_VARS_EXPECTED == ESTIMATOR_N_VARS) ? 1 : -1];
 
@@ -127,6 +134,12 @@ static int evaluate(Instance *inst)
         v[VR_CONDITION] = d->out.condition;
         v[VR_UNCERTAINTY] = d->out.uncertainty;
         v[VR_WINDOW_LENGTH] = d->out.window;
+        for (i = 0; i < N_PARAMS; i++) { /* relative errors are the same for a reciprocal */
+            const double value = d->out.parameters[i];
+            v[VR_STD_ERROR + i] = RECIPROCAL(i) ? d->out.std_errors[i] / fabs(value) * fabs(public_value(i, value))
+                                                : d->out.std_errors[i];
+        }
+        v[VR_RESIDUAL] = d->out.residual;
     } else {
         for (i = 0; i < N_PARAMS; i++) v[VR_EST + i] = NAN;
         for (i = 0; i < N_PARAMS; i++) v[VR_STATUS + i] = (double)DUFFID_STATUS_UNCERTAIN;
@@ -135,6 +148,8 @@ static int evaluate(Instance *inst)
         v[VR_CONDITION] = NAN;
         v[VR_UNCERTAINTY] = NAN;
         v[VR_WINDOW_LENGTH] = NAN;
+        for (i = 0; i < N_PARAMS; i++) v[VR_STD_ERROR + i] = NAN;
+        v[VR_RESIDUAL] = NAN;
     }
     return 0;
 }
@@ -278,6 +293,14 @@ static int do_step(Instance *inst, double t, double h)
         return 1;
     }
     if (!d->started && start_estimator(inst, d, period) != 0) return 1;
+    if (inst->vars[VR_RESET] != 0.0) { /* a new identification starts with this sample */
+        duffid_reset(d->est);
+        d->have_out = 0;
+    }
+    if (inst->vars[VR_ENABLE] == 0.0) { /* skipped: the outputs hold, the window restarts after it */
+        duffid_hold(d->est);
+        return 0;
+    }
     for (i = 0; i < N_DOF; i++) x[i] = inst->vars[VR_X + i];
     for (i = 0; i < N_FORCES; i++) f[i] = inst->vars[VR_F + i];
     if (duffid_update(d->est, x, f, &out) != DUFFID_OK) {
@@ -360,10 +383,10 @@ static int same_output(const duffid_output *a, const duffid_output *b)
                   same_bits(a->window, b->window) && a->outliers == b->outliers &&
                   same_bits(a->outlier_t, b->outlier_t) && a->outlier_column == b->outlier_column &&
                   same_bits(a->outlier_value, b->outlier_value) &&
-                  same_bits(a->outlier_replaced_by, b->outlier_replaced_by);
+                  same_bits(a->outlier_replaced_by, b->outlier_replaced_by) && same_bits(a->residual, b->residual);
     for (i = 0; i < DUFFID_MAX_PARAMS; i++)
         same = same && same_bits(a->parameters[i], b->parameters[i]) && same_bits(a->current[i], b->current[i]) &&
-               a->status[i] == b->status[i];
+               a->status[i] == b->status[i] && same_bits(a->std_errors[i], b->std_errors[i]);
     return same;
 }
 

@@ -3,14 +3,21 @@ supports them."""
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
 from ..errors import InputError
+from ..identification.changes import change_test_options, find_changes, identify_segments
 from ..identification.engine import METHODS
-from ..identification.options import BUFFERED_METHODS, add_arguments, add_shared_arguments, options_from_arguments
+from ..identification.options import (
+    BUFFERED_METHODS,
+    add_arguments,
+    add_shared_arguments,
+    options_from_arguments,
+)
 from ..identification.offsets import OFFSETS
 from ..identification.trust import identify
 from ..models.registry import model_from_name
@@ -42,7 +49,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     add_shared_arguments(g, ("window", "max_uncertainty", "max_condition", "quadrature", "deadband"),
                          METHODS)
     g = p.add_argument_group("robust method options")
-    add_arguments(g, "robust", ("window_periods", "max_window", "forgetting", "rows", "n_rows", "settle"))
+    add_arguments(g, "robust", ("window_periods", "max_window", "forgetting", "rows", "n_rows", "settle",
+                                "change_threshold", "change_memory"))
     g.add_argument("--no-refine", action="store_true",
                    help="do not refine by output-error least squares when the algebraic estimate leaves "
                         "excited parameters undetermined (faster; fewer values published)")
@@ -53,6 +61,9 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     g = p.add_argument_group("buffered methods (" + ", ".join(BUFFERED_METHODS) + ")")
     add_arguments(g, BUFFERED_METHODS[0], ("n_terms", "every", "form", "repeated", "accumulate"))
     add_file_arguments(p)
+    p.add_argument("--segments", action="store_true",
+                   help="find where the plant changed (the robust method's online change test) and identify each "
+                        "stretch between the changes with every check")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", type=Path, default=None, help="write estimates vs time to this PNG")
 
@@ -79,6 +90,8 @@ def run(args: argparse.Namespace) -> int:
                                    refine=not args.no_refine, **options)
     else:
         model = model_from_arguments(args, record.n_dof)
+        if args.segments:
+            return _run_segments(args, record, model, method, options)
         result = identify(record, model, method, offsets=args.offset, refine=not args.no_refine, **options)
     if args.plot is not None:
         from ..apps.plots import plot_estimates
@@ -92,6 +105,37 @@ def run(args: argparse.Namespace) -> int:
     elif not model.reciprocal:  # the circuit's q/C has no text linear in its parameters
         print(f"  equation: {model.equation_text()}")
     print(result_text(result))
+    if args.equation is None and method == "robust" and not result.is_identified:  # did the plant change?
+        changes = find_changes(record, model, **change_test_options(options))
+        if changes:
+            print("  - the online change test flagged a change of the plant: "
+                  + "; ".join(c.describe() for c in changes) + ". --segments identifies each stretch between them")
+    return 0
+
+
+def _run_segments(args: argparse.Namespace, record: Any, model: Any, method: str, options: dict[str, Any]) -> int:
+    """``identify --segments``: the changes, then each stretch identified (table or JSON)."""
+    if method != "robust":
+        raise InputError(f"--segments: the change test is the robust method's; --method {method} has none")
+    test = change_test_options(options)
+    if test.get("change_threshold", 0.0) is None:
+        raise InputError("--segments needs the change test: --change-threshold must not be none")
+    changes = find_changes(record, model, **test)
+    segments = identify_segments(record, model, changes, offsets=args.offset, refine=not args.no_refine, **options)
+    if args.json:
+        print(json.dumps({"source": record.source, "model": model.name,
+                          "changes": [{"flagged": c.flagged, "onset": c.onset, "parameters": list(c.parameters)}
+                                      for c in changes],
+                          "segments": [{"start": s.start, "stop": s.stop, "note": s.note,
+                                        "result": None if s.result is None else json.loads(s.result.to_json())}
+                                       for s in segments]}))
+        return 0
+    print(f"{record.source}: {record.n_samples} samples, dt {record.dt:g} s, model {model.name}, method {method}")
+    print("  changes of the plant: " + ("; ".join(c.describe() for c in changes) if changes else
+                                        "none found (the whole record is one stretch)"))
+    for s in segments:
+        print(f"stretch {s.start:.4g} s .. {s.stop:.4g} s")
+        print(result_text(s.result) if s.result is not None else f"  not identified: {s.note}")
     return 0
 
 

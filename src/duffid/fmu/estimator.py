@@ -26,8 +26,9 @@ model ``fmus/estimator/fmu_model_estimator.c`` and the glue of ``fmus/common`` i
 each also with the outputs ``identified`` (0/1), ``condition``, ``uncertainty``,
 ``window_length`` [s] and ``<name>_status`` per parameter (Integer: the index of its status
 in :data:`duffid.identification.engine.STATUSES`: 0 uncertain, 1 published, 2 not excited,
-3 lost) and ``outliers`` (Integer: isolated displacement outliers excluded, each logged
-with its time), and adds the pythonfmu fallbacks of :mod:`duffid.fmu.python_estimator`. The parameters
+3 lost, 4 changed) and ``outliers`` (Integer: isolated displacement outliers excluded, each logged
+with its time), ``<name>_std_error`` (the standard error of each published estimate) and
+``residual`` (the window's one-step prediction error relative to its force balance), and adds the pythonfmu fallbacks of :mod:`duffid.fmu.python_estimator`. The parameters
 ``<name>_nominal`` are optional prior sizes (0: none, the scale comes from the data).
 
 Interface differences to the pythonfmu FMU: the glue has no String variables, so the

@@ -29,6 +29,7 @@ from .variables import FmuVariable
 
 __all__ = ["C_FMU_NAMES", "MODELS", "MODEL_CODES", "GENERATED_MODEL_CODE", "INPUTS", "PARAMETER_UNITS",
            "parameter_unit", "chain_parameter_unit", "OPTIONS", "DEFAULT_SAMPLE_PERIOD", "SAMPLE_PERIOD_DESCRIPTION",
+           "ENABLE_DESCRIPTION", "RESET_DESCRIPTION",
            "TYPES", "EstimatorInterface", "builtin_interface", "equation_interface", "chain_interface",
            "interface_from_spec", "variable_types", "variable_units", "estimator_variables"]
 
@@ -54,7 +55,12 @@ DEFAULT_SAMPLE_PERIOD = 1e-3
 SAMPLE_PERIOD_DESCRIPTION = ("sampling period of the record; each doStep consumes one sample, so its "
                              "communicationStepSize must equal this")
 #: Variables that are not Float64 (and every ``<name>_status``: Integer).
-TYPES = {"method": "Integer", "identified": "Boolean",
+#: The estimator FMUs' Boolean input ``enable`` (:meth:`~duffid.identification.engine.OnlineIdentifier.hold`).
+ENABLE_DESCRIPTION = ("false: the plant is not excited or a sensor saturated: the sample is skipped and the estimates "
+                      "hold; when true again the window restarts, the accumulated estimate kept")
+#: ... and ``reset``.
+RESET_DESCRIPTION = "true: forget every sample before this step's (a new identification starts with it)"
+TYPES = {"method": "Integer", "identified": "Boolean", "enable": "Boolean", "reset": "Boolean",
          **{o.name: "Boolean" if o.kind == "bool" else "Integer" for o in fmu_parameters() if o.c_kind == "CODE"}}
 
 
@@ -303,4 +309,11 @@ def estimator_variables(model: str | EstimatorInterface) -> list[FmuVariable]:
         add(f"{name}_nominal", "parameter", "fixed", "exact", defaults[f"{name}_nominal"], units.get(name),
             f"optional prior size of {name} for the trust test (0: none, the scale comes from the data)")
     add("sample_period", "parameter", "fixed", "exact", DEFAULT_SAMPLE_PERIOD, "s", SAMPLE_PERIOD_DESCRIPTION)
+    for name in interface.parameters:
+        add(f"{name}_std_error", "output", "discrete", "calculated", None, units.get(name),
+            f"standard error of the estimate of {name} (NaN unless published)")
+    add("residual", "output", "discrete", "calculated", None, "1",
+        "the window's one-step prediction error relative to its force balance (it jumps when the plant changes)")
+    add("enable", "input", "discrete", None, 1.0, None, ENABLE_DESCRIPTION)
+    add("reset", "input", "discrete", None, 0.0, None, RESET_DESCRIPTION)
     return table

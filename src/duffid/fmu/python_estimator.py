@@ -69,7 +69,9 @@ from ..identification.engine import STATUSES, OnlineIdentifier, status_codes
 from ..identification.options import fmu_parameters, from_c, to_c
 from .estimator_table import (
     DEFAULT_SAMPLE_PERIOD,
+    ENABLE_DESCRIPTION,
     MODELS,
+    RESET_DESCRIPTION,
     SAMPLE_PERIOD_DESCRIPTION,
     EstimatorInterface,
     builtin_interface,
@@ -190,6 +192,10 @@ class EstimatorSlave:
             setattr(slave, name, 0.0)
             slave.register_variable(Real(name, causality=causality.input, variability=variability.continuous,
                                          description=f"{text} (one sample per doStep)"))
+        for name, start, text in (("enable", True, ENABLE_DESCRIPTION), ("reset", False, RESET_DESCRIPTION)):
+            setattr(slave, name, start)
+            slave.register_variable(Boolean(name, causality=causality.input, variability=variability.discrete,
+                                            description=text))
         self.outputs = [f"{name}_hat" for name in self.names]
         for name in self.outputs:
             setattr(slave, name, math.nan)
@@ -214,6 +220,15 @@ class EstimatorSlave:
         slave.register_variable(Integer("outliers", causality=causality.output, initial=initial.exact,
                                         variability=variability.discrete,
                                         description="isolated displacement outliers excluded so far"))
+        for name in self.names:
+            setattr(slave, f"{name}_std_error", math.nan)
+            slave.register_variable(Real(f"{name}_std_error", causality=causality.output, initial=initial.exact,
+                                         description=f"standard error of the estimate of {name} (NaN unless "
+                                                     "published)"))
+        slave.residual = math.nan
+        slave.register_variable(Real("residual", causality=causality.output, initial=initial.exact,
+                                     description="the window's one-step prediction error relative to its force "
+                                                 "balance (it jumps when the plant changes)"))
 
         self.parameters: dict[str, Any] = {"method": "robust"}
         slave.method = "robust"
@@ -365,6 +380,17 @@ class EstimatorSlave:
                 self._fail(f"parameters {changed} changed after the first step (they are read once)")
         assert self.ident is not None
         slave = self.slave
+        if slave.reset:  # a new identification starts with this sample
+            self.ident.reset()
+            for name in self.names:
+                setattr(slave, f"{name}_hat", math.nan)
+                setattr(slave, f"{name}_status", 0)
+                setattr(slave, f"{name}_std_error", math.nan)
+            slave.identified = False
+            slave.residual = math.nan
+        if not slave.enable:  # skipped: the outputs hold, the window restarts after it
+            self.ident.hold()
+            return
         x = [float(getattr(slave, name)) for name in self.x_names]
         f = [float(getattr(slave, name)) for name in self.f_names]
         try:
@@ -380,6 +406,9 @@ class EstimatorSlave:
         for name, status in (estimate.status or {}).items():
             setattr(slave, f"{name}_status", STATUSES.index(status))
         slave.outliers = int(estimate.outliers)
+        for name, error in (estimate.std_errors or {}).items():
+            setattr(slave, f"{name}_std_error", float(error))
+        slave.residual = float(estimate.residual)
 
 
 def build_python_fmu(model_name: str, out_dir: str | Path, *, needs_execution_tool: bool = True) -> Path:

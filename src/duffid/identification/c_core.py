@@ -141,6 +141,8 @@ def _output_type(real: Any) -> type[ctypes.Structure]:
             ("outlier_column", ctypes.c_int),
             ("outlier_value", real),
             ("outlier_replaced_by", real),
+            ("std_errors", real * _MAX_PARAMS),
+            ("residual", real),
         ]
     return Output
 
@@ -150,7 +152,7 @@ def _output_dtype(code: str) -> np.dtype:
                      ("identified", "i4"), ("condition", code), ("uncertainty", code), ("window", code),
                      ("current", code, (_MAX_PARAMS,)), ("status", "i4", (_MAX_PARAMS,)),
                      ("outliers", "i8"), ("outlier_t", code), ("outlier_column", "i4"), ("outlier_value", code),
-                     ("outlier_replaced_by", code)],
+                     ("outlier_replaced_by", code), ("std_errors", code, (_MAX_PARAMS,)), ("residual", code)],
                     align=True)
 
 
@@ -249,6 +251,7 @@ def load_library(path: str | os.PathLike[str] | None = None, precision: str = "d
         "duffid_destroy": (None, [est_p]),
         "duffid_reset": (None, [est_p]),
         "duffid_flush": (ctypes.c_int, [est_p, out_p]),
+        "duffid_hold": (ctypes.c_int, [est_p]),
         "duffid_update": (ctypes.c_int, [est_p, dbl_p, dbl_p, out_p]),
         "duffid_run": (ctypes.c_int, [est_p, ctypes.c_long, dbl_p, dbl_p, out_p, ctypes.POINTER(ctypes.c_long)]),
         "duffid_n_parameters": (ctypes.c_int, [est_p]),
@@ -555,6 +558,10 @@ class CIdentifier(Identifier):
         self.n += 1
         return self._estimate()
 
+    def hold(self) -> None:
+        """The next sample does not follow the previous one (see ``OnlineIdentifier.hold``)."""
+        self._lib.duffid_hold(self._live())
+
     def flush(self) -> Estimate | None:
         """Process a sample held back as a suspect outlier (see ``OnlineIdentifier.flush``)."""
         return self._estimate() if self._lib.duffid_flush(self._live(), ctypes.byref(self._out)) else None
@@ -564,8 +571,9 @@ class CIdentifier(Identifier):
         params = {name: out.parameters[i] for i, name in enumerate(self._names)}
         current = {name: out.current[i] for i, name in enumerate(self._names)}
         status = {name: STATUSES[out.status[i]] for i, name in enumerate(self._names)}
+        errors = {name: out.std_errors[i] for i, name in enumerate(self._names)} if self.method == "robust" else None
         return Estimate(out.t, params, bool(out.identified), out.condition, out.uncertainty, out.window, current,
-                        status, int(out.outliers))
+                        status, int(out.outliers), std_errors=errors, residual=float(out.residual))
 
     def run(self, x: np.ndarray, f: np.ndarray) -> np.ndarray:
         """Consume many samples in one call: ``x`` (n, n_dof), ``f`` (n, n_forces).

@@ -33,12 +33,12 @@ from ..data.record import Record
 from ..errors import InputError, RecordError
 from ..models.chain import Chain, Channel, Equation
 from .identifier import Identifier
-from .options import ONLINE_METHODS, check_online_options, check_options
+from .options import ONLINE_METHODS, check_online_options
 from .orthogonal import BASES
 from .regressors import KernelBank, SlidingMoments, row_exponents
 
 __all__ = ["OnlineIdentifier", "check_record", "Identification", "Estimate", "METHODS",
-           "STATUSES", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "prior_sizes", "filtered_cramer", "combine_equations",
+           "STATUSES", "CHANGE_WINDOWS", "CHANGE_SURPRISE", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "prior_sizes", "filtered_cramer", "combine_equations",
            "auto_window", "Integrators", "solve_factor", "triangular_factor", "equilibrated_condition"]
 
 #: The online methods (OnlineIdentifier, :data:`duffid.identification.options.ONLINE_METHODS`)
@@ -52,8 +52,11 @@ METHODS = ONLINE_METHODS + BASES
 #: ``settle`` s, the value is shown; ``not excited``: its term carries less than
 #: :data:`MIN_SHARE` of the force balance; ``lost``: it was published and has not been
 #: trustworthy for ``settle`` s since (its error above :data:`LOSS_FACTOR` times
-#: ``max_uncertainty``, or its value non-physical; the value is withdrawn).
-STATUSES = ("uncertain", "published", "not excited", "lost")
+#: ``max_uncertainty``, or its value non-physical, or the estimate moved from the value by more
+#: than that: the value is withdrawn); ``changed``: the recent data contradict the value it had
+#: (see :data:`CHANGE_WINDOWS`): the value is withdrawn and the parameter is identified again
+#: from the samples after the change.
+STATUSES = ("uncertain", "published", "not excited", "lost", "changed")
 
 
 def status_codes() -> str:
@@ -73,6 +76,22 @@ GROWTH_STEADY = 0.25
 
 #: Samples before any solution is identified (and half the shortest record).
 MIN_SAMPLES = 8
+
+#: The change test (robust method): beside the least squares over every full window since
+#: the start (or the latest change), a second one forgets with the time constant
+#: ``change_memory`` (default: this many windows). Once an unknown of an equation differs
+#: between the two by more than ``change_threshold`` combined standard errors and by more than
+#: a published value may move (:data:`LOSS_FACTOR` times ``max_uncertainty``) for ``settle`` s,
+#: the plant has changed: both restart with the first window after the change, the departed
+#: parameters that had a value are ``changed`` and the equation's others ``uncertain`` until
+#: they are determined again (a restarted estimate, like a growing window's, must also have
+#: stayed put for :data:`GROWTH_STEADY` of a window).
+CHANGE_WINDOWS = 2.0
+#: The change test's accelerator: once a window's prediction error (the ``residual`` of
+#: :class:`Estimate`) has been this many times the relative residual of the rows accumulated
+#: so far for ``settle`` s, the recent estimate forgets everything before it (and skips the
+#: windows that straddle it), so that a sudden change is not blurred by the samples before it.
+CHANGE_SURPRISE = 12.0
 
 
 # ---------------------------------------------------------------------- channels
@@ -346,15 +365,45 @@ class Integrators:
 def _next_status(status: str, settled: int, unsettled: int, settle: int, good: bool, share: float) -> str:
     """A parameter's status after a sample (see :data:`STATUSES`): ``settled`` counts the
     samples since its error was last above ``max_uncertainty``, ``unsettled`` those since
-    it was last within :data:`LOSS_FACTOR` times that."""
-    published, not_excited, lost = STATUSES[1], STATUSES[2], STATUSES[3]
+    it was last within :data:`LOSS_FACTOR` times that; ``lost`` and ``changed`` last until it
+    is published again (or not excited)."""
+    published, not_excited, lost, changed = STATUSES[1], STATUSES[2], STATUSES[3], STATUSES[4]
     if settled >= settle:
         return published
     if status == published:
         return lost if unsettled >= settle else published
     if good and share < MIN_SHARE:
         return not_excited
-    return lost if status == lost else STATUSES[0]
+    return status if status in (lost, changed) else STATUSES[0]
+
+
+def _relative_residual(A: np.ndarray, D: np.ndarray, theta: np.ndarray) -> float:
+    """The norm of the rows' prediction errors ``D - A theta`` over that of their force
+    balance (the terms ``A_i theta_i`` and ``D``; NaN when ``theta`` is not finite or the
+    balance is zero): the one-step prediction error of the window."""
+    if not np.all(np.isfinite(theta)):
+        return np.nan
+    balance = float(np.sqrt(np.sum((A * theta) ** 2) + np.sum(D**2)))
+    return float(np.linalg.norm(D - A @ theta)) / balance if balance > 0 else np.nan
+
+
+def _relative_fit(R_aug: np.ndarray, theta: np.ndarray) -> float:
+    """:func:`_relative_residual` of every row the factor ``R_aug`` of ``[A D]`` holds, at its
+    solution ``theta`` (its residual norm over the norm of their force balance)."""
+    n = R_aug.shape[0] - 1
+    if not np.all(np.isfinite(theta)):
+        return np.nan
+    terms = np.linalg.norm(R_aug[:n, :n], axis=0) * theta
+    balance = float(np.sqrt(np.sum(terms**2) + np.sum(R_aug[:, n] ** 2)))
+    return abs(float(R_aug[n, n])) / balance if balance > 0 else np.nan
+
+
+def _departure(theta: np.ndarray, rse: np.ndarray, recent: np.ndarray, recent_rse: np.ndarray) -> np.ndarray:
+    """Per unknown, the difference between the recent and the accumulated solution in their
+    combined standard errors (0 where either is undetermined)."""
+    combined = np.hypot(rse * np.abs(theta), recent_rse * np.abs(recent))
+    ok = np.isfinite(theta) & np.isfinite(recent) & np.isfinite(combined) & (combined > 0)
+    return np.where(ok, np.abs(recent - theta) / np.where(ok, combined, 1.0), 0.0)
 
 
 def prior_sizes(model: Chain, nominal: Mapping[str, float] | None) -> dict[str, float]:
@@ -407,6 +456,13 @@ class Estimate:
         Isolated displacement outliers excluded so far (see :data:`OUTLIER_SIGMAS`); a
         suspect sample is processed one sample late, and meanwhile the previous estimate
         is repeated.
+    std_errors : dict or None
+        Standard error of each published value (public names, its unit; NaN where nothing is
+        published); None when the estimator does not report it.
+    residual : float
+        The window's one-step prediction error: the norm of its rows' residuals under the
+        previous solution over that of their force balance (NaN while there is none; the
+        largest over the equations). It jumps when the plant stops fitting the estimate.
     """
 
     t: float
@@ -418,6 +474,8 @@ class Estimate:
     current: dict[str, float] | None = None
     status: dict[str, str] | None = None
     outliers: int = 0
+    std_errors: dict[str, float] | None = None
+    residual: float = np.nan
 
 
 class _EquationState:
@@ -427,6 +485,7 @@ class _EquationState:
         self.theta = np.empty(len(equation.unknowns))
         self.rse = np.empty(len(equation.unknowns))
         self.share = np.empty(len(equation.unknowns))
+        self.departure = np.zeros(len(equation.unknowns))
         self.clear()
 
     def clear(self) -> None:
@@ -435,6 +494,12 @@ class _EquationState:
         self.rse[:] = np.inf
         self.share[:] = np.nan
         self.rhs_share = np.nan
+        self.departure[:] = 0.0
+        self.departed = 0       # samples the departure has mattered in a row
+        self.surprised = 0      # samples the prediction error has been surprising in a row
+        self.resume = 0         # after a change: the first sample whose window follows it
+        self.recent_resume = 0  # ... after a surprise: the same for the recent estimate
+        self.residual = np.nan  # the window's prediction error (Estimate.residual)
 
 
 class OnlineIdentifier(Identifier):
@@ -510,6 +575,8 @@ class OnlineIdentifier(Identifier):
             self._moments = SlidingMoments(self.capacity, self.bank.degree, len(self.channels))
             lam = 1.0 if o["forgetting"] is None else float(np.exp(-self.dt / o["forgetting"]))
             self._solvers = [_QRLeastSquares(len(eq.unknowns), lam) for eq in self.equations]
+            # the change test's recent estimate (its forgetting factor follows the window)
+            self._recent = [_QRLeastSquares(len(eq.unknowns), 1.0) for eq in self.equations]
         else:
             self._paper_setup()
         self.reset()
@@ -530,11 +597,15 @@ class OnlineIdentifier(Identifier):
         self._settled = {k: 0 for k in canonical}
         self._unsettled = {k: 0 for k in canonical}
         self._status = {k: STATUSES[0] for k in canonical}
+        self._fresh = {k: False for k in canonical}  # restarted since last published
+        self._value = {k: np.nan for k in canonical}  # the latest published value
         self._held = {name: np.nan for name in self.parameter_names}
+        self._changed_now: dict[str, bool] = {}
+        self._regrow = False  # after hold(): the window is growing again
         if self.method == "robust":
             self._moments.reset()
-            self._target = self.capacity
-            for s in self._solvers:
+            self._set_target(self.capacity)
+            for s in (*self._solvers, *self._recent):
                 s.reset()
         else:
             self._paper_reset()
@@ -577,11 +648,36 @@ class OnlineIdentifier(Identifier):
         self._last = estimate
         return estimate
 
+    def hold(self) -> None:
+        """The next sample does not follow the previous one: the plant was not excited or a
+        sensor saturated, and the samples in between are not given (the ``enable`` input of
+        the estimator FMUs). A sample held back as a suspect outlier is processed first; the
+        window restarts with the next sample, while the least squares accumulated so far,
+        the statuses and the published values are kept and reported unchanged until the
+        window is full again (robust method; the paper method's integrals cannot skip
+        samples: it restarts, as :meth:`reset`)."""
+        if self.method != "robust":
+            self.reset()
+            return
+        if self._last is None:
+            return  # nothing received yet: the next sample is the first
+        for xi, fi in self._guard.flush():
+            self._reported(self._process(xi, fi))
+        found = self._guard.found
+        self._guard.reset()
+        self._guard.found = found
+        self._channels.reset()
+        self._moments.reset()
+        self._regrow = True
+
     def _process(self, x: np.ndarray, f: np.ndarray) -> Estimate:
         self.n += 1
         g = self._channels.evaluate(x, f)
         if self.method == "robust":
             window = self._robust_step(g)
+            if window is None:  # after hold(): the previous estimate until the window is full
+                assert self._last is not None
+                return self._last
         else:
             window = self._paper_step(g)
         estimate = self._publish(window)
@@ -609,6 +705,13 @@ class OnlineIdentifier(Identifier):
         settle = self._settle
         worst = 0.0
         trusted = {}
+        for k, hit in self._changed_now.items():  # restarted by the change test: a value it had is changed
+            had_value = self._status[k] in (STATUSES[1], STATUSES[3], STATUSES[4])
+            self._status[k] = STATUSES[4] if hit and had_value else STATUSES[0]
+            self._settled[k] = self._unsettled[k] = self._steady[k] = 0
+            self._anchor[k] = self._value[k] = np.nan
+            self._fresh[k] = True
+        self._changed_now = {}
         for k, v in canonical.items():
             relative = rse[k] if np.isfinite(v) and v != 0 else np.inf
             if self._prior.get(k, 0.0) > 0 and np.isfinite(relative):  # the user's prior size
@@ -619,24 +722,35 @@ class OnlineIdentifier(Identifier):
             excited = share[k] >= MIN_SHARE or self._prior.get(k, 0.0) > 0
             physical = self.model.is_physical(k, v)
             small = good and excited and physical and relative <= self.options["max_uncertainty"]
-            large = not (good and physical and relative <= LOSS_FACTOR * self.options["max_uncertainty"])
+            # a held value is withdrawn, too, once the estimate has moved away from it
+            held = self._value[k]
+            moved = self._status[k] == STATUSES[1] and not abs(v - held) <= LOSS_FACTOR * self.options[
+                "max_uncertainty"] * abs(held)
+            large = moved or not (good and physical and relative <= LOSS_FACTOR * self.options["max_uncertainty"])
             self._steady[k] = self._steady[k] + 1 if small else 0
             if not (np.isfinite(v) and abs(v - self._anchor[k]) <= tol * abs(self._anchor[k])):
                 self._anchor[k], self._anchored[k] = v, self.n
             grown = self.n - self._anchored[k] >= GROWTH_STEADY * window_samples
-            self._settled[k] = self._settled[k] + 1 if small and (full or grown) else 0
+            self._settled[k] = self._settled[k] + 1 if small and ((full and not self._fresh[k]) or grown) else 0
             self._unsettled[k] = self._unsettled[k] + 1 if large else 0
             self._status[k] = _next_status(self._status[k], self._settled[k], self._unsettled[k], settle,
                                            good, share[k])
             trusted[k] = v if self._settled[k] >= settle else np.nan
+            if np.isfinite(trusted[k]):
+                self._value[k] = v
+            if self._status[k] == STATUSES[1]:
+                self._fresh[k] = False
         public = self.model.from_canonical(trusted)
         status = {name: self._status[self.model.canonical_name(name)] for name in public}
         self._held = {name: (v if np.isfinite(v) else self._held[name]) if status[name] == STATUSES[1] else np.nan
                       for name, v in public.items()}
         ok = all(s == STATUSES[1] for s in status.values())
         current = self.model.from_canonical(canonical) if good else {k: np.nan for k in self._held}
+        std_errors = {name: rse[self.model.canonical_name(name)] * abs(v) if np.isfinite(v) else np.nan
+                      for name, v in self._held.items()}
+        residual = max((st.residual for st in self._states if np.isfinite(st.residual)), default=np.nan)
         return Estimate(self.n * self.dt, dict(self._held), ok, cond, worst, window_samples * self.dt, current,
-                        status)
+                        status, std_errors=std_errors, residual=residual)
 
     def _window_ok(self, cond: float, L: int) -> bool:
         o = self.options
@@ -664,29 +778,80 @@ class OnlineIdentifier(Identifier):
         return out
 
     # -------------------------------------------------------------- robust
-    def _robust_step(self, g: np.ndarray) -> int:
+    def _robust_step(self, g: np.ndarray) -> int | None:
         moments, L = self._moments.push(g, self._target)
+        if self._regrow:
+            if L < self._target:
+                return None
+            self._regrow = False
         if L == 0:
             return 0
         E = self.bank.entries(L / self.capacity, moments, g, self.capacity * self.dt)
         self._robust_solve([st.assembly(E) for st in self._states], L)
         return L
 
+    def _set_target(self, samples: int) -> None:
+        """Set the full window length (samples) and the change test's memory that follows it."""
+        self._target = samples
+        memory = self.options["change_memory"]
+        tau = CHANGE_WINDOWS * samples * self.dt if memory == "auto" else float(memory)
+        for s in self._recent:
+            s.lam = float(np.exp(-self.dt / tau))
+
     def _robust_solve(self, systems: list[tuple[np.ndarray, np.ndarray]], L: int) -> None:
         """Update the estimate with the rows of the current window (length ``L``).
 
         While the window grows, the current window alone is solved (like the paper's
         fixed t0); once it has its full length, the rows of every full window are
-        accumulated (with forgetting).
+        accumulated (with forgetting), and the change test compares the solution with the
+        recent one (see :data:`CHANGE_WINDOWS`).
         """
         full = L >= self._target
-        for st, solver, (A, D) in zip(self._states, self._solvers, systems):
-            if full:
-                solver.update(A, D)
-                st.theta, st.cond, st.rse, st.share, st.rhs_share = solve_factor(solver.R, solver.rows, float(L))
-            else:
+        threshold = self.options["change_threshold"]
+        for j, (st, solver, recent, (A, D)) in enumerate(zip(self._states, self._solvers, self._recent, systems)):
+            if not full:
                 R = triangular_factor(np.column_stack([A, D]), len(st.equation.unknowns) + 1)
                 st.theta, st.cond, st.rse, st.share, st.rhs_share = solve_factor(R, len(A), 1.0)
+                continue
+            if self.n < st.resume:  # a window that holds samples from before the change
+                continue
+            previous = st.theta.copy()
+            fit = _relative_fit(solver.R, previous)
+            st.residual = _relative_residual(A, D, previous)
+            solver.update(A, D)
+            st.theta, st.cond, st.rse, st.share, st.rhs_share = solve_factor(solver.R, solver.rows, float(L))
+            if threshold is None or self.n < st.recent_resume:  # no test, or the recent estimate restarted
+                continue
+            recent.update(A, D)
+            theta, _, rse = solve_factor(recent.R, recent.rows, float(L))[:3]
+            st.departure = _departure(st.theta, st.rse, theta, rse)
+            # a departure matters when significant and larger than a published value may move
+            departed = (st.departure > threshold) & (
+                np.abs(theta - st.theta) > LOSS_FACTOR * self.options["max_uncertainty"] * np.abs(st.theta))
+            st.departed = st.departed + 1 if departed.any() else 0
+            st.surprised = st.surprised + 1 if st.residual > CHANGE_SURPRISE * fit else 0  # not while NaN
+            if st.departed >= self._settle:
+                self._restart(j, departed)
+            elif st.surprised >= self._settle:  # the recent estimate starts afresh after it
+                recent.reset()
+                st.departure[:] = 0.0
+                st.departed = st.surprised = 0
+                st.recent_resume = self.n + self._target
+
+    def _restart(self, j: int, departed: np.ndarray) -> None:
+        """Equation ``j``'s data contradict its estimate (the unknowns ``departed``): forget
+        them, mark its parameters ``changed`` (the departed) or ``uncertain``."""
+        st = self._states[j]
+        keys = {key: bool(d) for key, d in zip(st.equation.unknowns, departed)}
+        for name, sources in self._sources.items():
+            for k, key in sources:
+                if k == j:
+                    hit = bool(np.any(departed)) if key is None else keys[key]
+                    self._changed_now[name] = self._changed_now.get(name, False) or hit
+        self._solvers[j].reset()
+        self._recent[j].reset()
+        st.clear()
+        st.resume = st.recent_resume = self.n + self._target
 
     def _after_publish(self, L: int) -> None:
         """Fix the auto window once the masses and linear stiffnesses (the natural periods)
@@ -694,8 +859,8 @@ class OnlineIdentifier(Identifier):
         if self._auto and not self._window_fixed and self._window_known():
             self._window_fixed = True
             canonical = self._combine()[0]
-            self._target = auto_window(self.model, canonical, self.dt, L, self.capacity,
-                                       self.options["window_periods"])
+            self._set_target(auto_window(self.model, canonical, self.dt, L, self.capacity,
+                                         self.options["window_periods"]))
 
     def _window_known(self) -> bool:
         """Every parameter that sets a natural period (masses, linear stiffnesses) steady (its

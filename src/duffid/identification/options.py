@@ -176,6 +176,11 @@ OPTIONS: tuple[Option, ...] = (
            "|dx| <= deadband (displacement units) keeps the previous sign of velocity", fmu=False),
     Option("nominal", ("robust",), "prior", None,
            "optional prior sizes {parameter: size}: the trust test's scale (None: from the data)", fmu=False),
+    Option("change_threshold", ("robust",), "real", 4.0,
+           "robust: departure of the recent estimate, in combined standard errors, that marks a change",
+           unset=None, default_text="4; none: no change test"),
+    Option("change_memory", ("robust",), "real", "auto", "robust: memory of the change test's recent estimate",
+           unit="s", unset="auto", default_text="auto: 2 windows"),
 )
 _BY_NAME = {o.name: o for o in OPTIONS}
 
@@ -330,7 +335,8 @@ def from_c(option: Option | str, code: float) -> Any:
 
 def c_options() -> list[Option]:
     """The options the C core has (the online methods', every kind but ``prior``), FMU parameters first."""
-    return [o for o in OPTIONS if o.kind != "prior"]
+    core = [o for o in OPTIONS if o.kind != "prior"]
+    return [o for o in core if o.fmu] + [o for o in core if not o.fmu]
 
 
 def ctypes_fields(real: Any = ctypes.c_double) -> list[tuple[str, Any]]:
@@ -457,6 +463,10 @@ def _add_flag(parser: Any, variants: list[Option]) -> None:
                             metavar=o.name.upper(), help=shown)
 
 
+#: How a flag names the value None of an option whose unset value is None (``--forgetting none``).
+_NONE = "none"
+
+
 def _parser_of(variants: Option | list[Option]):
     variants = [variants] if isinstance(variants, Option) else variants
 
@@ -465,6 +475,8 @@ def _parser_of(variants: Option | list[Option]):
         for option in variants:
             if option.has_unset and option.unset is not None and text == option.unset:
                 return option.unset
+            if option.has_unset and option.unset is None and text == _NONE:
+                return _NONE  # None itself would read as "not given"
             try:
                 value: Any = int(text) if option.kind == "count" else float(text)
                 return _check_value(option, value)
@@ -488,7 +500,9 @@ def options_from_arguments(args: argparse.Namespace, method: str) -> dict[str, A
     out = {}
     for o in options_of(method):
         value = getattr(args, o.name, None)
-        if value is not None:
+        if value == _NONE and o.has_unset and o.unset is None:
+            out[o.name] = None
+        elif value is not None:
             try:
                 out[o.name] = _check_value(o, value)
             except InputError:

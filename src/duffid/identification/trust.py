@@ -212,7 +212,10 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
         offsets; None: every core, :func:`~duffid.identification.dispatch.all_cores`). The
         result is the same, bit for bit, for any number.
     **options
-        Method options (see :class:`~duffid.identification.engine.OnlineIdentifier`).
+        Method options (see :class:`~duffid.identification.engine.OnlineIdentifier`). The
+        record is taken as one plant: the online change test is off unless
+        ``change_threshold`` is given (:func:`duffid.identification.changes.find_changes`
+        tells where a record's plant changed; ``identify_segments`` identifies each stretch).
 
     Raises
     ------
@@ -257,6 +260,8 @@ def _checked(record: Record, method: str, kind: str | None, physical: Chain, est
                                           sampling_rtol=record.sampling_rtol)
     estimation.record = record
     opts = estimation.options = dict(options)
+    if method == "robust":  # the whole record is one plant here (where it changed: changes.find_changes)
+        opts.setdefault("change_threshold", None)
     # the robust method's window from the data, in natural periods (never the default
     # seconds, which belong to the paper's 3.6 Hz plant): first from the displacement's
     # main frequency, then from the identified natural frequency

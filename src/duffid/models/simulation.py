@@ -37,7 +37,7 @@ def _force_function(force: Force, n_forces: int) -> Callable[[np.ndarray], np.nd
 def simulate(model: Chain, force: Force, t_end: float, dt: float, *,
              x0: Sequence[float] | None = None, v0: Sequence[float] | None = None,
              rtol: float = 1e-10, atol: float = 1e-14, max_displacement: float = 1.0,
-             friction_velocity: float = 1e-4) -> Record:
+             friction_velocity: float = 1e-4, changes: Sequence[tuple[float, Chain]] = ()) -> Record:
     """Simulate ``model`` under ``force`` and sample it every ``dt``.
 
     Parameters
@@ -58,6 +58,11 @@ def simulate(model: Chain, force: Force, t_end: float, dt: float, *,
         softening spring of the paper lets the mass escape its potential well (14 N step).
     friction_velocity : float
         Smoothing velocity of Coulomb friction (``tanh(v / friction_velocity)``).
+    changes : sequence of (float, Chain), optional
+        A plant that changes: from each time [s] (increasing, within the record) on, the
+        plant is that chain (same degrees of freedom and forces), its displacements and
+        velocities continuing (a payload added, a spring that cracks). A drift is a
+        staircase of small changes.
 
     Returns
     -------
@@ -75,6 +80,46 @@ def simulate(model: Chain, force: Force, t_end: float, dt: float, *,
     if state0.shape != (2 * n,):
         raise InputError(f"x0 and v0 need {n} values each")
 
+    plants = _check_changes(model, changes, t[-1])
+    bounds = [0.0, *(time for time, _ in plants), float(t[-1])]
+    pieces = []
+    for k, plant in enumerate([model, *(p for _, p in plants)]):
+        start, stop = bounds[k], bounds[k + 1]
+        inside = t[(t >= start) & (t < stop)] if k + 1 < len(bounds) - 1 else t[t >= start]
+        y, state0 = _integrate(plant, forcing, start, stop, inside, state0, rtol, atol, max_displacement,
+                               friction_velocity, dt)
+        pieces.append(y)
+    x = np.concatenate(pieces, axis=1)[:n].T.copy()
+    f = np.asarray(forcing(t), dtype=float).reshape(n_samples, model.n_forces)
+    return Record(t=t, f=f, x=x, source=f"simulated {model.name}" + (" (changing)" if plants else ""))
+
+
+def _check_changes(model: Chain, changes: Sequence[tuple[float, Chain]], t_end: float) -> list[tuple[float, Chain]]:
+    """``changes`` checked: increasing times within (0, t_end), chains shaped like ``model``."""
+    out, last = [], 0.0
+    for i, item in enumerate(changes):
+        try:
+            time, plant = item
+            time = float(time)
+        except (TypeError, ValueError):
+            raise InputError(f"changes[{i}] must be (time, chain), got {item!r}") from None
+        if not (last < time < t_end):
+            raise InputError(f"changes[{i}]: time {time!r} s is not after the previous change and within the "
+                             f"record (0 .. {t_end:g} s)")
+        if not isinstance(plant, Chain) or (plant.n_dof, plant.n_forces) != (model.n_dof, model.n_forces):
+            raise InputError(f"changes[{i}]: the plant must be a chain with {model.n_dof} degree(s) of freedom "
+                             f"and {model.n_forces} force(s) like {model.name}")
+        out.append((time, plant))
+        last = time
+    return out
+
+
+def _integrate(model: Chain, forcing: Callable[[np.ndarray], np.ndarray], start: float, stop: float,
+               samples: np.ndarray, state0: np.ndarray, rtol: float, atol: float, max_displacement: float,
+               friction_velocity: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """``model`` from ``state0`` at ``start`` to ``stop``: its states at ``samples`` and at ``stop``."""
+    n = model.n_dof
+
     def rhs(time: float, state: np.ndarray) -> np.ndarray:
         x, v = state[:n], state[n:]
         f = np.asarray(forcing(time), dtype=float).reshape(model.n_forces)
@@ -84,7 +129,10 @@ def simulate(model: Chain, force: Force, t_end: float, dt: float, *,
         return max_displacement - np.max(np.abs(state[:n]))
 
     escaped.terminal = True  # type: ignore[attr-defined]
-    sol = solve_ivp(rhs, (0.0, t[-1]), state0, method="DOP853", t_eval=t, rtol=rtol, atol=atol,
+    wanted = np.append(samples, stop) if not samples.size or samples[-1] < stop else samples
+    if stop <= start:  # a single sample
+        return state0[:, None].copy(), state0
+    sol = solve_ivp(rhs, (start, stop), state0, method="DOP853", t_eval=wanted, rtol=rtol, atol=atol,
                     events=escaped, max_step=10 * dt)
     if sol.status == 1:
         t_escape = float(sol.t_events[0][0])
@@ -93,8 +141,7 @@ def simulate(model: Chain, force: Force, t_end: float, dt: float, *,
             "(the response left the spring's potential well); shorten the record or lower the force")
     if not sol.success:
         raise SimulationError(f"{model.name}: ODE solver failed: {sol.message}")
-    f = np.asarray(forcing(t), dtype=float).reshape(n_samples, model.n_forces)
-    return Record(t=t, f=f, x=sol.y[:n].T.copy(), source=f"simulated {model.name}")
+    return sol.y[:, :samples.size], sol.y[:, -1]
 
 
 def quantize(x: np.ndarray, pulses_per_cm: float = ENCODER_PULSES_PER_CM) -> np.ndarray:

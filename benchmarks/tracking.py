@@ -1,0 +1,175 @@
+"""A plant that changes during online identification: detected, withdrawn, re-identified.
+
+The online estimator (the C core the FMUs run, default options) on a hardening plant of
+10.3 Hz (2 kg, kp x^2 / k = 0.5 at 1 cm) under band-limited random force (1-30 Hz), 50 dB
+noise on the displacement, 1 kHz, 6 s; per change type, several noise/force seeds:
+
+- ``k +25 %`` / ``m +20 %`` (a payload): a step at 3 s;
+- ``k drift +20 %`` / ``k drift -20 %``: linear over the record (a staircase of 300 steps).
+
+Printed per change type (median and worst over the seeds):
+
+- ``flagged after``: from the change (a drift: its start) to the first ``changed`` status of
+  the changed parameter;
+- ``re-published after``: from that flag to the parameter's next published value;
+- ``worst vs last s``: the issue's measure of a stale value, the largest distance of any
+  published value (any parameter) from the truth at any instant of the second before it;
+- ``worst now``: the largest distance of any published value from the truth at its sample;
+- ``last s``: the largest error of the changed parameter in the last second (NaN: not
+  published there), the target being 2 %.
+
+Then the false alarms on constant plants: every record of ``benchmarks/trust.py`` (its online
+run) and the constant version of this plant, counting the times a parameter turned
+``changed``.
+
+Usage: ``python benchmarks/tracking.py [--seeds N] [--no-battery]``.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from duffid import Duffing1, Multisine, measure, simulate
+from duffid.identification.c_core import CIdentifier
+from duffid.identification.engine import STATUSES
+
+DT, T_END, T_CHANGE = 1e-3, 6.0, 3.0
+M, FN, ZETA = 2.0, 10.3, 0.02
+K = M * (2 * np.pi * FN) ** 2
+B = 2 * ZETA * np.sqrt(K * M)
+AMPLITUDE = 0.01
+KP = 0.5 * K / AMPLITUDE**2
+NAMES = ("m", "b", "k", "kp")
+CHANGED, PUBLISHED = STATUSES.index("changed"), STATUSES.index("published")
+
+
+def plant(**changed: float) -> Duffing1:
+    return Duffing1(**{"m": M, "b": B, "k": K, "kp": KP, **changed})
+
+
+def drift(share: float, steps: int = 300) -> list[tuple[float, Duffing1]]:
+    """A linear drift of k by ``share`` over the record, as a staircase."""
+    return [(T_END * i / steps, plant(k=K * (1 + share * i / steps))) for i in range(1, steps)]
+
+
+CHANGES = {
+    "k +25 %": ("k", [(T_CHANGE, plant(k=1.25 * K))], T_CHANGE),
+    "m +20 %": ("m", [(T_CHANGE, plant(m=1.2 * M))], T_CHANGE),
+    "k drift +20 %": ("k", drift(0.2), 0.0),
+    "k drift -20 %": ("k", drift(-0.2), 0.0),
+    "constant": (None, [], None),
+}
+
+
+def record_of(changes: list, seed: int):
+    force = Multisine(0.8 * K * AMPLITUDE, 1.0, 30.0, T_END, phases="random", seed=seed)
+    exact = simulate(plant(), force, T_END, DT, changes=changes)
+    return measure(exact, pulses_per_cm=None, snr_db=50, seed=seed + 1000)
+
+
+def truth_of(n: int, changes: list) -> np.ndarray:
+    t = np.arange(n) * DT
+    out = np.tile([plant().parameters[p] for p in NAMES], (n, 1))
+    for time, p in changes:
+        out[t >= time - 1e-12] = [p.parameters[q] for q in NAMES]
+    return out
+
+
+def run(changed: str | None, changes: list, start: float | None, seed: int) -> dict[str, float]:
+    record = record_of(changes, seed)
+    rows = CIdentifier(Duffing1(), DT).run(record.x, record.f)
+    values, status = rows["parameters"][:, :4], rows["status"][:, :4]
+    truth = truth_of(len(values), changes)
+    t = np.arange(len(values)) * DT
+    span = int(round(1.0 / DT))
+    worst_recent = worst_now = 0.0
+    for j in range(4):
+        for i in np.flatnonzero(np.isfinite(values[:, j])):
+            recent = truth[max(0, i - span):i + 1, j]
+            worst_recent = max(worst_recent, float(np.min(np.abs(values[i, j] - recent) / np.abs(recent))))
+            worst_now = max(worst_now, abs(values[i, j] - truth[i, j]) / abs(truth[i, j]))
+    out = {"worst vs last s": worst_recent, "worst now": worst_now,
+           "false alarms": float(np.sum(np.diff((status == CHANGED).any(axis=1).astype(int)) == 1))}
+    if changed is None:
+        return out
+    j = NAMES.index(changed)
+    flags = np.flatnonzero((status[:, j] == CHANGED) & (t >= start))
+    out["flagged after"] = t[flags[0]] - start if flags.size else math.nan
+    if flags.size:
+        again = np.flatnonzero((status[:, j] == PUBLISHED) & (t > t[flags[0]]))
+        out["re-published after"] = t[again[0]] - t[flags[0]] if again.size else math.nan
+    else:
+        out["re-published after"] = math.nan
+    last = t >= T_END - 1.0
+    err = np.abs(values[last, j] - truth[last, j]) / truth[last, j]
+    out["last s"] = float(np.max(err)) if np.isfinite(err).all() else math.nan
+    return out
+
+
+def summary(values: list[float], percent: bool) -> str:
+    a = np.array(values, dtype=float)
+    scale, unit = (100.0, "%") if percent else (1.0, "s")
+    if np.isnan(a).all():
+        return "-"
+    med = np.nanmedian(a) * scale
+    worst = np.max(a) * scale if not np.isnan(a).any() else math.nan
+    text = f"{med:.2f} / {worst:.2f} {unit}" if np.isfinite(worst) else f"{med:.2f} / never {unit}"
+    return text if not np.isnan(a).any() else text + f" ({int(np.isnan(a).sum())} missing)"
+
+
+def battery_false_alarms() -> list[tuple[str, int]]:
+    """Times a parameter turned ``changed`` on each record of benchmarks/trust.py (constant plants)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import trust  # noqa: PLC0415 (the battery's records)
+
+    out = []
+    for case in tqdm(trust.CASES, desc="trust battery", file=sys.stderr):
+        record, plant_model, _ = trust.make_record(case)
+        model = trust.CLASSES[type(plant_model)]
+        dt = float(np.median(np.diff(record.t)))
+        rows = CIdentifier(model, dt).run(record.x, record.f)
+        status = rows["status"][:, :len(model.parameters)]
+        out.append((case.name, int(np.sum(np.diff((status == CHANGED).any(axis=1).astype(int)) == 1))))
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seeds", type=int, default=5, help="noise and force seeds per change type")
+    parser.add_argument("--no-battery", action="store_true", help="skip the false alarms on the trust battery")
+    args = parser.parse_args(argv)
+    results = {}
+    jobs = [(name, seed) for name in CHANGES for seed in range(args.seeds)]
+    for name, seed in tqdm(jobs, desc="records", file=sys.stderr):
+        changed, changes, start = CHANGES[name]
+        results.setdefault(name, []).append(run(changed, changes, start, seed))
+    print(f"Tracking a changing plant (C core, default options; {args.seeds} seeds; median / worst)")
+    columns = [("flagged after", False), ("re-published after", False), ("worst vs last s", True),
+               ("worst now", True), ("last s", True), ("false alarms", False)]
+    print(f"{'change':<15}" + "".join(f"{c:>30}" for c, _ in columns))
+    for name, rows in results.items():
+        cells = []
+        for column, percent in columns:
+            values = [r.get(column, math.nan) for r in rows]
+            if column == "false alarms":
+                cells.append(f"{int(np.nansum(values)) if name == 'constant' else '-':>30}")
+            else:
+                cells.append(f"{summary(values, percent):>30}")
+        print(f"{name:<15}" + "".join(cells))
+    if not args.no_battery:
+        alarms = battery_false_alarms()
+        total = sum(n for _, n in alarms)
+        print(f"\nFalse alarms on the {len(alarms)} constant-plant records of benchmarks/trust.py: {total}")
+        for name, n in alarms:
+            if n:
+                print(f"  {name}: {n}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
