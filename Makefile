@@ -17,8 +17,10 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/duffid demo --out out
 
+# the suite on every core (pytest-xdist; each test is independent: its files in tmp_path, the
+# compiled libraries cached under content hashes and renamed into place)
 test: $(STAMP)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto
 
 # the documentation site, docs/_build/html/index.html, with the paper report (duffid paper-report)
 # at docs/_build/html/paper-report/; CI builds it with SPHINXOPTS="-W --keep-going" (warnings fail)

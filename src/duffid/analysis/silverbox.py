@@ -300,10 +300,12 @@ class Settings:
     linear: LinearFit
 
     def options(self) -> dict[str, Any]:
-        """Options of the robust identifier: the window, and the nominal sizes of rule 1
-        (from the record's linear fit) as the trust test's prior sizes."""
+        """Options of the robust identifier: the window, the nominal sizes of rule 1 (from the
+        record's linear fit) as the trust test's prior sizes, and no change test (one plant
+        over the record, as identify() takes it: on the arrow record, whose amplitude grows,
+        the model's mismatch grows with it and the test restarts the estimate)."""
         prior = {k: v for k, v in silverbox_model(self.linear).parameters.items() if v != 0.0}
-        return {"window": self.window, "max_window": self.window, "nominal": prior}
+        return {"window": self.window, "max_window": self.window, "nominal": prior, "change_threshold": None}
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary."""
