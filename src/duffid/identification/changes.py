@@ -73,8 +73,10 @@ def change_test_options(options: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in options.items() if k in online and k != "nominal"}
 
 
-def _online_rows(record: Record, model: Chain, options: dict[str, Any]) -> tuple[np.ndarray, ...]:
-    """Statuses, residuals and window lengths of every sample (the C core where it builds)."""
+def _online_rows(record: Record, model: Chain, options: dict[str, Any]
+                 ) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
+    """Parameter names, and the statuses, residuals and window lengths of every sample (the C
+    core where it builds)."""
     dt = record.dt
     try:
         ident = CIdentifier(model, dt, **options)
