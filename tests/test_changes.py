@@ -119,9 +119,35 @@ def test_a_constant_plant_raises_no_change(stiffness_step):
     assert (status[-1, [0, 2, 3]] == "published").all()
 
 
-def test_python_and_c_agree_across_a_change(stiffness_step):
-    record, _ = stiffness_step
-    part = record.slice(0.6, 3.0)
+def drift_of(share: float, t_end: float = 4.0) -> list[tuple[float, Duffing1]]:
+    """A linear drift of k by ``share`` over ``t_end`` s, as a staircase of 200 steps."""
+    return [(t_end * i / 200, plant(k=K * (1 + share * i / 200))) for i in range(1, 200)]
+
+
+@pytest.fixture(scope="module")
+def stiffness_drift():
+    changes = drift_of(-0.2)
+    record = record_of(changes)
+    return record, truth_of(record, changes)
+
+
+@pytest.mark.parametrize("share, seed", [(-0.2, 3), (0.2, 4)])
+def test_a_drift_is_flagged_and_no_published_value_goes_stale(share, seed):
+    """A drift of 20 % over 4 s moves the recent estimate by less than the threshold's standard
+    errors but beyond the band a value may move; lasting the recent memory, that is a change
+    too (CHANGE_DRIFT_SHARE). Without that rule the second record published a stiffness 5.2 %
+    from every true value of the second before it."""
+    changes = drift_of(share)
+    record = record_of(changes, seed=seed)
+    values, status = run_c(record)
+    assert (status[:, NAMES.index("k")] == "changed").any()
+    assert worst_against_last_second(values, truth_of(record, changes)) <= 0.05
+
+
+@pytest.mark.parametrize("case, span", [("stiffness_step", (0.6, 3.0)), ("stiffness_drift", (0.0, 2.5))])
+def test_python_and_c_agree_across_a_change(request, case, span):
+    record, _ = request.getfixturevalue(case)
+    part = record.slice(*span)
     py = OnlineIdentifier(Duffing1(), DT)
     estimates = [py.update(x, f) for x, f in zip(part.x, part.f)]
     values, status = run_c(part)

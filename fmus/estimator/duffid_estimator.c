@@ -139,6 +139,8 @@ typedef struct { /* the state of one block of the description */
     int64_t departed;                 /* samples the departure has mattered in a row, saturated
                                        * at settle */
     int64_t surprised;                /* ... the prediction error surprising, the same */
+    int64_t drifted;                  /* ... a smaller departure beyond the band, saturated at
+                                       * the recent memory */
     int64_t resume;                   /* after a change: the first sample whose window follows it */
     int64_t recent_resume;            /* ... after a surprise: the same for the recent estimate */
     int warm_recent;
@@ -197,6 +199,7 @@ struct duffid_estimator {
     long target;
     int regrow;                             /* after duffid_hold: the window grows again */
     duffid_real lam_recent, sqrt_lam_recent; /* the change test's forgetting (follows target) */
+    int64_t memory;                         /* ... its memory in samples (a drift lasts it) */
     duffid_real last_L;                     /* the window length of this sample's rows */
     long head;                              /* ring position of the newest sample */
     duffid_real *ring;                      /* (capacity + 2) x n_ch */
@@ -1184,6 +1187,7 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
         STATE_RANGE(est->eq[i].warm_recent, 0, 1)
         STATE_RANGE(est->eq[i].departed, 0, est->settle_count)
         STATE_RANGE(est->eq[i].surprised, 0, est->settle_count)
+        STATE_RANGE(est->eq[i].drifted, 0, est->memory)
         STATE_RANGE(est->eq[i].resume, 0, limit)
         STATE_RANGE(est->eq[i].recent_resume, 0, limit)
         if (cfg.method == DUFFID_PAPER) {
@@ -1322,6 +1326,10 @@ static void set_target(duffid_estimator *est, long samples)
     est->target = samples;
     est->lam_recent = R_EXP(-est->dt / tau);
     est->sqrt_lam_recent = R_SQRT(est->lam_recent);
+    est->memory = (int64_t)R_FLOOR(tau / est->dt + RC(0.5));
+    if (est->memory < 1) {
+        est->memory = 1;
+    }
 }
 
 static void count_up(int64_t *counter, int64_t limit)
@@ -1340,6 +1348,7 @@ static void clear_change(equation_t *eq, int n)
     }
     eq->departed = 0;
     eq->surprised = 0;
+    eq->drifted = 0;
     eq->resume = 0;
     eq->recent_resume = 0;
     eq->residual = R_NAN;
@@ -1998,7 +2007,7 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit)
     equation_t *eq = &est->eq[e];
     const int n = est->m.blocks[e].n_unknowns, p = n + 1;
     duffid_real theta[DUFFID_MAX_UNKNOWNS], rse[DUFFID_MAX_UNKNOWNS], cond;
-    int departed[DUFFID_MAX_UNKNOWNS], i, any = 0;
+    int departed[DUFFID_MAX_UNKNOWNS], drifted[DUFFID_MAX_UNKNOWNS], i, any = 0, any_drift = 0;
     if (est->n < eq->recent_resume) { /* the recent estimate restarted after a surprise */
         return;
     }
@@ -2015,14 +2024,24 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit)
         const duffid_real combined = duffid_la_hypot(eq->rse[i] * R_FABS(eq->theta[i]), rse[i] * R_FABS(theta[i]));
         const int ok = is_finite(eq->theta[i]) && is_finite(theta[i]) && is_finite(combined) && combined > RC(0.0);
         eq->departure[i] = ok ? R_FABS(theta[i] - eq->theta[i]) / combined : RC(0.0);
-        departed[i] = eq->departure[i] > est->change_threshold &&
-                      R_FABS(theta[i] - eq->theta[i]) > RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty * R_FABS(eq->theta[i]);
+        /* beyond the band a published value may move: significant (departed) or, lasting the
+         * recent memory, a share of that (drifted) */
+        const int wide = R_FABS(theta[i] - eq->theta[i]) >
+                         RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty * R_FABS(eq->theta[i]);
+        departed[i] = wide && eq->departure[i] > est->change_threshold;
+        drifted[i] = wide && eq->departure[i] > RC(DUFFID_CHANGE_DRIFT_SHARE) * est->change_threshold;
         any |= departed[i];
+        any_drift |= drifted[i];
     }
     if (any) {
         count_up(&eq->departed, est->settle_count);
     } else {
         eq->departed = 0;
+    }
+    if (any_drift) {
+        count_up(&eq->drifted, est->memory);
+    } else {
+        eq->drifted = 0;
     }
     if (eq->residual > RC(DUFFID_CHANGE_SURPRISE) * fit) { /* false while either is NaN */
         count_up(&eq->surprised, est->settle_count);
@@ -2031,6 +2050,8 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit)
     }
     if (eq->departed >= est->settle_count) {
         restart(est, e, departed);
+    } else if (eq->drifted >= est->memory) {
+        restart(est, e, drifted);
     } else if (eq->surprised >= est->settle_count) { /* the recent estimate starts afresh after it */
         memset(eq->R_recent, 0, (size_t)(p * p) * sizeof(duffid_real));
         eq->rows_recent = RC(0.0);
@@ -2038,7 +2059,7 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit)
         for (i = 0; i < n; i++) {
             eq->departure[i] = RC(0.0);
         }
-        eq->departed = eq->surprised = 0;
+        eq->departed = eq->surprised = eq->drifted = 0;
         eq->recent_resume = est->n + est->target;
     }
 }

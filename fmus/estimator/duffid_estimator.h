@@ -76,7 +76,9 @@ extern "C" {
  *   CHANGED      the recent data contradict the value it had (the change test: the estimate
  *                over the recent change_memory s departs from the accumulated one by more
  *                than change_threshold combined standard errors and by more than a published
- *                value may move, DUFFID_LOSS_FACTOR x max_uncertainty, for settle s; after a
+ *                value may move, DUFFID_LOSS_FACTOR x max_uncertainty, for settle s, or by
+ *                DUFFID_CHANGE_DRIFT_SHARE of those standard errors and that band for the
+ *                recent estimate's memory (a drift); after a
  *                window whose prediction error was DUFFID_CHANGE_SURPRISE times that of the
  *                accumulated rows, the recent estimate starts afresh): the least squares
  *                restart with the first window after the change, the value is withdrawn

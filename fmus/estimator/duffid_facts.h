@@ -42,6 +42,7 @@
 #define DUFFID_LOSS_FACTOR 2.0 /* lost above this many times max_uncertainty for settle s */
 #define DUFFID_CHANGE_WINDOWS 2.0 /* change test: default memory of the recent estimate in windows */
 #define DUFFID_CHANGE_SURPRISE 12.0 /* change test: a window's prediction error this many times the accumulated rows' restarts the recent estimate */
+#define DUFFID_CHANGE_DRIFT_SHARE 0.5 /* change test: a departure of this share of the threshold beyond the band, lasting the recent memory, is a drift */
 #define DUFFID_GROWTH_STEADY 0.25 /* a growing window's estimate steady while the window grew by this share */
 #define DUFFID_MIN_SAMPLES 8 /* samples before any solution is identified */
 #define DUFFID_OUTLIER_SIGMAS 12.0 /* outlier: robust standard deviations from the quadratic */

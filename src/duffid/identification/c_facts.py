@@ -74,6 +74,8 @@ PUBLICATION: tuple[Fact, ...] = (
     Fact("DUFFID_CHANGE_WINDOWS", engine.CHANGE_WINDOWS, "change test: default memory of the recent estimate in windows"),
     Fact("DUFFID_CHANGE_SURPRISE", engine.CHANGE_SURPRISE,
          "change test: a window's prediction error this many times the accumulated rows' restarts the recent estimate"),
+    Fact("DUFFID_CHANGE_DRIFT_SHARE", engine.CHANGE_DRIFT_SHARE,
+         "change test: a departure of this share of the threshold beyond the band, lasting the recent memory, is a drift"),
     Fact("DUFFID_GROWTH_STEADY", engine.GROWTH_STEADY,
          "a growing window's estimate steady while the window grew by this share"),
     Fact("DUFFID_MIN_SAMPLES", engine.MIN_SAMPLES, "samples before any solution is identified"),

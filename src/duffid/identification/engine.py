@@ -92,6 +92,13 @@ CHANGE_WINDOWS = 2.0
 #: so far for ``settle`` s, the recent estimate forgets everything before it (and skips the
 #: windows that straddle it), so that a sudden change is not blurred by the samples before it.
 CHANGE_SURPRISE = 12.0
+#: The change test's second rule, for a plant that drifts: the recent estimate follows a
+#: drift only with a lag and with a bias of its own (a drift is not a constant plant over its
+#: memory either), so it seldom departs by ``change_threshold`` standard errors. A departure of
+#: at least this share of ``change_threshold`` standard errors that also exceeds the band a
+#: published value may move (:data:`LOSS_FACTOR` times ``max_uncertainty``) and lasts the recent
+#: estimate's memory (``change_memory``) is a change too.
+CHANGE_DRIFT_SHARE = 0.5
 
 
 # ---------------------------------------------------------------------- channels
@@ -496,6 +503,7 @@ class _EquationState:
         self.rhs_share = np.nan
         self.departure[:] = 0.0
         self.departed = 0       # samples the departure has mattered in a row
+        self.drifted = 0        # samples a smaller departure beyond the band has lasted in a row
         self.surprised = 0      # samples the prediction error has been surprising in a row
         self.resume = 0         # after a change: the first sample whose window follows it
         self.recent_resume = 0  # ... after a surprise: the same for the recent estimate
@@ -797,6 +805,7 @@ class OnlineIdentifier(Identifier):
         tau = CHANGE_WINDOWS * samples * self.dt if memory == "auto" else float(memory)
         for s in self._recent:
             s.lam = float(np.exp(-self.dt / tau))
+        self._memory = max(1, int(np.floor(tau / self.dt + 0.5)))  # samples of the recent memory
 
     def _robust_solve(self, systems: list[tuple[np.ndarray, np.ndarray]], L: int) -> None:
         """Update the estimate with the rows of the current window (length ``L``).
@@ -825,17 +834,22 @@ class OnlineIdentifier(Identifier):
             recent.update(A, D)
             theta, _, rse = solve_factor(recent.R, recent.rows, float(L))[:3]
             st.departure = _departure(st.theta, st.rse, theta, rse)
-            # a departure matters when significant and larger than a published value may move
-            departed = (st.departure > threshold) & (
-                np.abs(theta - st.theta) > LOSS_FACTOR * self.options["max_uncertainty"] * np.abs(st.theta))
+            # a departure matters when significant and larger than a published value may move;
+            # a smaller one beyond that band matters once it lasts the recent memory (a drift)
+            wide = np.abs(theta - st.theta) > LOSS_FACTOR * self.options["max_uncertainty"] * np.abs(st.theta)
+            departed = (st.departure > threshold) & wide
+            drifted = (st.departure > CHANGE_DRIFT_SHARE * threshold) & wide
             st.departed = st.departed + 1 if departed.any() else 0
+            st.drifted = st.drifted + 1 if drifted.any() else 0
             st.surprised = st.surprised + 1 if st.residual > CHANGE_SURPRISE * fit else 0  # not while NaN
             if st.departed >= self._settle:
                 self._restart(j, departed)
+            elif st.drifted >= self._memory:
+                self._restart(j, drifted)
             elif st.surprised >= self._settle:  # the recent estimate starts afresh after it
                 recent.reset()
                 st.departure[:] = 0.0
-                st.departed = st.surprised = 0
+                st.departed = st.drifted = st.surprised = 0
                 st.recent_resume = self.n + self._target
 
     def _restart(self, j: int, departed: np.ndarray) -> None:
