@@ -171,3 +171,77 @@ def test_the_demo_runs_the_payload_loop_the_user_sets(loop_fmus, tmp_path, capsy
     err = capsys.readouterr().err
     assert err.startswith("duffid demo: error: oscillator1dof_payload: the payload at 0.5 s comes before the "
                           "control settled")
+
+
+def test_a_payload_too_small_to_flag_is_reported_as_such(loop_fmus):
+    """2 % of m stays within the change test's band: never flagged, and the summary says so
+    (no NaN printed); the published mass stays within 5 % of the truth of the last second."""
+    run = run_loop(with_payload(loop_cases()["oscillator1dof"], 0.05), loop_fmus)
+    r = run.payload
+    assert math.isnan(r.detected) and math.isnan(r.readapted)
+    line = next(line for line in summary_lines(run) if line.startswith("payload:"))
+    assert "m never flagged changed (the mass published at the end: " in line and "nan" not in line
+    m = run.adaptive["estimator.m_hat"]
+    late = run.adaptive.time >= r.payload.time + 1.0
+    assert np.all(np.abs(m[late] - r.true_mass) <= 0.05 * r.true_mass)
+
+
+# ---------------------------------------------------------------------- the Python loop
+class _Recording:
+    """An identifier that records the status of m at every sample."""
+
+    def __init__(self, identifier):
+        self.identifier, self.status = identifier, []
+
+    def update(self, x, f):
+        estimate = self.identifier.update(x, f)
+        self.status.append(estimate.status["m"])
+        return estimate
+
+
+def test_the_python_loop_refuses_bad_changes():
+    from duffid.control.adaptive import AdaptiveController
+    from duffid.control.python_loop import closed_loop
+
+    with pytest.raises(InputError, match="changes\\[0\\]"):
+        closed_loop(Duffing1(), AdaptiveController(1), lambda t: 0.0, 0.01, changes=[(0.5, Duffing1())])
+
+
+@pytest.mark.slow
+def test_the_python_loop_with_the_paper_encoder_re_identifies_the_payload():
+    """The same payload in the all-Python loop, positions quantised by the paper's encoder
+    (2266 pulses/cm): flagged after the payload, re-published within 2 %, no stale mass,
+    and the tracking recovers to within 1.5x of its level before the payload."""
+    from duffid import OnlineIdentifier
+    from duffid.control.adaptive import AdaptiveController
+    from duffid.control.design import design
+    from duffid.control.python_loop import closed_loop
+    from duffid.models.simulation import quantize
+
+    case = loop_cases()["oscillator1dof_payload"]
+    payload, truth = case.payload, case.truth
+    heavy = Duffing1(**{**truth, "m": truth["m"] + payload.mass})
+    identifier = _Recording(OnlineIdentifier(Duffing1(), dt=case.dt))
+    controller = AdaptiveController(1, design(case.dt), reference_model="derivatives", freeze=False,
+                                    force_limit=case.force_limit)
+    out = closed_loop(Duffing1(**truth), controller, case.reference, case.t_end, identifier=identifier,
+                      measurement=quantize, changes=[(payload.time, heavy)])
+    t, m = out["t"], out["m_hat"]
+    status = np.array(identifier.status)
+    assert not (status[t < payload.time] == "changed").any()
+    flagged = np.flatnonzero(status == "changed")
+    assert flagged.size and payload.time < t[flagged[0]] <= payload.time + 1.0
+    true = case.true_values("m", t)
+    span = int(round(1.0 / case.dt))
+    published = np.flatnonzero(np.isfinite(m))
+    worst = max(float(np.min(np.abs(m[i] - true[max(0, i - span):i + 1]))) / float(true[i]) for i in published)
+    assert worst <= 0.05
+    assert status[-1] == "published" and abs(m[-1] - true[-1]) <= 0.02 * true[-1]
+    error = out["x_true"][:, 0] - case.reference(t)
+
+    def rms(start, end):
+        inside = (t >= start) & (t < end)
+        return float(np.sqrt(np.mean(error[inside] ** 2)))
+
+    before = rms(out["switch_time"][-1] + case.settle_after, payload.time)
+    assert rms(payload.time + 2.3, case.t_end) < 1.5 * before < rms(payload.time, payload.time + 1.3)

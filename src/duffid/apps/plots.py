@@ -304,8 +304,11 @@ def plot_payload(result, path: str | os.PathLike[str]) -> None:
             if math.isfinite(time):
                 axis.axvline(time, color=color, lw=0.8, ls=":")
         axis.grid(alpha=0.3)
-    fig.suptitle(f"{case.title}\npayload at {r.payload.time:g} s, changed at {r.detected:.3f} s, "
-                 f"m re-published at {r.republished:.3f} s, controller re-adapted at {r.readapted:.3f} s")
+    def at(time: float) -> str:
+        return f"{time:.3f} s" if math.isfinite(time) else "never"
+
+    fig.suptitle(f"{case.title}\npayload at {r.payload.time:g} s, changed at {at(r.detected)}, "
+                 f"m re-published at {at(r.republished)}, controller re-adapted at {at(r.readapted)}")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 

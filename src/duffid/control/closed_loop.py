@@ -756,13 +756,22 @@ def _payload_lines(result: LoopResult) -> list[str]:
     assert r is not None
     unit, scale = case.position_unit
     m = case.truth["m"]
-    lines = [f"payload: +{r.payload.mass:.4g} kg ({r.payload.mass / m:.0%} of m) at {r.payload.time:g} s; "
-             f"m flagged changed at {_at(r.detected)} ({r.detection_delay:.3f} s later), "
-             f"re-published at {_at(r.republished)}: {r.mass:.6g} kg, standard error {r.mass_std_error:.2g} kg, "
-             f"{100.0 * (r.mass - r.true_mass) / r.true_mass:+.4f} % off the true {r.true_mass:.6g} kg; "
-             f"meanwhile the law {_FALLBACK_WORDS[r.fallback]}; it re-adapted at {_at(r.readapted)}"]
-    spans = {phase: f"{phase} {a:.2f}-{b:.2f} s" for phase, (a, b) in r.intervals.items()}
-    lines.append(f"tracking RMS of {case.tracked} - r [{unit}]   " + "".join(f"{spans[p]:>24}" for p in PAYLOAD_PHASES))
+    line = f"payload: +{r.payload.mass:.4g} kg ({r.payload.mass / m:.0%} of m) at {r.payload.time:g} s; "
+    if math.isnan(r.detected):
+        final = f"{r.final_mass:.6g} kg" if math.isfinite(r.final_mass) else "none"
+        line += (f"m never flagged changed (the mass published at the end: {final}, the true {r.true_mass:.6g} kg); "
+                 "the law followed the published estimates")
+    else:
+        line += f"m flagged changed at {_at(r.detected)} ({r.detection_delay:.3f} s later), "
+        line += (f"re-published at {_at(r.republished)}: {r.mass:.6g} kg, standard error {r.mass_std_error:.2g} kg, "
+                 f"{100.0 * (r.mass - r.true_mass) / r.true_mass:+.4f} % off the true {r.true_mass:.6g} kg"
+                 if math.isfinite(r.republished) else "never re-published")
+        line += f"; meanwhile the law {_FALLBACK_WORDS[r.fallback]}; it re-adapted at {_at(r.readapted)}"
+    lines = [line]
+    spans = {phase: f"{phase} {a:.2f}-{b:.2f} s" if math.isfinite(a) else f"{phase} -"
+             for phase, (a, b) in r.intervals.items()}
+    lines.append(f"tracking RMS of {case.tracked} - r [{unit}]   " + "".join(f"{spans[p]:>24}"
+                                                                         for p in PAYLOAD_PHASES))
     for run, label in (("adaptive", "adaptive"), ("baseline", f"baseline ({case.mismatch:.0%} mismatch)")):
         lines.append(f"{label:<34}" + "".join(f"{r.tracking_rms[run][p] * scale:>24.4g}" for p in PAYLOAD_PHASES))
     return lines
