@@ -185,8 +185,10 @@ def test_demo_json(tmp_path, loop_fmus):
     assert set(data["identified"]) == {"m", "b", "k", "kp"} == set(data["truth"])
     rms = data["tracking_rms"]
     assert rms["baseline"] >= 5.0 * rms["adaptive"] > 0.0
-    assert set(data["cases"]) == {"oscillator1dof", "oscillator2dof", "duffing_circuit"}
+    assert set(data["cases"]) == {"oscillator1dof", "oscillator1dof_payload", "oscillator2dof", "duffing_circuit"}
     for name in data["cases"]:
         assert (tmp_path / "out" / f"{name}_closed_loop.png").exists()
         assert (tmp_path / "out" / f"{name}_adaptive.csv").exists()
+    assert "payload" in data["cases"]["oscillator1dof_payload"] and "payload" not in data
+    assert (tmp_path / "out" / "oscillator1dof_payload_payload.png").exists()
     assert all(math.isfinite(v) for v in data["identified"].values())

@@ -157,6 +157,7 @@ def test_interface(fmus, dofs, version):
 CASES = {
     "adaptive": {},
     "adaptive-follow": {"freeze": False, "settle_time": 0.02},
+    "adaptive-follow-fallback": {"freeze": False, "settle_time": 0.02, "fallback": "nominal"},
     "adaptive-chirp-limited": {"excitation": "chirp", "excitation_amplitude": 8.0, "chirp_f0": 2.0,
                                "chirp_f1": 10.0, "chirp_duration": 0.3, "force_limit": 10.5,
                                "differentiator_samples": 17},
@@ -172,10 +173,14 @@ CASES = {
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_c_fmu_equals_python_reference(fmus, records, tmp_path, dofs, case):
     settings = dict(CASES[case])
-    if case == "fixed":
+    if case == "fixed" or "fallback" in case:
         settings["nominal"] = mismatched((Duffing1() if dofs == 1 else Duffing2()).parameters, 0.3)
     params = controller_parameters(design(H), dofs=dofs, **settings)
     rows = input_sequence(dofs, records[dofs])
+    withdrawn = range(900, 1000)  # during control: the estimator withdraws its estimates
+    if "fallback" in case:
+        for k in withdrawn:
+            rows[k]["identified"] = False
     c = run_fmi2(fmus[FILES[dofs, 2]], tmp_path, params, rows)
     py = run_python(params, rows)
     assert_same(c, py)
@@ -188,6 +193,11 @@ def test_c_fmu_equals_python_reference(fmus, records, tmp_path, dofs, case):
     if "follow" in case:
         assert py[-1]["m_used" if dofs == 1 else "m1_used"] != py[phases.index(1)]["m_used" if dofs == 1
                                                                                      else "m1_used"]
+    if "fallback" in case:  # row k + 1 holds the outputs of the step at sample k
+        mass = "m" if dofs == 1 else "m1"
+        assert phases[withdrawn[0]] == 1
+        assert {py[k + 1][f"{mass}_used"] for k in withdrawn} == {settings["nominal"][mass]}
+        assert py[withdrawn[-1] + 2][f"{mass}_used"] == rows[withdrawn[-1] + 1][f"{mass}_hat"]
     if "derivatives" in case:  # the transient has decayed: x_d = r (Taylor-predicted to t_{k+1})
         t_end = len(rows) * H
         r_end = 4e-3 + 3e-3 * math.sin(2 * math.pi * t_end) + 1e-3 * math.sin(6 * math.pi * t_end)

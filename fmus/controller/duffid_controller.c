@@ -401,6 +401,8 @@ int duffid_ctrl_step(duffid_ctrl *ctrl, double t, double h, const duffid_ctrl_in
     } else {
         if (p->mode == 0 && !p->freeze && ok)
             for (i = 0; i < ctrl->n_params; i++) ctrl->theta[i] = in->estimate[i];
+        else if (p->mode == 0 && !p->freeze && p->fallback == 1)
+            for (i = 0; i < ctrl->n_params; i++) ctrl->theta[i] = p->nominal[i];
         for (i = 0; i < n; i++) {
             e = in->x[i] - ctrl->xh[i];
             ctrl->xh[i] = ctrl->xh[i] + p->L[0] * e;

@@ -54,6 +54,7 @@ typedef struct duffid_ctrl_config {
     double force_limit;          /* N, > 0 */
     int differentiator_samples;  /* 3 .. DUFFID_CTRL_MAX_SAMPLES */
     int freeze;                  /* 1: keep the estimates of the switch */
+    int fallback;                /* freeze 0, estimates withdrawn: 0 hold the law's parameters, 1 nominal */
     double nominal[DUFFID_CTRL_MAX_PARAMS];
     double switch_time;          /* s (mode 1; FMU parameter fixed_switch_time) */
 } duffid_ctrl_config;

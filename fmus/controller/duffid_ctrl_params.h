@@ -26,6 +26,7 @@
  *   force_limit [N]: largest force magnitude
  *   differentiator_samples: samples of the least-squares quadratic differentiator (3 .. 64)
  *   freeze: true: keep the estimates of the switch; false: follow finite estimates while identified
+ *   fallback: freeze false, estimates withdrawn (not identified): 0 hold the law's parameters, 1 take the nominal
  *   fixed_switch_time [s]: switch time of the fixed mode
  */
 #ifndef DUFFID_CTRL_PARAMS_H
@@ -51,6 +52,7 @@
     X(REAL, force_limit, FORCE_LIMIT, force_limit, POSITIVE, 0, 0, "must be positive") \
     X(INT, differentiator_samples, DIFFERENTIATOR_SAMPLES, differentiator_samples, RANGE, 3, 64, "must be an integer in 3 .. 64") \
     X(BOOL, freeze, FREEZE, freeze, ANY, 0, 1, "must be true or false") \
+    X(INT, fallback, FALLBACK, fallback, RANGE, 0, 1, "must be 0 or 1 (hold/nominal)") \
     X(REAL, switch_time, FIXED_SWITCH_TIME, fixed_switch_time, FINITE, 0, 0, "must be finite")
 
 #endif /* DUFFID_CTRL_PARAMS_H */

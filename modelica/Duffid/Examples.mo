@@ -27,6 +27,18 @@ package Examples "Example plants with declared inputs and outputs (exported as F
       Documentation(info = "<html><p>Paper Table 1 (b = 12.47 N s/m).</p></html>"));
   end Oscillator1DOF;
 
+  model Oscillator1DOFPayload "Oscillator1DOF carrying a payload whose mass is an input (a plant that changes)"
+    extends Oscillator1DOF;
+    input Units.Mass payload "Mass of the payload carried by the mass (0: none); it moves with the mass";
+    Translational.Force inertia "Inertial force of the payload";
+  equation
+    connect(inertia.flange, mass.flange_b);
+    inertia.f = -payload*mass.a;
+    annotation (experiment(StartTime = 0, StopTime = 2, Tolerance = 1e-8, Interval = 1e-3),
+      Documentation(info = "<html><p>(m + payload) x'' + b x' + k x + kp x^3 = f: a step of the input
+adds a payload at rest relative to the mass (position and velocity continuous).</p></html>"));
+  end Oscillator1DOFPayload;
+
   model Oscillator2DOF "Two-DOF chain wall-m1-m2 (Figure 9, eqs. 20-21), force on m1"
     input Units.Force f1 "Force on mass 1";
     output Units.Position x1 "Displacement of mass 1";

@@ -12,7 +12,8 @@ from ..analysis.silverbox import ARROW_NO_EXTRAPOLATION, FS, SKIP, TEST_RECORDS,
 from ..data.record import Record  # noqa: E402
 from ..identification.engine import Identification  # noqa: E402
 
-__all__ = ["plot_estimates", "plot_record", "plot_hilbert", "plot_eta_vs_amplitude", "plot_closed_loop", "plot_silverbox"]
+__all__ = ["plot_estimates", "plot_record", "plot_hilbert", "plot_eta_vs_amplitude", "plot_closed_loop", "plot_payload",
+           "plot_silverbox"]
 
 
 def plot_estimates(result: Identification, path: str | os.PathLike[str], *,
@@ -214,11 +215,11 @@ def plot_closed_loop(result, path: str | os.PathLike[str], *, title: str | None 
     ax.set_ylabel(f"{case.force} [{funit}]")
     ax.legend(loc="best", fontsize=8)
     ax = axes[2]
-    for p, true in case.truth.items():
-        estimate = a[f"estimator.{p}_hat"]
+    for p in case.truth:
+        estimate, true = a[f"estimator.{p}_hat"], case.true_values(p, t)
         error = np.full_like(estimate, np.nan)
         finite = np.isfinite(estimate)
-        error[finite] = np.maximum(np.abs(estimate[finite] - true) / abs(true) * 100.0, 1e-6)
+        error[finite] = np.maximum(np.abs(estimate[finite] - true[finite]) / np.abs(true[finite]) * 100.0, 1e-6)
         ax.semilogy(t, error, lw=1.0, label=case.labels.get(p, p))
     ax.axhline(0.5, color="k", ls=":", lw=0.8)
     ax.set_ylabel("|estimate error| [%]")
@@ -242,6 +243,72 @@ def plot_closed_loop(result, path: str | os.PathLike[str], *, title: str | None 
         ax.axvline(result.switch_time, color="g", lw=0.8, alpha=0.7)
         ax.grid(alpha=0.3)
     fig.suptitle(title or f"{case.title}\nswitch to control at {result.switch_time:.3f} s (green)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def plot_payload(result, path: str | os.PathLike[str]) -> None:
+    """A payload run (:class:`duffid.control.closed_loop.LoopResult` with ``payload``): tracking
+    error of both runs and the mass the estimator reports, coloured by its status.
+
+    The top panel shows ``|x - r|`` (log scale) with the RMS of each phase; the bottom one
+    the published mass, the true mass, and the estimator's status of ``m``. Vertical lines:
+    payload (black), ``changed`` flag (orange), re-publication (green), controller
+    re-adapted (blue).
+
+    Parameters
+    ----------
+    result : LoopResult
+        Outcome of :func:`duffid.control.closed_loop.run_loop` on a case with a payload.
+    path : path
+        PNG file to write.
+    """
+    from ..identification.engine import STATUSES
+
+    case, r = result.case, result.payload
+    if r is None:
+        raise ValueError(f"{case.name} has no payload")
+    unit, scale = case.position_unit
+    a = result.adaptive
+    t = a.time
+    fig = Figure(figsize=(9, 7.5))
+    axes = fig.subplots(2, 1, sharex=True)
+    ax = axes[0]
+    for run, color in (("baseline", "tab:red"), ("adaptive", "tab:blue")):
+        time, error = result.tracking_error(run)
+        after = time >= result.switch_time
+        rms = ", ".join(f"{phase} {value * scale:.3g}" for phase, value in r.tracking_rms[run].items())
+        ax.semilogy(time[after], np.maximum(np.abs(error[after]) * scale, 1e-9 * scale), color=color, lw=0.8,
+                    label=f"{run} (RMS {unit}: {rms})")
+    for phase, (start, end) in r.intervals.items():
+        if math.isfinite(start):
+            ax.axvspan(start, end, color={"before": "0.92", "transient": "#fde8d8", "recovered": "#e2f0d9"}[phase],
+                       zorder=0)
+    ax.set_ylabel(f"|{case.tracked} - r| [{unit}]")
+    ax.legend(loc="lower left", fontsize=8)
+    ax = axes[1]
+    ax.plot(t, case.true_values("m", t), "k--", lw=1.0, label="true m")
+    status = a["estimator.m_status"]
+    ax.plot(t, a["estimator.m_hat"], color="tab:blue", lw=1.5, label="m published (NaN while withdrawn)")
+    ax.set_ylabel("m [kg]")
+    twin = ax.twinx()
+    twin.step(t, status, where="post", color="tab:orange", lw=0.8, alpha=0.7)
+    twin.set_yticks(range(len(STATUSES)), STATUSES, fontsize=7)
+    twin.set_ylim(-0.5, len(STATUSES) - 0.5)
+    twin.set_ylabel("status of m (orange)")
+    ax.legend(loc="upper left", fontsize=8)
+    ax.set_xlabel("t [s]")
+    for axis in axes:
+        for time, color in ((r.payload.time, "k"), (r.detected, "tab:orange"), (r.republished, "tab:green"),
+                            (r.readapted, "tab:blue")):
+            if math.isfinite(time):
+                axis.axvline(time, color=color, lw=0.8, ls=":")
+        axis.grid(alpha=0.3)
+    def at(time: float) -> str:
+        return f"{time:.3f} s" if math.isfinite(time) else "never"
+
+    fig.suptitle(f"{case.title}\npayload at {r.payload.time:g} s, changed at {at(r.detected)}, "
+                 f"m re-published at {at(r.republished)}, controller re-adapted at {at(r.readapted)}")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 

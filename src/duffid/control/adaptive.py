@@ -112,10 +112,13 @@ def controller_parameters(design: ControllerDesign, *, dofs: int = 1, **settings
         ``min_excitation`` [s], ``settle_time`` [s], ``settle_tolerance`` (relative),
         ``force_limit`` [N] (at least ``|excitation_amplitude|``),
         ``differentiator_samples`` (3 .. 64), ``freeze`` (keep the estimates of the
-        switch; False: follow finite estimates while identified), ``nominal``
-        (parameters of the fixed mode, by name as :data:`PARAMETER_NAMES`; default the
-        paper's plant), ``switch_time`` [s] (fixed mode; the FMU parameter is named
-        ``fixed_switch_time`` because the output ``switch_time`` reports the switch) and
+        switch; False: follow finite estimates while identified), ``fallback`` ("hold" or
+        "nominal", or 0/1: with ``freeze`` False, what the law uses while the estimates
+        are withdrawn, e.g. after the estimator flagged a parameter ``changed``: the
+        parameters it had, or ``nominal``), ``nominal`` (parameters of the fixed mode and
+        of the fallback, by name as :data:`PARAMETER_NAMES`; default the paper's plant),
+        ``switch_time`` [s] (fixed mode; the FMU parameter is named ``fixed_switch_time``
+        because the output ``switch_time`` reports the switch) and
         ``reference_model`` ("filter" or "derivatives", or 0/1: what the law tracks,
         see the module documentation).
 
@@ -455,6 +458,8 @@ class AdaptiveController:
             return self._finish(f_k)
         if p["mode"] == 0 and not p["freeze"] and usable:
             self._theta = est
+        elif p["mode"] == 0 and not p["freeze"] and p["fallback"] == 1:
+            self._theta = [p[f"{name}_nominal"] for name in self.names]
         L1, L2 = p["L1"], p["L2"]
         for i in range(n):
             e = x[i] - self._xh[i]

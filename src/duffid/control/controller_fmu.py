@@ -111,8 +111,8 @@ def controller_variables(dofs: int) -> tuple[list[FmuVariable], dict[str, int]]:
     for name, unit, text in _PARAMETERS:
         add(name, "parameter", float(start[name]), unit, text)
     for name in names:
-        add(f"{name}_nominal", "parameter", start[f"{name}_nominal"], parameter_unit(name), f"{name} of the fixed mode",
-            "NOMINAL")
+        add(f"{name}_nominal", "parameter", start[f"{name}_nominal"], parameter_unit(name),
+            f"{name} of the fixed mode and of fallback 1", "NOMINAL")
     add(_SWITCH.name, "parameter", start[_SWITCH.name], _SWITCH.unit, _SWITCH.description)
     return table, groups
 

@@ -11,6 +11,7 @@ import numpy as np
 from ..errors import InputError, OptionError
 from ..identification.engine import OnlineIdentifier
 from ..models.chain import Chain, Duffing1, Duffing2, DuffingCircuit
+from ..models.simulation import check_changes
 from .adaptive import AdaptiveController
 
 __all__ = ["run", "closed_loop"]
@@ -77,7 +78,8 @@ def _reference_signals(reference: Any) -> Callable[[float], tuple[float, float, 
 
 def closed_loop(plant: Chain, controller: AdaptiveController, reference: Any,
                 t_end: float, *, identifier: Any = None, measurement: Callable[[np.ndarray], np.ndarray] | None = None,
-                rtol: float = 1e-10, atol: float = 1e-14) -> dict[str, np.ndarray]:
+                rtol: float = 1e-10, atol: float = 1e-14,
+                changes: Sequence[tuple[float, Chain]] = ()) -> dict[str, np.ndarray]:
     """Plant, online identifier and controller in a loop, all in Python (no FMUs).
 
     Each sample ``k``: the plant's positions ``x_k`` (through ``measurement``, e.g.
@@ -104,6 +106,10 @@ def closed_loop(plant: Chain, controller: AdaptiveController, reference: Any,
         identifier with ``nominal=...`` for a term the loop barely excites).
     measurement : callable, optional
         Maps the true positions to the measured ones (default: exact).
+    changes : sequence of (float, Chain), optional
+        A plant that changes (e.g. a payload), as :func:`duffid.simulate`'s ``changes``:
+        from each time [s] on (from the first sample at or after it), the plant is that
+        chain, its positions and velocities continuing.
 
     Returns
     -------
@@ -126,13 +132,14 @@ def closed_loop(plant: Chain, controller: AdaptiveController, reference: Any,
         identifier = OnlineIdentifier(structure, dt=h)
     n = int(round(t_end / h)) + 1
     t = np.arange(n) * h
+    plants = [(0.0, plant), *check_changes(plant, changes, float(t[-1]))]
     state = np.zeros(2 * n_dof)
     signals = _reference_signals(reference)
     out = controller.initialize(0.0)
     log: dict[str, list] = {name: [] for name in ("x_true", *controller.input_names, *controller.output_names)}
 
-    def rhs(_time: float, y: np.ndarray, force: float) -> np.ndarray:
-        return np.concatenate([y[n_dof:], plant.acceleration(y[:n_dof], y[n_dof:], np.array([force]))])
+    def rhs(_time: float, y: np.ndarray, force: float, now: Chain) -> np.ndarray:
+        return np.concatenate([y[n_dof:], now.acceleration(y[:n_dof], y[n_dof:], np.array([force]))])
 
     for k in range(n):
         x_true = state[:n_dof].copy()
@@ -153,7 +160,8 @@ def closed_loop(plant: Chain, controller: AdaptiveController, reference: Any,
             log[name].append(out[name])
         out = controller.step(float(t[k]), h, inputs)
         if k + 1 < n:
-            sol = solve_ivp(rhs, (t[k], t[k + 1]), state, method="DOP853", rtol=rtol, atol=atol, args=(f,))
+            now = next(p for time, p in reversed(plants) if t[k] >= time - 1e-9 * h)
+            sol = solve_ivp(rhs, (t[k], t[k + 1]), state, method="DOP853", rtol=rtol, atol=atol, args=(f, now))
             if not sol.success:
                 raise RuntimeError(f"plant integration failed at t = {t[k]}: {sol.message}")
             state = sol.y[:, -1]

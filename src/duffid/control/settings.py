@@ -105,7 +105,7 @@ def _design(name: str, description: str, **kw: Any) -> Parameter:
 
 
 #: Every scalar parameter, in FMU value-reference order (the nominal values of the fixed
-#: mode come after ``freeze``, then ``fixed_switch_time``).
+#: mode come after ``fallback``, then ``fixed_switch_time``).
 PARAMETERS: tuple[Parameter, ...] = (
     _setting("mode", "code", "adaptive",
              "0 adaptive, 1 fixed (baseline on the nominal parameters from fixed_switch_time)",
@@ -137,13 +137,17 @@ PARAMETERS: tuple[Parameter, ...] = (
              minimum=3, maximum=MAX_DIFFERENTIATOR_SAMPLES),
     _setting("freeze", "bool", True,
              "true: keep the estimates of the switch; false: follow finite estimates while identified"),
+    _setting("fallback", "code", "hold",
+             "freeze false, estimates withdrawn (not identified): 0 hold the law's parameters, 1 take the nominal",
+             choices=("hold", "nominal")),
     _setting("fixed_switch_time", "real", 1.0, "switch time of the fixed mode", unit="s", setting="switch_time",
              field="switch_time"),
 )
 _BY_NAME = {p.name: p for p in PARAMETERS}
 
 #: Controller settings (keywords of ``controller_parameters``) and their defaults; ``nominal``
-#: (the parameters of the fixed mode; default: the paper's plant) is not a scalar.
+#: (the parameters of the fixed mode and of ``fallback`` "nominal"; default: the paper's plant)
+#: is not a scalar.
 SETTINGS: dict[str, Any] = {**{p.setting: p.default for p in PARAMETERS if p.setting is not None},
                             "nominal": None}
 

@@ -10,7 +10,7 @@ from ..data.record import Record
 from ..errors import InputError, SimulationError
 from .chain import Chain
 
-__all__ = ["simulate", "measure", "quantize", "SimulationError", "ENCODER_PULSES_PER_CM"]
+__all__ = ["simulate", "measure", "quantize", "check_changes", "SimulationError", "ENCODER_PULSES_PER_CM"]
 
 #: Effective resolution of the paper's encoder (Section 3.1).
 ENCODER_PULSES_PER_CM = 2266.0
@@ -80,7 +80,7 @@ def simulate(model: Chain, force: Force, t_end: float, dt: float, *,
     if state0.shape != (2 * n,):
         raise InputError(f"x0 and v0 need {n} values each")
 
-    plants = _check_changes(model, changes, t[-1])
+    plants = check_changes(model, changes, t[-1])
     bounds = [0.0, *(time for time, _ in plants), float(t[-1])]
     pieces = []
     for k, plant in enumerate([model, *(p for _, p in plants)]):
@@ -94,8 +94,9 @@ def simulate(model: Chain, force: Force, t_end: float, dt: float, *,
     return Record(t=t, f=f, x=x, source=f"simulated {model.name}" + (" (changing)" if plants else ""))
 
 
-def _check_changes(model: Chain, changes: Sequence[tuple[float, Chain]], t_end: float) -> list[tuple[float, Chain]]:
-    """``changes`` checked: increasing times within (0, t_end), chains shaped like ``model``."""
+def check_changes(model: Chain, changes: Sequence[tuple[float, Chain]], t_end: float) -> list[tuple[float, Chain]]:
+    """``changes`` (as :func:`simulate` takes them) checked: increasing times within (0, t_end),
+    chains shaped like ``model``; raises :class:`~duffid.errors.InputError` otherwise."""
     out, last = [], 0.0
     for i, item in enumerate(changes):
         try:
