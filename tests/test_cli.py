@@ -35,6 +35,21 @@ def test_identify_json_shape(capsys, case_a_csv):
         assert data["parameters"][name] == pytest.approx(value, rel=2e-3)
 
 
+def test_identify_jobs_give_the_same_result_and_bad_counts_are_refused(capsys, case_a_csv):
+    """--jobs N: the checks' runs on N threads, the JSON the same for 1 and 2 (bit for bit)."""
+    outs = []
+    for jobs in ("1", "2"):
+        code, out, _ = _run(capsys, "identify", str(case_a_csv), "--model", "duffing1", "--jobs", jobs, "--json")
+        assert code == 0
+        outs.append(json.loads(out))
+    assert outs[0]["parameters"] == outs[1]["parameters"]
+    assert outs[0] == outs[1]
+    for bad, why in (("0", "must be at least 1"), ("two", "is not a whole number")):
+        with pytest.raises(SystemExit):
+            main(["identify", str(case_a_csv), "--model", "duffing1", "--jobs", bad])
+        assert f"--jobs: {bad!r} {why}" in capsys.readouterr().err
+
+
 def test_identify_paper_table_and_plot(capsys, case_a_csv, tmp_path):
     png = tmp_path / "est.png"
     code, out, _ = _run(capsys, "identify", str(case_a_csv), "--method", "paper", "--gamma", "10", "--plot", str(png))

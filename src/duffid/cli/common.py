@@ -16,7 +16,7 @@ from ..errors import RecordError
 from ..identification.offsets import OFFSETS
 from ..models.registry import MODEL_NAMES, model_from_name
 
-__all__ = ["MODELS", "positive_float", "window_value", "role_pairs", "columns_value", "scales_value",
+__all__ = ["MODELS", "positive_float", "positive_int", "window_value", "role_pairs", "columns_value", "scales_value",
            "delimiter_value", "add_file_arguments", "add_model_arguments", "model_from_arguments", "read_record"]
 
 #: The --model choices (duffid.models.registry).
@@ -31,6 +31,17 @@ def positive_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
     if not (np.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"{text!r} must be a positive number")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """An argument type: a whole number of at least 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} must be at least 1")
     return value
 
 

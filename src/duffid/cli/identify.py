@@ -26,6 +26,7 @@ from .common import (
     add_file_arguments,
     add_model_arguments,
     model_from_arguments,
+    positive_int,
     read_record,
 )
 
@@ -64,6 +65,9 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("--segments", action="store_true",
                    help="find where the plant changed (the robust method's online change test) and identify each "
                         "stretch between the changes with every check")
+    p.add_argument("--jobs", type=positive_int, default=None, metavar="N",
+                   help="threads for the checks' independent estimator runs (default: every core this "
+                        "process may use); the results are the same, bit for bit, for any number")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", type=Path, default=None, help="write estimates vs time to this PNG")
 
@@ -87,12 +91,13 @@ def run(args: argparse.Namespace) -> int:
                              "to each equation")
         from ..identification.equation import identify_equation
         result = identify_equation(record, equation_text(args, record.n_dof), method, offsets=args.offset,
-                                   refine=not args.no_refine, **options)
+                                   refine=not args.no_refine, jobs=args.jobs, **options)
     else:
         model = model_from_arguments(args, record.n_dof)
         if args.segments:
             return _run_segments(args, record, model, method, options)
-        result = identify(record, model, method, offsets=args.offset, refine=not args.no_refine, **options)
+        result = identify(record, model, method, offsets=args.offset, refine=not args.no_refine, jobs=args.jobs,
+                          **options)
     if args.plot is not None:
         from ..apps.plots import plot_estimates
         plot_estimates(result, args.plot)
@@ -121,7 +126,8 @@ def _run_segments(args: argparse.Namespace, record: Any, model: Any, method: str
     if test.get("change_threshold", 0.0) is None:
         raise InputError("--segments needs the change test: --change-threshold must not be none")
     changes = find_changes(record, model, **test)
-    segments = identify_segments(record, model, changes, offsets=args.offset, refine=not args.no_refine, **options)
+    segments = identify_segments(record, model, changes, offsets=args.offset, refine=not args.no_refine,
+                                 jobs=args.jobs, **options)
     if args.json:
         print(json.dumps({"source": record.source, "model": model.name,
                           "changes": [{"flagged": c.flagged, "onset": c.onset, "parameters": list(c.parameters)}
