@@ -56,6 +56,7 @@ from ..models.chain import Chain
 __all__ = [
     "upsample",
     "INTERPOLATION_MARGIN",
+    "OUTPUTS",
     "OdeSimulator",
     "canonical_from_public",
     "fit_initial_state",
@@ -74,6 +75,10 @@ __all__ = [
 ]
 
 INTERPOLATIONS = ("bandlimited", "linear")
+#: What a simulation outputs at the samples (:meth:`OdeSimulator.simulate`): displacements,
+#: velocities or accelerations, one column per DOF; what :func:`refine` fits to a record's
+#: motion columns.
+OUTPUTS = ("x", "v", "a")
 #: :func:`refine` solves with a dense Jacobian (exact trust-region steps) up to this many
 #: entries, with a sparse one (LSMR steps) beyond.
 DENSE_JACOBIAN = 20_000_000
@@ -256,6 +261,12 @@ class OdeSimulator:
         self._step_sens = ca.Function("rk4_sens", [ca.vertcat(z, ca.vec(S)), u, p, h],
                                       [ca.vertcat(z_next, ca.vec(S_next))])
         self._n_sens = n_sens
+        # the accelerations at a sample and their derivatives with respect to the state and
+        # the free parameters (an accelerometer's output and its sensitivities)
+        f = ca.SX.sym("f", nf)
+        acc = rhs(z, f)[n:]
+        dp_acc = ca.jacobian(acc, p)[:, free_idx] if free_idx else ca.SX(n, 0)
+        self._acceleration = ca.Function("acc", [z, f, p], [acc, ca.jacobian(acc, z), dp_acc])
 
     @property
     def step(self) -> ca.Function:
@@ -298,7 +309,7 @@ class OdeSimulator:
         return np.vstack([fine[0:-1:2].T, fine[1::2].T, fine[2::2].T])
 
     def simulate(self, parameters: Mapping[str, float], f: np.ndarray, x0: Sequence[float],
-                 v0: Sequence[float], *, sensitivities: bool = False
+                 v0: Sequence[float], *, sensitivities: bool = False, output: str = "x"
                  ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """Simulate from the state ``(x0, v0)`` under the sampled input ``f``.
 
@@ -311,22 +322,28 @@ class OdeSimulator:
         x0, v0 : sequence of float
             Displacements and velocities at the first sample.
         sensitivities : bool
-            Also return the derivatives of the displacements.
+            Also return the derivatives of the output.
+        output : {"x", "v", "a"}
+            What is returned at the samples (:data:`OUTPUTS`): displacements, velocities or
+            accelerations (the model's right-hand side at the sample's state and input).
 
         Returns
         -------
-        x : numpy.ndarray, shape (N, n_dof)
-            Simulated displacements at the samples (non-finite where the solution escaped).
-        dx : numpy.ndarray, shape (N, n_dof, len(free) + 2 n_dof)
-            Only with ``sensitivities``: derivatives of ``x`` with respect to the free
+        y : numpy.ndarray, shape (N, n_dof)
+            The simulated output at the samples (non-finite where the solution escaped).
+        dy : numpy.ndarray, shape (N, n_dof, len(free) + 2 n_dof)
+            Only with ``sensitivities``: derivatives of ``y`` with respect to the free
             parameters (in :attr:`free` order) and the initial state ``(x0, v0)``.
         """
-        return self.simulate_stages(parameters, self.stage_inputs(f), x0, v0, sensitivities=sensitivities)
+        return self.simulate_stages(parameters, self.stage_inputs(f), x0, v0, sensitivities=sensitivities,
+                                    output=output)
 
     def simulate_stages(self, parameters: Mapping[str, float], stages: np.ndarray, x0: Sequence[float],
-                        v0: Sequence[float], *, sensitivities: bool = False
+                        v0: Sequence[float], *, sensitivities: bool = False, output: str = "x"
                         ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """:meth:`simulate` under stage inputs (:meth:`stage_inputs`, or a stretch of them)."""
+        if output not in OUTPUTS:
+            raise InputError(f"unknown output {output!r}; choose one of {', '.join(OUTPUTS)}")
         n = self.model.n_dof
         U = stages
         samples = U.shape[1] // self.substeps + 1
@@ -342,11 +359,24 @@ class OdeSimulator:
         else:
             states = np.asarray(self._runner(sensitivities, U.shape[1])(z0, U, p, h))
             out = np.column_stack([z0, states[:, self.substeps - 1::self.substeps]])
-        x = out[:n].T.copy()
+        rows = slice(0, n) if output == "x" else slice(n, 2 * n)
+        S = out[2 * n:].reshape(2 * n, self._n_sens, samples, order="F") if sensitivities else None
+        if output != "a":
+            y = out[rows].T.copy()
+            return (y, np.transpose(S[rows], (2, 0, 1)).copy()) if sensitivities else y
+        nf = self.model.n_forces
+        # the input at each sample: the start of its step, the end of the last step
+        forces = np.column_stack([U[:nf, ::self.substeps], U[2 * nf:, -1:]]) if samples > 1 else U[:nf, :1]
+        acc, d_state, d_free = self._acceleration.map(samples)(out[:2 * n], forces[:, :samples], p)
+        y = np.asarray(acc).T.copy()
         if not sensitivities:
-            return x
-        S = out[2 * n:].reshape(2 * n, self._n_sens, samples, order="F")
-        return x, np.transpose(S[:n], (2, 0, 1)).copy()
+            return y
+        # map's outputs stand side by side, a block per sample: (n, 2n, samples), (n, free, samples)
+        d_state = np.asarray(d_state).reshape(n, 2 * n, samples, order="F")
+        d_free = np.asarray(d_free).reshape(n, -1, samples, order="F")
+        dy = np.einsum("ims,mks->sik", d_state, S)
+        dy[:, :, :d_free.shape[1]] += np.transpose(d_free, (2, 0, 1))
+        return y, dy
 
 
 # ---------------------------------------------------------------------- helpers
@@ -392,25 +422,34 @@ def fit_initial_state(simulator: OdeSimulator, parameters: Mapping[str, float], 
 
 
 def _fit_state(simulator: OdeSimulator, parameters: Mapping[str, float], stages: np.ndarray, x: np.ndarray,
-               dt: float, spread: float) -> tuple[np.ndarray, np.ndarray]:
-    """The state at the first of the samples ``x`` from which the simulation under ``stages``
-    best reproduces them (started from a finite-difference state; kept when that escapes)."""
+               dt: float, spread: float, *, output: str = "x", state_scales: np.ndarray | None = None,
+               guess: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The state at the first of the samples ``x`` (the measured ``output``) from which the
+    simulation under ``stages`` best reproduces them, started from a finite-difference state
+    (displacements), the first velocity and no displacement (velocities) or rest
+    (accelerations), or from ``guess``; the start is kept when it escapes."""
     from scipy.optimize import least_squares
 
     n = x.shape[1]
-    x0, v0 = _difference_state(x, dt)
+    if guess is not None:
+        x0, v0 = (np.asarray(g, dtype=float).reshape(n).copy() for g in guess)
+    elif output == "x":
+        x0, v0 = _difference_state(x, dt)
+    else:
+        x0, v0 = np.zeros(n), (x[0].copy() if output == "v" else np.zeros(n))
     scale_x = max(spread, 1e-300)
-    scales = np.concatenate([np.full(n, scale_x), np.full(n, scale_x / dt)])
+    scales = (np.concatenate([np.full(n, scale_x), np.full(n, scale_x / dt)]) if state_scales is None
+              else state_scales)
 
     def residual(z: np.ndarray) -> np.ndarray:
         s = z * scales
-        out = simulator.simulate_stages(parameters, stages, s[:n], s[n:])
+        out = simulator.simulate_stages(parameters, stages, s[:n], s[n:], output=output)
         r = (out - x).ravel() / scale_x
         return np.where(np.isfinite(r), r, 1e6)
 
     def jacobian(z: np.ndarray) -> np.ndarray:
         s = z * scales
-        _, dx = simulator.simulate_stages(parameters, stages, s[:n], s[n:], sensitivities=True)
+        _, dx = simulator.simulate_stages(parameters, stages, s[:n], s[n:], sensitivities=True, output=output)
         J = dx[:, :, -2 * n:].reshape(-1, 2 * n) * scales / scale_x
         return np.where(np.isfinite(J), J, 0.0)
 
@@ -494,6 +533,11 @@ class Refinement:
         Whether :func:`scipy.optimize.least_squares` reported convergence.
     message : str
         Its message.
+    options : dict
+        The options of the fit (``output``: what the motion columns measure).
+    bias, bias_std : tuple of float
+        The fitted constant offset of each motion column and its standard error (record
+        units; empty when no bias was fitted).
     """
 
     model: str
@@ -508,6 +552,8 @@ class Refinement:
     success: bool
     message: str
     options: dict[str, Any] = field(default_factory=dict)
+    bias: tuple[float, ...] = ()
+    bias_std: tuple[float, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary."""
@@ -524,6 +570,8 @@ class Refinement:
             "success": self.success,
             "message": self.message,
             "options": dict(self.options),
+            "bias": [clean(b) for b in self.bias],
+            "bias_std": [clean(b) for b in self.bias_std],
         }
 
 
@@ -534,7 +582,9 @@ def _progress_bar(enabled: bool | None, total: int, desc: str) -> tqdm:
 
 def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Sequence[str] | None = None,
            skip: int = 0, substeps: int = 4, interpolation: str = "bandlimited", max_nfev: int = 50,
-           progress: bool | None = None, segment: int | None = None, **lsq_options: Any) -> Refinement:
+           progress: bool | None = None, segment: int | None = None, output: str = "x",
+           bias: bool | None = None, state_guess: tuple[np.ndarray, np.ndarray] | None = None,
+           **lsq_options: Any) -> Refinement:
     """Refine parameters by output-error least squares (offline).
 
     Minimises ``sum (x_sim - x)^2`` over the samples from ``skip`` on, where ``x_sim`` is
@@ -542,6 +592,13 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
     from a fitted initial state, with :func:`scipy.optimize.least_squares`
     (trust-region reflective, exact Jacobian from the forward sensitivities, parameters
     scaled by their starting values).
+
+    The measured motion may be a velocity or an acceleration instead (``output``): the
+    simulated velocities or accelerations (the model's right-hand side at each sample) are
+    then fitted, with a constant sensor bias per DOF among the unknowns. No integration of
+    the measured signal enters the criterion, so its noise is not accumulated into a drift;
+    the start (e.g. the algebraic estimate from a band-limited integration) need only be
+    close enough for the fit to converge.
 
     A lightly damped nonlinear plant's free run can drift onto another branch (or be
     chaotic: a hardening spring under random force) so that no parameter set follows a long
@@ -572,6 +629,17 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
     segment : int, optional
         Samples per stretch (at least 4) for multiple shooting; None: one simulation over
         the whole record. The last stretch takes the remainder when it is shorter than half.
+    output : {"x", "v", "a"}
+        What the record's motion columns measure (:data:`OUTPUTS`): displacements (default),
+        velocities or accelerations, in the units of the model's displacement per second
+        and per second squared.
+    bias : bool, optional
+        Fit a constant offset of each motion column (default: for velocities and
+        accelerations, whose sensors carry one; :attr:`Refinement.bias`).
+    state_guess : (x, v) arrays of shape (N, n_dof), optional
+        Displacements and velocities at every sample from which each stretch's initial
+        state is fitted (e.g. a band-limited integration of the measured motion); default:
+        the measured displacement, the first measured velocity, or rest.
     **lsq_options
         Passed to :func:`scipy.optimize.least_squares` (e.g. ``ftol``, ``xtol``).
 
@@ -602,8 +670,11 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
         raise RecordError(f"{record.source}: {record.n_samples} samples, too few to refine with skip={skip}")
     if segment is not None and (int(segment) != segment or segment < 4):
         raise InputError(f"segment must be a whole number of samples >= 4, got {segment!r}")
+    if output not in OUTPUTS:
+        raise InputError(f"unknown output {output!r}; choose one of {', '.join(OUTPUTS)}")
     sim = OdeSimulator(model, record.dt, substeps=substeps, interpolation=interpolation, free=free)
     n, q = model.n_dof, sim.substeps
+    n_bias = n if (output != "x" if bias is None else bias) else 0
     names = sim.free
     bounds = stretches(record.n_samples, record.n_samples if segment is None else int(segment))
     stages = sim.stage_inputs(record.f)
@@ -611,32 +682,37 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
     kept = [np.arange(a, b) >= skip for a, b in bounds]  # samples in the criterion
     p_scale = np.array([abs(canonical[k]) or abs(model.canonical_parameters()[k]) or 1.0 for k in names])
     x_scale = max(float(np.std(record.x)), 1e-300)
-    s_scale = np.tile(np.concatenate([np.full(n, x_scale), np.full(n, x_scale / record.dt)]), len(bounds))
-    scales = np.concatenate([p_scale, s_scale])
+    state_scale = _state_scales(sim, canonical, stages, record, output, x_scale)
+    s_scale = np.tile(state_scale, len(bounds))
+    scales = np.concatenate([p_scale, np.full(n_bias, x_scale), s_scale])
     window = 50 if segment is None else max(3, int(segment) // 4)
+    guesses = [None if state_guess is None else (np.asarray(state_guess[0]).reshape(record.n_samples, n)[a],
+                                                 np.asarray(state_guess[1]).reshape(record.n_samples, n)[a])
+               for a, _ in bounds]
     states = [np.concatenate(_fit_state(sim, canonical, U[:, :q * (min(window, b - a) - 1)],
-                                        record.x[a:a + min(window, b - a)], record.dt, x_scale))
-              for U, (a, b) in zip(drive, bounds)]
-    start_vec = np.concatenate([[canonical[k] for k in names], *states]) / scales
+                                        record.x[a:a + min(window, b - a)], record.dt, x_scale, output=output,
+                                        state_scales=state_scale, guess=guess))
+              for U, (a, b), guess in zip(drive, bounds, guesses)]
+    start_vec = np.concatenate([[canonical[k] for k in names], np.zeros(n_bias), *states]) / scales
     target = np.concatenate([record.x[a:b][m] for (a, b), m in zip(bounds, kept)])
     bar = _progress_bar(progress, max_nfev, f"refine {model.name}")
     cache: dict[str, Any] = {}
-    n_p = len(names)
+    n_p = len(names) + n_bias  # the unknowns every stretch shares: parameters, sensor biases
 
-    def unpack(z: np.ndarray) -> tuple[dict[str, float], np.ndarray]:
+    def unpack(z: np.ndarray) -> tuple[dict[str, float], np.ndarray, np.ndarray]:
         values = z * scales
         params = dict(canonical)
-        params.update(zip(names, values[:n_p]))
-        return params, values[n_p:].reshape(len(bounds), 2 * n)
+        params.update(zip(names, values[:len(names)]))
+        return params, values[len(names):n_p], values[n_p:].reshape(len(bounds), 2 * n)
 
     def evaluate(z: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
         key = z.tobytes()
         if cache.get("key") != key:
-            params, initial = unpack(z)
+            params, offset, initial = unpack(z)
             xs, dxs = [], []
             for U, state, m in zip(drive, initial, kept):
-                x, dx = sim.simulate_stages(params, U, state[:n], state[n:], sensitivities=True)
-                xs.append(x[m])
+                x, dx = sim.simulate_stages(params, U, state[:n], state[n:], sensitivities=True, output=output)
+                xs.append(x[m] + offset if n_bias else x[m])
                 dxs.append(dx[m])
             cache.update(key=key, x=np.concatenate(xs), dx=dxs)
             bar.update(1)
@@ -647,13 +723,16 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
         return ((x - target) / x_scale).ravel()
 
     def blocks(z: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-        """Per stretch: the Jacobian's columns of the parameters and of its own state."""
+        """Per stretch: the Jacobian's columns of the shared unknowns and of its own state."""
         _, dxs = evaluate(z)
         out = []
         for i, dx in enumerate(dxs):
             J = dx.reshape(-1, dx.shape[2]) / x_scale
             J = np.where(np.isfinite(J), J, 0.0)
-            out.append((J[:, :n_p] * p_scale, J[:, n_p:] * s_scale[2 * n * i:2 * n * (i + 1)]))
+            shared = J[:, :len(names)] * p_scale
+            if n_bias:  # d(residual)/d(bias of DOF j) = 1 on DOF j's rows (scaled by x_scale)
+                shared = np.hstack([shared, np.tile(np.eye(n), (dx.shape[0], 1))])
+            out.append((shared, J[:, len(names):] * s_scale[2 * n * i:2 * n * (i + 1)]))
         return out
 
     rows, columns = target.size, len(scales)
@@ -682,18 +761,37 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
         sol = least_squares(residual, start_vec, jac=jacobian, **options)
     finally:
         bar.close()
-    params, initial = unpack(sol.x)
+    params, offset, initial = unpack(sol.x)
     rms_start = float(np.sqrt(np.mean(r0**2))) * x_scale
     rms = float(np.sqrt(np.mean(sol.fun**2))) * x_scale
     lag = max(1, min(len(target) // 10, 4 * (bounds[0][1] - bounds[0][0])))
-    relative = _relative_std(blocks(sol.x), sol.fun.reshape(len(target), n), sol.x[:n_p], lag)
+    shared = sol.x[:n_p].copy()
+    shared[len(names):] = 1.0  # the biases' errors come out in units of x_scale, not relative
+    relative = _relative_std(blocks(sol.x), sol.fun.reshape(len(target), n), shared, lag)
     return Refinement(
         model=model.name, parameters=model.from_canonical(params), canonical=params, start=canonical,
-        relative_std=dict(zip(names, relative)), initial_state=(initial[0, :n], initial[0, n:]),
+        relative_std=dict(zip(names, relative[:len(names)])), initial_state=(initial[0, :n], initial[0, n:]),
         rms_start=rms_start, rms=rms, nfev=int(sol.nfev), success=bool(sol.success), message=str(sol.message),
         options={"free": list(names), "skip": skip, "substeps": substeps, "interpolation": interpolation,
-                 "max_nfev": max_nfev, "segment": segment, "stretches": len(bounds)},
+                 "max_nfev": max_nfev, "segment": segment, "stretches": len(bounds), "output": output},
+        bias=tuple(float(b) for b in offset), bias_std=tuple(float(s) * x_scale for s in relative[len(names):]),
     )
+
+
+def _state_scales(sim: OdeSimulator, canonical: Mapping[str, float], stages: np.ndarray, record: Record,
+                  output: str, spread: float) -> np.ndarray:
+    """Scales of the initial state's unknowns (displacements, velocities): from the measured
+    displacement, or, for a measured velocity or acceleration, from the starting model's
+    response to the record's input (its spread, from rest)."""
+    n = record.n_dof
+    if output == "x":
+        return np.concatenate([np.full(n, spread), np.full(n, spread / record.dt)])
+    x = sim.simulate_stages(canonical, stages, np.zeros(n), np.zeros(n))
+    v = sim.simulate_stages(canonical, stages, np.zeros(n), np.zeros(n), output="v")
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
+        raise InputError(f"{record.source}: the starting model {sim.model.name} escapes (non-finite simulated "
+                         "output); refinement needs a start that simulates")
+    return np.concatenate([np.maximum(np.std(x, axis=0), 1e-300), np.maximum(np.std(v, axis=0), 1e-300)])
 
 
 def stretches(n_samples: int, length: int) -> list[tuple[int, int]]:
