@@ -279,12 +279,12 @@ def _tdms(tmp_path, record, name="r.tdms", **kwargs):
     ({"force": {"unit_string": "mV"}}, {"f": "Data/force", "x": "Data/disp"},
      r"channel 'Data/force': unit 'mV' is a sensor voltage; give its sensitivity as --scale f=FACTOR \(N per mV"),
     ({"disp": {"unit_string": "g"}}, None,
-     r"channel 'Data/disp' measures acceleration \(g\): identification from velocity \(v\) or acceleration \(a\) "
-     r"is not available yet"),
+     r"channel 'Data/disp' measures acceleration \(g\): velocity \(v\) and acceleration \(a\) channels are "
+     r"identified by duffid identify"),
     ({"disp": {"unit_string": "m/s"}}, {"f": "Data/force", "v": "Data/disp"},
-     r"r\.tdms: v selects a velocity channel and no displacement: identification from velocity"),
+     r"r\.tdms: v selects a velocity channel and no displacement: velocity \(v\) and acceleration"),
     ({}, {"f": "Data/force", "x": "Data/disp", "a": "Data/force"},
-     r"r\.tdms: a selects a acceleration channel, which duffid would not use.*drop a from the selection"),
+     r"r\.tdms: a selects an acceleration channel, which duffid would not use.*drop a from the selection"),
     ({}, {"f": "Data/force", "x": "Data/displacement"},
      r"r\.tdms: no channel 'Data/displacement' for x \(channels: 1: 'Data/force' \[N, 1000 Hz, 1001 samples\]; "
      r"2: 'Data/disp' \[mm, 1000 Hz, 1001 samples\]\)"),
@@ -460,10 +460,30 @@ def test_a_10m_sample_file_needs_at_most_three_times_its_data(tmp_path, kind):
 
 # ---------------------------------------------------------------------- more selections and checks
 def test_csv_refuses_velocity_and_acceleration_roles(files):
-    with pytest.raises(RecordError, match=r"rec\.csv: a selects a acceleration channel and no displacement: "
-                                          r"identification from velocity \(v\) or acceleration \(a\) is not "
-                                          r"available yet"):
+    with pytest.raises(RecordError, match=r"rec\.csv: a selects an acceleration channel and no displacement: "
+                                          r"velocity \(v\) and acceleration \(a\) channels are identified by "
+                                          r"duffid identify"):
         Record.read(files["csv"], columns={"t": "t", "f": "f", "a": "x"})
+
+
+def test_motion_records_read_velocities_and_accelerations_in_si(tmp_path, record, files):
+    """With motion=True (duffid identify), v= or a= take the displacement's place; units convert
+    (g to m/s^2), the record says what it measures, and a displacement's user refuses it."""
+    path = _tdms(tmp_path, record, disp={"unit_string": "g"})
+    got = Record.read(path, columns={"f": "Data/force", "a": "Data/disp"}, motion=True)
+    assert got.motion == "a" and got.column_names == ["t", "f", "a"]
+    np.testing.assert_allclose(got.x, record.x * 1e3 * 9.80665, rtol=1e-12)  # the helper writes mm
+    assert Record.read(path, motion=True).motion == "a"  # one force, one acceleration: found by unit
+    assert got.slice(0.1, 0.5).motion == "a" and got.scaled({"a": 2.0}).motion == "a"
+    with pytest.raises(RecordError, match=r"the record measures accelerations \(a\), not displacements: the "
+                                          r"nonlinearity index needs a displacement"):
+        got.require_displacement("the nonlinearity index")
+    csv = Record.read(files["csv"], columns={"t": "t", "f": "f", "v": "x"}, motion=True)
+    assert csv.motion == "v"
+    with pytest.raises(RecordError, match=r"mixes displacements and velocities; give one kind of motion"):
+        Record.read(files["csv"], columns={"t": "t", "f": "f", "x": "x", "v": "x"}, motion=True)
+    with pytest.raises(Exception, match="motion must be one of x, v, a"):
+        Record(record.t, record.f, record.x, motion="j")
 
 
 def test_scale_reads_a_unit_duffid_does_not_know(tmp_path, record):

@@ -139,3 +139,34 @@ def test_bad_arguments_are_refused():
     with pytest.raises(InputError, match="max_uncertainty"):
         identify_motion(record, Duffing1(), "a", max_uncertainty=math.nan)
     assert set(MOTIONS) == {"v", "a"}
+
+
+def test_the_cli_identifies_an_accelerometer_record_and_refuses_what_does_not_apply(
+        random_force_acceleration, tmp_path, capsys):
+    """A logger's CSV (acceleration in g, force in N), read with --columns a=..., identified and
+    printed with the fitted sensor bias; displacement-only flags and commands refuse it."""
+    import json
+
+    from duffid.cli import main
+
+    t, f, _, a_meas, _ = random_force_acceleration
+    path = tmp_path / "rig.csv"
+    np.savetxt(path, np.column_stack([t, f, a_meas / 9.80665]), delimiter=",", header="time,load,acc\ns,N,g",
+               comments="", fmt="%.17g")
+    columns = ["--columns", "t=time,f=load,a=acc", "--model", "duffing1"]
+    assert main(["identify", str(path), *columns]) == 2  # a CSV in g: the message names the factor
+    assert "--scale a=9.80665" in capsys.readouterr().err
+    columns += ["--scale", "a=9.80665"]
+    assert main(["identify", str(path), *columns]) == 0
+    out = capsys.readouterr().out
+    assert "acceleration measured" in out and "sensor bias (fitted)" in out
+    assert out.count("published") >= 4
+    assert main(["identify", str(path), *columns, "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["identified"] and data["fit"]["signal"] == "acceleration"
+    assert abs(data["parameters"]["k"] / K - 1) <= 0.01
+    for extra, named in ((["--equation", "duffing1"], "--equation"), (["--window", "0.2"], "--window")):
+        assert main(["identify", str(path), *columns, *extra]) == 2
+        assert f"{named} do(es) not apply to this acceleration record" in capsys.readouterr().err
+    assert main(["nonlinearity", str(path), "--columns", "t=time,f=load,a=acc", "--scale", "a=9.80665"]) == 2
+    assert "velocity (v) and acceleration (a) channels are identified by duffid identify" in capsys.readouterr().err

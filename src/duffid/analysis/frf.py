@@ -274,6 +274,7 @@ def frf_from_sweep(record: Record, *, band: tuple[float, float] | None = None, o
     pad : int
         Zero-padding factor (finer grid, longer impulse response window).
     """
+    record.require_displacement("this FRF (displacement over force)")
     _check_columns(record, output, input)
     n_orig = record.n_samples
     n = pad * n_orig
@@ -328,6 +329,7 @@ def frf_from_h1(record: Record, *, band: tuple[float, float] | None = None, outp
         Modes of the linear model whose response to the measured force gives the coherence
         loss that the segments' resolution alone causes (``incoherent_resolution``).
     """
+    record.require_displacement("this FRF (displacement over force)")
     from scipy.signal import coherence, csd, spectrogram, welch
 
     _check_columns(record, output, input)

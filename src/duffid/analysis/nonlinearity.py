@@ -235,6 +235,7 @@ def estimate_frf(record: Record, *, estimator: str = "auto", band: tuple[float, 
     segments : int
         ``h1``: see :func:`duffid.analysis.frf.frf_from_h1`.
     """
+    record.require_displacement("the FRF of the nonlinearity index")
     if estimator not in ESTIMATORS:
         raise OptionError(f"estimator must be one of {', '.join(ESTIMATORS)}, got {estimator!r}")
     if estimator == "auto":

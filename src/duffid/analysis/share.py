@@ -89,6 +89,7 @@ def nonlinear_shares(record: Record, model: Chain, **identify_options: Any) -> l
     list of SpringShare
         One per cubic spring; empty when the model has none.
     """
+    record.require_displacement("the springs' shares")
     result = identify(record, model, **identify_options)
     assessment = result.assessment
     names = list(result.parameters)

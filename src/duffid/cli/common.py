@@ -100,14 +100,15 @@ def add_file_arguments(p: argparse.ArgumentParser) -> None:
                    help="the file's format (default: from its extension; duffid inspect FILE lists its channels)")
     g.add_argument("--columns", type=columns_value, default=None, metavar="ROLE=CHANNEL,...",
                    help="the column or channel of each signal, by name or 1-based number, e.g. "
-                        "t=time_s,f=force_N,x=3 (roles t, f, x, or f1.., x1..); TDMS: group/channel, HDF5: "
+                        "t=time_s,f=force_N,x=3 (roles t, f, x, or f1.., x1..; identify also takes a velocity v= "
+                        "or an acceleration a= instead of x); TDMS: group/channel, HDF5: "
                         "dataset path, .mat: variable, WAV: channel number. Default: CSV header t,f,x; other "
                         "formats: the one force and one displacement channel, by unit or name")
     g.add_argument("--delimiter", type=delimiter_value, default=",", help="CSV field separator (default ','; tab, ';', ...)")
     g.add_argument("--decimal", choices=(".", ","), default=".",
                    help="CSV decimal mark (default '.'; ',' for files that write 1,5 - with --delimiter ';' or tab)")
     g.add_argument("--scale", type=scales_value, default=None, metavar="ROLE=FACTOR,...",
-                   help="multiply columns into SI units (s, N, m), e.g. x=1e-3 for millimetres; replaces the "
+                   help="multiply columns into SI units (s, N, m, m/s, m/s^2), e.g. x=1e-3 for millimetres; replaces the "
                         "factor of a unit the file names; required for integer PCM WAV (the SI value at full "
                         "scale) and sensor voltages (1 / sensitivity)")
     g.add_argument("--fs", type=positive_float, default=None,
@@ -137,15 +138,16 @@ def model_from_arguments(args: argparse.Namespace, n_dof: int | None = None, *, 
                            coulomb=args.coulomb, offset=offset)
 
 
-def read_record(args: argparse.Namespace, path: Path | None = None) -> Record:
-    """The record of ``path`` (default ``args.file``) read as the file flags say; errors name the flag that fixes them."""
+def read_record(args: argparse.Namespace, path: Path | None = None, *, motion: bool = False) -> Record:
+    """The record of ``path`` (default ``args.file``) read as the file flags say; errors name the flag that fixes them.
+    ``motion``: velocities (``v=``) or accelerations (``a=``) may take the displacements' place."""
     path = path if path is not None else args.file
     if not path.exists():
         raise RecordError(f"{path}: no such file")
     fmt = detect_format(path, args.format)
     if fmt not in ("csv", "mat") or (fmt == "mat" and args.columns is not None):
         return Record.read(path, format=fmt, columns=args.columns, scale=args.scale, fs=args.fs,
-                           sampling_rtol=args.sampling_tolerance)
+                           sampling_rtol=args.sampling_tolerance, motion=motion)
     if fmt == "mat":
         split = lambda s: [v.strip() for v in s.split(",")] if "," in s else s  # noqa: E731
         record = Record.read_mat(path, x=split(args.x_var), f=split(args.f_var), t=args.t_var, fs=args.fs,
@@ -153,7 +155,8 @@ def read_record(args: argparse.Namespace, path: Path | None = None) -> Record:
         return record.scaled(args.scale) if args.scale else record
     try:
         return Record.read_csv(path, sampling_rtol=args.sampling_tolerance, columns=args.columns,
-                               delimiter=args.delimiter, scale=args.scale, fs=args.fs, decimal=args.decimal)
+                               delimiter=args.delimiter, scale=args.scale, fs=args.fs, decimal=args.decimal,
+                               motion=motion)
     except RecordError as exc:  # say which flags fix it
         text = str(exc)
         known = re.search(r"\(multiply (\w+) by ([^)]+)\)$", text)

@@ -3,6 +3,7 @@ supports them."""
 from __future__ import annotations
 
 import argparse
+import math
 import json
 from pathlib import Path
 from typing import Any, Sequence
@@ -81,9 +82,11 @@ def _method_options(args: argparse.Namespace, method: str) -> dict[str, Any]:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``duffid identify``: read, identify, check, print (table or ``--json``), plot."""
-    record = read_record(args)
+    record = read_record(args, motion=True)
     method = args.method or "robust"
     options = _method_options(args, method)
+    if record.motion != "x":
+        return _run_motion(args, record, method, options)
     if args.equation is not None:
         if args.offset not in (None, "force"):
             raise InputError(f"--offset {args.offset} applies to the named models; with --equation write the "
@@ -115,6 +118,36 @@ def run(args: argparse.Namespace) -> int:
         if changes:
             print("  - the online change test flagged a change of the plant: "
                   + "; ".join(c.describe() for c in changes) + ". --segments identifies each stretch between them")
+    return 0
+
+
+def _run_motion(args: argparse.Namespace, record: Any, method: str, options: dict[str, Any]) -> int:
+    """``identify`` of a velocity or acceleration record: the output-error fit of
+    :func:`~duffid.identification.motion.identify_motion` (table or ``--json``)."""
+    from ..identification.motion import MOTIONS, identify_motion
+
+    word = MOTIONS[record.motion]
+    refused = [flag for flag, given in (("--equation", args.equation is not None), ("--segments", args.segments),
+                                        ("--method", args.method not in (None, "robust")),
+                                        ("--offset", args.offset is not None), ("--plot", args.plot is not None))
+               if given]
+    others = sorted(set(options) - {"max_uncertainty"})
+    if refused or others:
+        named = refused + [f"--{name.replace('_', '-')}" for name in others]
+        raise InputError(f"{record.source}: {', '.join(named)} do(es) not apply to this {word} record: it is identified "
+                         f"by fitting the simulated {word} to the measured one (with the sensor's bias), only "
+                         "--max-uncertainty, --jobs and the file flags apply")
+    model = model_from_arguments(args, record.n_dof)
+    extra = {"max_uncertainty": options["max_uncertainty"]} if "max_uncertainty" in options else {}
+    result = identify_motion(record, model, **extra)
+    if args.json:
+        print(result.to_json())
+        return 0
+    print(f"{record.source}: {record.n_samples} samples, dt {record.dt:g} s, {word} measured, model {result.model}, "
+          f"method {result.method}")
+    if not model.reciprocal:
+        print(f"  equation: {model.equation_text()}")
+    print(result_text(result))
     return 0
 
 
@@ -178,9 +211,16 @@ def result_text(result: Any) -> str:
     lines.append(f"  identified: {'yes' if result.is_identified else 'no (not every parameter is published)'}")
     sim, noise = fit.get("simulation_nrmse"), fit.get("noise_nrmse")
     if sim is not None and np.isfinite(sim):
-        lines.append(f"  fit: the identified model misses the measured displacement by {100 * sim:.3g} % RMS "
-                     f"(measurement noise {100 * noise:.2g} %); {fit['samples_per_period']:.3g} samples per period"
-                     + (f" after upsampling x{fit['upsampled']}" if fit["upsampled"] > 1 else ""))
+        periods = fit.get("samples_per_period")
+        lines.append(f"  fit: the identified model misses the measured {fit.get('signal', 'displacement')} by "
+                     f"{100 * sim:.3g} % RMS (measurement noise {100 * noise:.2g} %)"
+                     + (f"; {periods:.3g} samples per period" if periods is not None else "")
+                     + (f" after upsampling x{fit['upsampled']}" if fit.get("upsampled", 1) > 1 else ""))
+    bias = fit.get("bias")
+    if bias:
+        errors = fit.get("bias_std") or [math.nan] * len(bias)
+        lines.append("  sensor bias (fitted): " + ", ".join(f"{b:.4g} (standard error {e:.2g})"
+                                                          for b, e in zip(bias, errors)))
     offsets = fit.get("offsets") or {}
     if offsets:
         shown = []

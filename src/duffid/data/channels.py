@@ -21,16 +21,19 @@ import numpy as np
 from ..errors import RecordError
 from .units import QUANTITY_OF_ROLE, lookup, si_factor
 
-__all__ = ["Channel", "READ_PART", "ROLE_PATTERN", "MOTION_NOT_YET", "numeric", "check_roles", "channel_table", "select",
-           "assemble"]
+__all__ = ["Channel", "READ_PART", "ROLE_PATTERN", "MOTION_NOT_YET", "MOTION_FAMILIES", "numeric", "check_roles",
+           "channel_table", "select", "motion_of", "assemble"]
 
 #: A role of the selection syntax: ``t``, ``f``, ``x``, ``v``, ``a`` or numbered ``f1``, ``x2``, ...
 #: Samples a streaming reader delivers at a time (8 MB of float64).
 READ_PART = 1 << 20
 ROLE_PATTERN = re.compile(r"[tfxva]|[fxva][1-9][0-9]*", re.ASCII)
-#: Why velocity and acceleration channels cannot be identified from yet.
-MOTION_NOT_YET = ("identification from velocity (v) or acceleration (a) is not available yet; select a "
+#: Where velocity and acceleration channels are read (elsewhere a displacement is needed).
+MOTION_NOT_YET = ("velocity (v) and acceleration (a) channels are identified by duffid identify "
+                  "(duffid.identification.motion.identify_motion); here a displacement is needed: select a "
                   "displacement channel as x")
+#: The motion families a record's motion columns may measure.
+MOTION_FAMILIES = ("x", "v", "a")
 _NAME_HINTS = {
     "time": re.compile(r"t|time|times?tamp|zeit", re.I),
     "force": re.compile(r"f\d*|force\w*|load\w*|kraft", re.I),
@@ -116,14 +119,24 @@ def channel_table(channels: Sequence[Channel]) -> list[dict[str, object]]:
             for k, c in enumerate(channels)]
 
 
-def check_roles(roles: Sequence[str], source: str) -> tuple[str | None, list[str], list[str]]:
-    """Validate the roles of a selection; return the time role and the force and displacement roles.
+def motion_of(roles: Sequence[str]) -> str:
+    """The motion family (``x``, ``v`` or ``a``) of checked roles (:func:`check_roles`)."""
+    return next((r[0] for r in roles if r[0] in MOTION_FAMILIES), "x")
+
+
+def check_roles(roles: Sequence[str], source: str, *, motion: bool = False
+                ) -> tuple[str | None, list[str], list[str]]:
+    """Validate the roles of a selection; return the time role and the force and motion roles.
+
+    ``motion``: velocities (``v``) or accelerations (``a``) may take the displacements' place
+    (one kind of motion for every DOF; :func:`motion_of` tells which).
 
     Raises
     ------
     RecordError
-        An unknown role, ``f`` with ``f1``, numbering with gaps, no force or displacement, more
-        forces than displacements, or a velocity or acceleration (not identifiable yet).
+        An unknown role, ``f`` with ``f1``, numbering with gaps, no force or motion, more
+        forces than motion channels, two kinds of motion, or a velocity or acceleration where
+        ``motion`` is false.
     """
     for role in roles:
         if not ROLE_PATTERN.fullmatch(str(role)):
@@ -138,21 +151,29 @@ def check_roles(roles: Sequence[str], source: str) -> tuple[str | None, list[str
             raise RecordError(f"{source}: the {fam} channels must be numbered {fam}1..{fam}{len(numbered)} "
                               f"without gaps, got {', '.join(f'{fam}{j}' for j in numbered)}")
         families[fam] = [fam] if plain else [f"{fam}{j}" for j in numbered]
-    motion = families["v"] + families["a"]
-    if motion:
-        what = "velocity" if families["v"] else "acceleration"
-        named = ", ".join(motion)
+    kinds = [fam for fam in MOTION_FAMILIES if families[fam]]
+    other = families["v"] + families["a"]
+    if other and not motion:
+        what = "a velocity" if families["v"] else "an acceleration"
+        named = ", ".join(other)
         if families["x"]:
-            raise RecordError(f"{source}: {named} selects a {what} channel, which duffid would not use: "
-                              f"{MOTION_NOT_YET.split(';')[0]}; drop {named} from the selection")
-        raise RecordError(f"{source}: {named} selects a {what} channel and no displacement: {MOTION_NOT_YET}")
-    for fam in "fx":
-        if not families[fam]:
-            raise RecordError(f"{source}: no channel given for {fam} (the {_FAMILY_WORDS[fam]})")
-    if len(families["f"]) > len(families["x"]):
-        raise RecordError(f"{source}: {len(families['f'])} force channels but {len(families['x'])} displacement "
-                          "channels; force j acts on DOF j, so there may not be more forces than displacements")
-    return ("t" if "t" in roles else None), families["f"], families["x"]
+            raise RecordError(f"{source}: {named} selects {what} channel, which duffid would not use here: "
+                              f"drop {named} from the selection")
+        raise RecordError(f"{source}: {named} selects {what} channel and no displacement: {MOTION_NOT_YET}")
+    if len(kinds) > 1:
+        raise RecordError(f"{source}: the selection mixes {' and '.join(_FAMILY_WORDS[k] for k in kinds)}; give one "
+                          "kind of motion (x, v or a) for every DOF")
+    fam = kinds[0] if kinds else "x"
+    if not families["f"]:
+        raise RecordError(f"{source}: no channel given for f (the forces)")
+    if not families[fam]:
+        raise RecordError(f"{source}: no channel given for x (the displacements"
+                          + (", or v / a: velocities or accelerations)" if motion else ")"))
+    if len(families["f"]) > len(families[fam]):
+        raise RecordError(f"{source}: {len(families['f'])} force channels but {len(families[fam])} "
+                          f"{_FAMILY_WORDS[fam][:-1]} channels; force j acts on DOF j, so there may not be more forces "
+                          "than motion channels")
+    return ("t" if "t" in roles else None), families["f"], families[fam]
 
 
 def _listing(channels: Sequence[Channel]) -> str:
@@ -178,7 +199,7 @@ def _find(spec: str | int, role: str, channels: Sequence[Channel], source: str) 
 
 
 def select(channels: Sequence[Channel], columns: Mapping[str, str | int] | None, source: str, *,
-           time: bool = True) -> dict[str, Channel]:
+           time: bool = True, motion: bool = False) -> dict[str, Channel]:
     """Which channel plays which role.
 
     Parameters
@@ -194,6 +215,9 @@ def select(channels: Sequence[Channel], columns: Mapping[str, str | int] | None,
     time : bool, optional
         Without ``columns``: whether a lone time channel may play ``t`` (False when the user gives
         the sampling rate).
+    motion : bool, optional
+        Whether a velocity or acceleration channel may take the displacement's place (the
+        roles ``v``, ``a``; :func:`check_roles`).
 
     Returns
     -------
@@ -207,8 +231,9 @@ def select(channels: Sequence[Channel], columns: Mapping[str, str | int] | None,
         A channel that is not there, a role that is not known, a velocity or acceleration, or a
         file whose channels do not say which is which (the message lists them with their units).
     """
+    allow_motion = motion
     if columns is not None:
-        t_role, f_roles, x_roles = check_roles(list(columns), source)
+        t_role, f_roles, x_roles = check_roles(list(columns), source, motion=allow_motion)
         roles = ([t_role] if t_role else []) + f_roles + x_roles
         chosen = {role: _find(columns[role], role, channels, source) for role in roles}
         names = [c.name for c in chosen.values()]
@@ -223,10 +248,11 @@ def select(channels: Sequence[Channel], columns: Mapping[str, str | int] | None,
     forces, times = kinds.get("f", []), kinds.get("t", [])
     motion = [c for fam in "xva" for c in kinds.get(fam, [])]
     if len(forces) == 1 and len(motion) == 1 and "?" not in kinds:
-        if QUANTITY_OF_ROLE[motion[0].quantity or ""] != "x":
+        fam = QUANTITY_OF_ROLE[motion[0].quantity or ""]
+        if fam != "x" and not allow_motion:
             raise RecordError(f"{source}: channel {motion[0].name!r} measures {motion[0].quantity} "
                               f"({motion[0].unit or 'by its name'}): {MOTION_NOT_YET}")
-        chosen = {"f": forces[0], "x": motion[0]}
+        chosen = {"f": forces[0], fam: motion[0]}
         if time and len(times) == 1 and not (forces[0].rate and motion[0].rate):
             chosen = {"t": times[0], **chosen}
         return chosen
@@ -260,7 +286,9 @@ def assemble(chosen: Mapping[str, Channel], source: str, *, scale: Mapping[str, 
     Returns
     -------
     t, f, x : numpy.ndarray
-        Read-only float64 arrays of shapes ``(N,)``, ``(N, nf)`` and ``(N, nx)``.
+        Read-only float64 arrays of shapes ``(N,)``, ``(N, nf)`` and ``(N, nx)``; ``x`` holds
+        the motion the roles select (:func:`motion_of`: displacements, velocities or
+        accelerations).
 
     Raises
     ------
@@ -346,7 +374,7 @@ def assemble(chosen: Mapping[str, Channel], source: str, *, scale: Mapping[str, 
 
     n = first.length
     columns: dict[str, np.ndarray] = {}
-    for fam in "fx":
+    for fam in ("f", motion_of(data_roles)):  # the motion columns: displacements, velocities or accelerations
         members = [r for r in data_roles if r[0] == fam]
         block = np.empty((n, len(members)), dtype=np.float64)
         for j, role in enumerate(members):
@@ -365,6 +393,7 @@ def assemble(chosen: Mapping[str, Channel], source: str, *, scale: Mapping[str, 
         t /= rate
         if start:
             t += start
-    for arr in (t, columns["f"], columns["x"]):
+    motion = columns[motion_of(data_roles)]
+    for arr in (t, columns["f"], motion):
         arr.setflags(write=False)
-    return t, columns["f"], columns["x"]
+    return t, columns["f"], motion

@@ -16,7 +16,7 @@ from types import ModuleType
 import numpy as np
 
 from ..errors import InputError, RecordError
-from .channels import Channel, assemble, select
+from .channels import Channel, assemble, motion_of, select
 from .readers import hdf5, matlab, tdms, text, uff, wav
 
 __all__ = ["FORMATS", "detect_format", "list_channels", "read_arrays"]
@@ -77,7 +77,7 @@ def list_channels(path: str | os.PathLike[str], format: str | None = None) -> li
 
 def read_arrays(path: str | os.PathLike[str], *, format: str | None = None,
                 columns: Mapping[str, str | int] | None = None, scale: Mapping[str, float] | None = None,
-                fs: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                fs: float | None = None, motion: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     """Read the selected channels of a TDMS, UFF, HDF5, MATLAB or WAV file into SI arrays.
 
     Only the selected channels are read (h5py slices, npTDMS streaming).
@@ -94,11 +94,15 @@ def read_arrays(path: str | os.PathLike[str], *, format: str | None = None,
         Role -> factor into SI, replacing the unit's (required for integer PCM WAV channels).
     fs : float, optional
         Sampling rate [Hz] for files whose channels carry none (MATLAB).
+    motion : bool, optional
+        Whether velocity or acceleration channels may take the displacements' place.
 
     Returns
     -------
     t, f, x : numpy.ndarray
-        Read-only float64 time, forces ``(N, nf)`` and displacements ``(N, nx)``.
+        Read-only float64 time, forces ``(N, nf)`` and motion ``(N, nx)``.
+    family : str
+        What ``x`` measures: ``x`` (displacements), ``v`` or ``a``.
     """
     source = os.fspath(path)
     fmt = detect_format(source, format)
@@ -106,4 +110,5 @@ def read_arrays(path: str | os.PathLike[str], *, format: str | None = None,
         raise InputError("CSV files are read by Record.read_csv")
     _exists(source)
     with FORMATS[fmt].open_channels(source) as channels:
-        return assemble(select(channels, columns, source, time=fs is None), source, scale=scale, fs=fs)
+        chosen = select(channels, columns, source, time=fs is None, motion=motion)
+        return (*assemble(chosen, source, scale=scale, fs=fs), motion_of(list(chosen)))

@@ -31,7 +31,7 @@ import scipy.io
 from scipy.io.matlab import MatReadError
 
 from ..errors import InputError, OptionError, RecordError
-from .channels import Channel, assemble, check_roles, select
+from .channels import MOTION_FAMILIES, Channel, assemble, check_roles, motion_of, select
 from .formats import detect_format, read_arrays
 from .readers.matlab import is_v73
 from .readers.matlab import open_channels as open_mat_channels
@@ -201,6 +201,12 @@ class Record:
     sampling_rtol : float, optional
         Allowed relative deviation of every time step from the median step
         ``dt``: ``max |diff(t) - dt| <= sampling_rtol * dt``.
+    motion : {"x", "v", "a"}, optional
+        What the ``x`` columns measure: displacements (default), velocities [m/s] or
+        accelerations [m/s^2] (an accelerometer's record). Only
+        :func:`duffid.identification.motion.identify_motion` (``duffid identify``) takes a
+        velocity or acceleration record; everything that needs a displacement refuses it
+        (:meth:`require_displacement`).
 
     Raises
     ------
@@ -224,10 +230,14 @@ class Record:
     x: np.ndarray
     source: str = ARRAY_SOURCE
     sampling_rtol: float = 1e-6
+    motion: str = "x"
 
     def __post_init__(self) -> None:
         if not isinstance(self.source, str):
             raise OptionError(f"source must be a string, got {self.source!r}")
+        if self.motion not in MOTION_FAMILIES:
+            raise OptionError(f"motion must be one of {', '.join(MOTION_FAMILIES)} (displacement, velocity, "
+                              f"acceleration), got {self.motion!r}")
         source = self.source
         rtol = _check_rtol(self.sampling_rtol)
         t = _numeric_array(self.t, "t", source)
@@ -285,6 +295,7 @@ class Record:
             return NotImplemented
         return (
             self.sampling_rtol == other.sampling_rtol
+            and self.motion == other.motion
             and np.array_equal(self.t, other.t)
             and np.array_equal(self.f, other.f)
             and np.array_equal(self.x, other.x)
@@ -295,7 +306,8 @@ class Record:
     def __repr__(self) -> str:
         return (
             f"Record(n_samples={self.n_samples}, n_forces={self.n_forces}, "
-            f"n_dof={self.n_dof}, dt={self.dt!r}, source={self.source!r})"
+            f"n_dof={self.n_dof}, dt={self.dt!r}, source={self.source!r}"
+            + (f", motion={self.motion!r})" if self.motion != "x" else ")")
         )
 
     # -------------------------------------------------------------- properties
@@ -336,7 +348,21 @@ class Record:
         ``['t', 'f', 'x']`` when ``nf == nx == 1``, otherwise
         ``['t', 'f1', ..., 'f<nf>', 'x1', ..., 'x<nx>']``.
         """
-        return _column_names(self.n_forces, self.n_dof)
+        return _column_names(self.n_forces, self.n_dof, self.motion)
+
+    def require_displacement(self, what: str) -> None:
+        """Refuse a velocity or acceleration record where ``what`` needs a displacement.
+
+        Raises
+        ------
+        RecordError
+            Naming the record, what it measures and where such a record is taken.
+        """
+        if self.motion != "x":
+            word = {"v": "velocities", "a": "accelerations"}[self.motion]
+            raise RecordError(f"{self.source}: the record measures {word} ({self.motion}), not displacements: "
+                              f"{what} needs a displacement. A velocity or acceleration record is identified by "
+                              "duffid identify (duffid.identification.motion.identify_motion)")
 
     # ----------------------------------------------------------------- methods
     def require_samples(self, n: int, purpose: str) -> None:
@@ -405,6 +431,7 @@ class Record:
             self.x[mask],
             source=self.source,
             sampling_rtol=self.sampling_rtol,
+            motion=self.motion,
         )
 
     # --------------------------------------------------------------------- CSV
@@ -439,6 +466,7 @@ class Record:
         cls, path: str | os.PathLike[str], *, sampling_rtol: float = 1e-6,
         columns: Mapping[str, str | int] | None = None, delimiter: str = ",",
         scale: Mapping[str, float] | None = None, fs: float | None = None, decimal: str = ".",
+        motion: bool = False,
     ) -> Record:
         """Read a record from a CSV file: duffid's own layout, or what a logger wrote.
 
@@ -465,6 +493,9 @@ class Record:
         decimal : {".", ","}, optional
             Decimal mark of the numbers (``","`` for loggers and spreadsheets of countries
             that write ``1,5``; then the delimiter must not be ``","``).
+        motion : bool, optional
+            Whether ``columns`` may select velocities (``v``) or accelerations (``a``) in the
+            displacements' place (:attr:`motion` of the record).
 
         Returns
         -------
@@ -510,7 +541,7 @@ class Record:
         if columns is None and delimiter == "," and fs is None and decimal == ".":
             record = _parse_csv_lines(lines, source, rtol)
             return record if not scale else record.scaled(scale)
-        return _parse_logger_lines(lines, source, rtol, columns, delimiter, scale or {}, fs, decimal)
+        return _parse_logger_lines(lines, source, rtol, columns, delimiter, scale or {}, fs, decimal, motion)
 
     # ------------------------------------------------------------ every format
     @classmethod
@@ -518,6 +549,7 @@ class Record:
         cls, path: str | os.PathLike[str], *, format: str | None = None,
         columns: Mapping[str, str | int] | None = None, scale: Mapping[str, float] | None = None,
         fs: float | None = None, sampling_rtol: float = 1e-6, delimiter: str = ",", decimal: str = ".",
+        motion: bool = False,
     ) -> Record:
         """Read a record from a file in any format duffid reads: CSV, MATLAB (v5 and v7.3), TDMS,
         UFF 58/58b, HDF5 or WAV.
@@ -545,6 +577,9 @@ class Record:
             Allowed relative deviation of every time step from the median step.
         delimiter, decimal : str, optional
             CSV only: see :meth:`read_csv`.
+        motion : bool, optional
+            Whether velocity (``v``) or acceleration (``a``) channels may take the
+            displacements' place (the record's :attr:`motion` then says which).
 
         Returns
         -------
@@ -565,9 +600,9 @@ class Record:
         source = os.fspath(path)
         if detect_format(source, format) == "csv":
             return cls.read_csv(path, sampling_rtol=rtol, columns=columns, delimiter=delimiter, scale=scale,
-                                fs=fs, decimal=decimal)
-        t, f, x = read_arrays(path, format=format, columns=columns, scale=scale, fs=fs)
-        return cls(t, f, x, source=source, sampling_rtol=rtol)
+                                fs=fs, decimal=decimal, motion=motion)
+        t, f, x, family = read_arrays(path, format=format, columns=columns, scale=scale, fs=fs, motion=motion)
+        return cls(t, f, x, source=source, sampling_rtol=rtol, motion=family)
 
     @classmethod
     def from_sep005(
@@ -883,11 +918,11 @@ class Record:
 
 
 # ---------------------------------------------------------------------- helpers
-def _column_names(nf: int, nx: int) -> list[str]:
-    """CSV column names for `nf` forces and `nx` displacements."""
+def _column_names(nf: int, nx: int, motion: str = "x") -> list[str]:
+    """CSV column names for `nf` forces and `nx` motion columns (``motion``: x, v or a)."""
     if nf == 1 and nx == 1:
-        return ["t", "f", "x"]
-    return ["t"] + [f"f{j + 1}" for j in range(nf)] + [f"x{j + 1}" for j in range(nx)]
+        return ["t", "f", motion]
+    return ["t"] + [f"f{j + 1}" for j in range(nf)] + [f"{motion}{j + 1}" for j in range(nx)]
 
 
 def _declared_delimiter(lines: list[str], source: str, delimiter: str) -> str:
@@ -1141,7 +1176,7 @@ def _load_mat(source: str) -> dict[str, Any]:
 
 # ------------------------------------------------------------------------- logger files
 #: SI units of each role; a units row naming another unit needs a scale factor.
-SI_UNITS = {"t": ("s",), "f": ("N", "V"), "x": ("m", "C")}
+SI_UNITS = {"t": ("s",), "f": ("N", "V"), "x": ("m", "C"), "v": ("m/s",), "a": ("m/s^2",)}
 
 
 def _column_index(spec: str | int, role: str, names: list[str], where: str) -> int:
@@ -1163,7 +1198,8 @@ def _is_number(text: str) -> bool:
 
 
 def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Mapping[str, str | int] | None,
-                        delimiter: str, scale: Mapping[str, float], fs: float | None, decimal: str = ".") -> Record:
+                        delimiter: str, scale: Mapping[str, float], fs: float | None, decimal: str = ".",
+                        motion: bool = False) -> Record:
     """Parse a CSV file with a column mapping, delimiter, units row, scale or sampling rate."""
     def split(line: str) -> list[str]:
         return [field.strip() for field in next(csv.reader([line], delimiter=delimiter))]
@@ -1182,8 +1218,8 @@ def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Map
         raise RecordError(f"{where}: one column only with the delimiter {delimiter!r}{hint}")
     if columns is None:
         columns = {"t": "t", "f": "f", "x": "x"} if fs is None else {"f": "f", "x": "x"}
-    t_role, f_roles, x_roles = check_roles(list(columns), source)
-    unknown = sorted(set(scale) - {"t", "f", "x"} - set(columns))
+    t_role, f_roles, x_roles = check_roles(list(columns), source, motion=motion)
+    unknown = sorted(set(scale) - {"t", "f", motion_of(x_roles)} - set(columns))
     if unknown:
         raise RecordError(f"{source}: a scale for {', '.join(unknown)}, which names no column")
     if t_role is not None and fs is not None:
@@ -1251,13 +1287,15 @@ def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Map
     x = data[:, first + len(f_roles):]
     _check_samples(t, [(f"column {names[index[role]]!r}", data[:, j]) for j, role in enumerate(roles)],
                    source=source, sampling_rtol=rtol, where=lambda i: f"line {linenos[i]}", t_desc=None)
-    return Record(t, f, x, source=source, sampling_rtol=rtol)
+    return Record(t, f, x, source=source, sampling_rtol=rtol, motion=motion_of(x_roles))
 
 
 def _scaled(record: Record, scale: Mapping[str, float]) -> Record:
     """``record`` with its time, force and displacement columns multiplied by ``scale``."""
-    unknown = sorted(set(scale) - {"t", "f", "x"})
+    roles = {"t", "f", record.motion}
+    unknown = sorted(set(scale) - roles)
     if unknown:
-        raise RecordError(f"{record.source}: a scale for {', '.join(unknown)}: the roles are t, f and x")
-    return Record(record.t * scale.get("t", 1.0), record.f * scale.get("f", 1.0), record.x * scale.get("x", 1.0),
-                  source=record.source, sampling_rtol=record.sampling_rtol)
+        raise RecordError(f"{record.source}: a scale for {', '.join(unknown)}: the roles are t, f and {record.motion}")
+    return Record(record.t * scale.get("t", 1.0), record.f * scale.get("f", 1.0),
+                  record.x * scale.get(record.motion, 1.0), source=record.source, sampling_rtol=record.sampling_rtol,
+                  motion=record.motion)

@@ -47,6 +47,7 @@ def estimate(record: Record, model: Chain | EquationModel, method: str = "robust
         ``parameters`` are the estimator's final (held) values, ``estimates`` its final
         solution; for the buffered methods a :class:`~duffid.identification.buffered.BufferedIdentification`.
     """
+    record.require_displacement("the algebraic estimator")
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     check_record(record, model)

@@ -52,7 +52,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from ..data.record import Record
-from ..errors import InputError, OptionError, RecordError
+from ..errors import InputError, RecordError
 from ..models.chain import Chain, Channel
 from ..models.regression import LinearTerm, Regression
 from .engine import Estimate, Identification, check_record, combine_equations, solve_factor, triangular_factor
@@ -571,6 +571,7 @@ def identify_buffered(record: Record, model: Chain | Regression, method: str = "
     -------
     BufferedIdentification
     """
+    record.require_displacement("the buffered methods")
     if isinstance(model, Chain):
         check_record(record, model)
     return BufferedIdentifier(model, record.dt, method, **options).identify_record(record)

@@ -114,6 +114,7 @@ def find_changes(record: Record, model: Chain, **options: Any) -> list[Change]:
     InputError
         Options that turn the test off (``change_threshold=None``) or are invalid.
     """
+    record.require_displacement("the change test")
     if "change_threshold" in options and options["change_threshold"] is None:
         raise InputError("find_changes needs the change test: change_threshold must not be None")
     names, status, residual, window = _online_rows(record, model, dict(options))

@@ -143,6 +143,7 @@ def run_estimator(record: Record, model: Chain, method: str = "robust", *, engin
     first use). ``cancel``: an event (``threading.Event``) checked between blocks of the C
     batch; when it is set the run raises :class:`Cancelled`.
     """
+    record.require_displacement("the algebraic estimator")
     identifier = _c_identifier(record, model, method, engine, options)
     if identifier is None:
         return estimate(record, model, method, **options)
@@ -155,6 +156,7 @@ def final_estimates(record: Record, model: Chain, method: str = "robust", *, eng
     """The estimator's final solution over ``record`` (public names), as
     ``run_estimator(...).estimates``, without the history: on the C core block by block,
     only the last output kept (``cancel`` as in :func:`run_estimator`)."""
+    record.require_displacement("the algebraic estimator")
     identifier = _c_identifier(record, model, method, engine, options)
     if identifier is None:
         return dict(estimate(record, model, method, **options).estimates)

@@ -1148,6 +1148,7 @@ class Identification:
 
 def check_record(record: Record, model: Any, dt: float | None = None) -> None:
     """Check that ``record`` fits ``model`` (anything with ``name``, ``n_dof``, ``n_forces``)."""
+    record.require_displacement(f"the algebraic identification of {model.name}")
     if record.n_dof != model.n_dof:
         raise RecordError(f"{record.source}: model {model.name} needs {model.n_dof} displacement column(s), "
                           f"the record has {record.n_dof}")

@@ -119,7 +119,8 @@ def _start(record: Record, model: Chain, motion: str, cutoff: float | None
                           "give cutoff= (Hz)")
     x = integrated_displacement(record.x, record.dt, 1 if motion == "v" else 2, cutoff)
     v = record.x - record.x.mean(axis=0) if motion == "v" else integrated_displacement(record.x, record.dt, 1, cutoff)
-    displacement = Record(record.t, record.f, x, source=f"{record.source} (integrated {MOTIONS[motion]})")
+    displacement = Record(record.t, record.f, x, source=f"{record.source} (integrated {MOTIONS[motion]})",
+                          sampling_rtol=record.sampling_rtol)
     # the estimator's final solution (a constant force among its unknowns), never published
     values = final_estimates(displacement, with_force_offsets(model))
     start = {k: float(values.get(k, math.nan)) for k in model.parameters}
@@ -170,7 +171,7 @@ def _linear_start(record: Record, model: Chain, x: np.ndarray) -> dict[str, floa
     return model.from_canonical(canonical)
 
 
-def identify_motion(record: Record, model: Chain, motion: str, *, max_uncertainty: float = 0.01,
+def identify_motion(record: Record, model: Chain, motion: str | None = None, *, max_uncertainty: float = 0.01,
                     cutoff: float | None = None, segment: int | None = None,
                     progress: bool | None = None) -> Identification:
     """Identify ``model`` from the force and a measured velocity or acceleration (offline).
@@ -183,8 +184,9 @@ def identify_motion(record: Record, model: Chain, motion: str, *, max_uncertaint
         (acceleration).
     model : Chain
         Model structure (its values are not used).
-    motion : {"v", "a"}
-        What the motion columns measure (:data:`MOTIONS`).
+    motion : {"v", "a"}, optional
+        What the motion columns measure (:data:`MOTIONS`; default: the record's
+        :attr:`~duffid.data.record.Record.motion`, which must agree when given).
     max_uncertainty : float
         Largest relative standard error of a published value.
     cutoff : float, optional
@@ -205,9 +207,14 @@ def identify_motion(record: Record, model: Chain, motion: str, *, max_uncertaint
         ``explained``, ``bias`` and ``bias_std`` per DOF, ``start`` and ``cutoff_hz``), and
         notes in words.
     """
+    motion = record.motion if motion is None else motion
     if motion not in MOTIONS:
         raise InputError(f"motion must be one of {', '.join(MOTIONS)} (velocity, acceleration), got {motion!r}; "
                          "a displacement is identified by identify()")
+    if record.motion not in ("x", motion):
+        raise RecordError(f"{record.source}: the record measures {record.motion}, not {motion}")
+    record = record if record.motion == motion else Record(record.t, record.f, record.x, source=record.source,
+                                                           sampling_rtol=record.sampling_rtol, motion=motion)
     if not (math.isfinite(max_uncertainty) and max_uncertainty > 0):
         raise InputError(f"max_uncertainty must be a positive number, got {max_uncertainty!r}")
     word = MOTIONS[motion]

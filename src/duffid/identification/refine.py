@@ -672,6 +672,9 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
         raise InputError(f"segment must be a whole number of samples >= 4, got {segment!r}")
     if output not in OUTPUTS:
         raise InputError(f"unknown output {output!r}; choose one of {', '.join(OUTPUTS)}")
+    if record.motion != "x" and output != record.motion:
+        raise RecordError(f"{record.source}: the record measures {record.motion}, refine was asked to fit {output}: "
+                          f"give output={record.motion!r}")
     sim = OdeSimulator(model, record.dt, substeps=substeps, interpolation=interpolation, free=free)
     n, q = model.n_dof, sim.substeps
     n_bias = n if (output != "x" if bias is None else bias) else 0

@@ -223,6 +223,7 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
         An unknown ``offsets`` kind, or a displacement offset for a model that cannot carry
         it (the message names the models that can).
     """
+    record.require_displacement("identify (a displacement record; duffid identify takes the others)")
     kind = offset_kind(model, offsets)
     physical = with_force_offsets(model) if kind is not None else model
     estimation = _Estimation(model, physical, kind, method, engine)
