@@ -1972,6 +1972,40 @@ static duffid_real relative_fit(const duffid_real *R, int n, const duffid_real *
     return balance > RC(0.0) ? R_FABS(R[n * p + n]) / R_SQRT(balance) : R_NAN;
 }
 
+/* engine._alone: per unknown, whether changing it alone reduces the prediction error of theta
+ * on the rows held in the p x p factor R of [A D] by at least share of what their own solution
+ * reduces it by: (c_i . r)^2 >= share |c_i|^2 |r[0..n-1]|^2, with c_i the factor's column i and
+ * r = R [theta; -1] (none when theta is not finite) */
+static void alone(const duffid_real *R, int n, const duffid_real *theta, duffid_real share, int *confirmed)
+{
+    const int p = n + 1;
+    duffid_real r[DUFFID_MAX_UNKNOWNS + 1], gain = RC(0.0);
+    int i, k, finite = 1;
+    for (i = 0; i < n; i++) {
+        finite = finite && is_finite(theta[i]);
+        confirmed[i] = 0;
+    }
+    if (!finite) {
+        return;
+    }
+    for (k = 0; k < n; k++) {
+        duffid_real sum = RC(0.0);
+        for (i = k; i < n; i++) {
+            sum += R[k * p + i] * theta[i];
+        }
+        r[k] = sum - R[k * p + n];
+        gain += r[k] * r[k];
+    }
+    for (i = 0; i < n; i++) {
+        duffid_real dot = RC(0.0), norm2 = RC(0.0);
+        for (k = 0; k <= i; k++) {
+            dot += R[k * p + i] * r[k];
+            norm2 += R[k * p + i] * R[k * p + i];
+        }
+        confirmed[i] = dot * dot >= share * norm2 * gain;
+    }
+}
+
 /* OnlineIdentifier._restart: equation e's data contradict its estimate; its parameters are
  * marked changed (an unknown in departed, or any for the right-hand side) or uncertain */
 static void restart(duffid_estimator *est, int e, const int *departed)
@@ -2007,7 +2041,8 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit)
     equation_t *eq = &est->eq[e];
     const int n = est->m.blocks[e].n_unknowns, p = n + 1;
     duffid_real theta[DUFFID_MAX_UNKNOWNS], rse[DUFFID_MAX_UNKNOWNS], cond;
-    int departed[DUFFID_MAX_UNKNOWNS], drifted[DUFFID_MAX_UNKNOWNS], i, any = 0, any_drift = 0;
+    int departed[DUFFID_MAX_UNKNOWNS], drifted[DUFFID_MAX_UNKNOWNS], confirmed[DUFFID_MAX_UNKNOWNS];
+    int i, any = 0, any_drift = 0;
     if (est->n < eq->recent_resume) { /* the recent estimate restarted after a surprise */
         return;
     }
@@ -2020,6 +2055,7 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit)
             theta[i] = R_NAN;
         }
     }
+    alone(eq->R_recent, n, eq->theta, RC(DUFFID_CHANGE_ALONE_SHARE), confirmed);
     for (i = 0; i < n; i++) { /* engine._departure and OnlineIdentifier._departed */
         const duffid_real combined = duffid_la_hypot(eq->rse[i] * R_FABS(eq->theta[i]), rse[i] * R_FABS(theta[i]));
         const int ok = is_finite(eq->theta[i]) && is_finite(theta[i]) && is_finite(combined) && combined > RC(0.0);
@@ -2027,7 +2063,8 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit)
         /* beyond the band a published value may move: significant (departed) or, lasting the
          * recent memory, a share of that (drifted) */
         const int wide = R_FABS(theta[i] - eq->theta[i]) >
-                         RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty * R_FABS(eq->theta[i]);
+                             RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty * R_FABS(eq->theta[i]) &&
+                         confirmed[i]; /* ... and confirmed alone (CHANGE_ALONE_SHARE) */
         departed[i] = wide && eq->departure[i] > est->change_threshold;
         drifted[i] = wide && eq->departure[i] > RC(DUFFID_CHANGE_DRIFT_SHARE) * est->change_threshold;
         any |= departed[i];

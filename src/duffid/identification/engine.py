@@ -38,7 +38,7 @@ from .orthogonal import BASES
 from .regressors import KernelBank, SlidingMoments, row_exponents
 
 __all__ = ["OnlineIdentifier", "check_record", "Identification", "Estimate", "METHODS",
-           "STATUSES", "CHANGE_WINDOWS", "CHANGE_SURPRISE", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "prior_sizes", "filtered_cramer", "combine_equations",
+           "STATUSES", "CHANGE_WINDOWS", "CHANGE_SURPRISE", "CHANGE_ALONE_SHARE", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "prior_sizes", "filtered_cramer", "combine_equations",
            "auto_window", "Integrators", "solve_factor", "triangular_factor", "equilibrated_condition"]
 
 #: The online methods (OnlineIdentifier, :data:`duffid.identification.options.ONLINE_METHODS`)
@@ -99,6 +99,15 @@ CHANGE_SURPRISE = 12.0
 #: published value may move (:data:`LOSS_FACTOR` times ``max_uncertainty``) and lasts the recent
 #: estimate's memory (``change_memory``) is a change too.
 CHANGE_DRIFT_SHARE = 0.5
+#: The change test's confirmation, a likelihood ratio of one changed unknown against all: either
+#: rule counts an unknown only while changing it alone (every other unknown kept at the
+#: accumulated values) reduces the accumulated estimate's prediction error on the recent rows
+#: by at least this share of what the recent solution reduces it by (see :func:`_alone`). A
+#: changed parameter explains the recent rows' misfit on its own; a constant plant whose
+#: estimator bias moves with the excitation (a swept sine narrows the band of the recent rows,
+#: whose solution then slides along an almost collinear pair such as the mass and the
+#: stiffness, fitting their noise) is fitted better only by moving the unknowns jointly.
+CHANGE_ALONE_SHARE = 0.5
 
 
 # ---------------------------------------------------------------------- channels
@@ -411,6 +420,39 @@ def _departure(theta: np.ndarray, rse: np.ndarray, recent: np.ndarray, recent_rs
     combined = np.hypot(rse * np.abs(theta), recent_rse * np.abs(recent))
     ok = np.isfinite(theta) & np.isfinite(recent) & np.isfinite(combined) & (combined > 0)
     return np.where(ok, np.abs(recent - theta) / np.where(ok, combined, 1.0), 0.0)
+
+
+def _alone(R_aug: np.ndarray, theta: np.ndarray, share: float) -> np.ndarray:
+    """Per unknown, whether changing it alone reduces the prediction error of ``theta`` on the
+    rows held in the factor ``R_aug`` of ``[A D]`` by at least ``share`` of what their own
+    least-squares solution reduces it by.
+
+    With ``r = R_aug [theta; -1]`` (the rows' residual under ``theta``, rotated; its last entry
+    is minus their own residual), their own solution reduces the squared prediction error by
+    ``|r[:n]|^2``, and the best change of unknown ``i`` alone by ``(c_i . r)^2 / |c_i|^2`` (``c_i``
+    the factor's column ``i``). Compared without a division; a non-finite ``theta`` confirms none.
+
+    Parameters
+    ----------
+    R_aug : ndarray, shape (n + 1, n + 1)
+        Upper-triangular factor of the rows ``[A D]`` (the recent least squares).
+    theta : ndarray, shape (n,)
+        The solution whose prediction error is tested (the accumulated one).
+    share : float
+        The least share of the rows' own gain a change of one unknown must achieve.
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+        Per unknown: its change alone is confirmed.
+    """
+    n = R_aug.shape[0] - 1
+    if not np.all(np.isfinite(theta)):
+        return np.zeros(n, dtype=bool)
+    residual = R_aug @ np.append(theta, -1.0)
+    columns = R_aug[:, :n]
+    gain = float(np.sum(residual[:n] ** 2))
+    return (columns.T @ residual) ** 2 >= share * np.sum(columns**2, axis=0) * gain
 
 
 def prior_sizes(model: Chain, nominal: Mapping[str, float] | None) -> dict[str, float]:
@@ -837,6 +879,8 @@ class OnlineIdentifier(Identifier):
             # a departure matters when significant and larger than a published value may move;
             # a smaller one beyond that band matters once it lasts the recent memory (a drift)
             wide = np.abs(theta - st.theta) > LOSS_FACTOR * self.options["max_uncertainty"] * np.abs(st.theta)
+            # ... and only while a change of it alone explains the recent rows (CHANGE_ALONE_SHARE)
+            wide &= _alone(recent.R, st.theta, CHANGE_ALONE_SHARE)
             departed = (st.departure > threshold) & wide
             drifted = (st.departure > CHANGE_DRIFT_SHARE * threshold) & wide
             st.departed = st.departed + 1 if departed.any() else 0
