@@ -16,7 +16,8 @@ import pytest
 from duffid import Chirp, Duffing1, DuffingCircuit, Multisine, OnlineIdentifier, measure, simulate
 from duffid.errors import InputError
 from duffid.identification.c_core import CIdentifier
-from duffid.identification.engine import CHANGE_ALONE_SHARE, STATUSES, _alone, triangular_factor
+from duffid.identification.engine import (CHANGE_ALONE_SHARE, STATUSES, _alone, recent_solution, solve_factor,
+                                         triangular_factor)
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None,
                                 reason="no C compiler")
@@ -153,6 +154,25 @@ def test_the_confirmation_tells_one_changed_unknown_from_a_joint_slide():
     assert np.linalg.norm(R @ np.append(slid, -1.0)) > 2 * abs(R[3, 3])  # a misfit the joint fit removes
     assert not _alone(R, slid, CHANGE_ALONE_SHARE).any()
     assert not _alone(R, np.array([np.nan, 1.0, 1.0]), CHANGE_ALONE_SHARE).any()
+
+
+def test_the_recent_solution_is_solve_factors_without_the_condition():
+    """engine.recent_solution (the change test's recent estimate, no singular values) gives
+    solve_factor's unknowns and standard errors to rounding, and refuses a singular factor."""
+    rng = np.random.default_rng(2)
+    for scales in ([1.0, 1.0, 1.0, 1.0], [1e-3, 10.0, 1e4, 1e8]):
+        A = rng.standard_normal((300, 4)) * scales
+        D = A @ [1.0, -2.0, 3.0, 0.5] + 0.1 * rng.standard_normal(300)
+        R = triangular_factor(np.column_stack([A, D]), 5)
+        theta, _, rse = solve_factor(R, 300.0, 50.0)[:3]
+        got, got_rse = recent_solution(R, 300.0, 50.0)
+        # to rounding: relative, or (a badly scaled column's unknown, which cancels) far below its error
+        assert np.all(np.abs(got - theta) <= np.maximum(1e-12 * np.abs(theta), 1e-6 * rse * np.abs(theta)))
+        np.testing.assert_allclose(got_rse, rse, rtol=1e-6)
+    A[:, 1] = A[:, 0] * (scales[1] / scales[0])  # two proportional columns: singular
+    R = triangular_factor(np.column_stack([A, D]), 5)
+    assert np.isnan(recent_solution(R, 300.0, 50.0)[0]).all()
+    assert np.isinf(recent_solution(R, 300.0, 50.0)[1]).all()
 
 
 def drift_of(share: float, t_end: float = 4.0) -> list[tuple[float, Duffing1]]:

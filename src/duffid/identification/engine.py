@@ -39,7 +39,7 @@ from .regressors import KernelBank, SlidingMoments, row_exponents
 
 __all__ = ["OnlineIdentifier", "check_record", "Identification", "Estimate", "METHODS",
            "STATUSES", "CHANGE_WINDOWS", "CHANGE_SURPRISE", "CHANGE_ALONE_SHARE", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "prior_sizes", "filtered_cramer", "combine_equations",
-           "auto_window", "Integrators", "solve_factor", "triangular_factor", "equilibrated_condition"]
+           "auto_window", "Integrators", "solve_factor", "recent_solution", "triangular_factor", "equilibrated_condition"]
 
 #: The online methods (OnlineIdentifier, :data:`duffid.identification.options.ONLINE_METHODS`)
 #: and the buffered orthogonal-function methods of section 4 (duffid.identification.buffered);
@@ -341,6 +341,56 @@ def solve_factor(R_aug: np.ndarray, rows: float, overlap: float
     with np.errstate(divide="ignore", invalid="ignore"):
         rse = np.where(theta != 0, std / np.abs(theta), np.inf)
     return theta, cond, rse, share, rhs_share
+
+
+def recent_solution(R_aug: np.ndarray, rows: float, overlap: float) -> tuple[np.ndarray, np.ndarray]:
+    """The unknowns and relative standard errors of :func:`solve_factor`, without its condition
+    number (the change test's recent estimate needs neither that nor the shares).
+
+    The column-equilibrated factor ``U`` is inverted as a triangle; instead of the singular
+    values, ``sqrt(n) |U^-1|_F`` (``|U|_F = sqrt(n)``: its columns have unit norm), which bounds
+    the condition number from above and exceeds it by at most ``sqrt(n)`` times, must stay at
+    most ``1e14`` (:func:`solve_factor`'s limit) for a solution.
+
+    Parameters
+    ----------
+    R_aug : ndarray, shape (n + 1, n + 1)
+        Upper-triangular factor of the rows ``[A D]``.
+    rows : float
+        Number of rows it holds (weighted by the forgetting).
+    overlap : float
+        Inflation of the residual variance, as :func:`solve_factor`'s.
+
+    Returns
+    -------
+    theta : ndarray, shape (n,)
+        The unknowns (NaN when the factor is singular or its bound above the limit).
+    rse : ndarray, shape (n,)
+        Their relative standard errors (inf when undetermined).
+    """
+    n = R_aug.shape[0] - 1
+    R = R_aug[:n, :n]
+    scale = np.linalg.norm(R, axis=0)
+    nan, inf = np.full(n, np.nan), np.full(n, np.inf)
+    if not np.all(scale > 0):
+        return nan, inf
+    U = R / scale
+    if not np.all(np.diag(U) != 0):
+        return nan, inf
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        Rinv = np.linalg.inv(U)
+        bound = float(np.sqrt(n * np.sum(Rinv**2)))
+    if not bound <= 1e14:  # also NaN
+        return nan, inf
+    theta = Rinv @ R_aug[:n, n] / scale
+    dof = rows - n
+    if dof <= 0:
+        return theta, inf
+    s2 = R_aug[n, n] ** 2 / dof * overlap
+    std = np.sqrt(s2 * np.sum(Rinv**2, axis=1)) / scale
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rse = np.where(theta != 0, std / np.abs(theta), np.inf)
+    return theta, rse
 
 
 class Integrators:
@@ -874,7 +924,7 @@ class OnlineIdentifier(Identifier):
             if threshold is None or self.n < st.recent_resume:  # no test, or the recent estimate restarted
                 continue
             recent.update(A, D)
-            theta, _, rse = solve_factor(recent.R, recent.rows, float(L))[:3]
+            theta, rse = recent_solution(recent.R, recent.rows, float(L))
             st.departure = _departure(st.theta, st.rse, theta, rse)
             # a departure matters when significant and larger than a published value may move;
             # a smaller one beyond that band matters once it lasts the recent memory (a drift)
