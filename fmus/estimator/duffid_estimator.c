@@ -133,7 +133,7 @@ typedef struct { /* the state of one block of the description */
     duffid_real *theta, *rse, *share; /* n_unknowns each */
     duffid_real *R;                   /* robust: accumulated factor of [A D], p x p (p = n + 1) */
     duffid_real *V;                   /* right singular vectors of the last solve (warm start) */
-    duffid_real *R_recent, *V_recent; /* the change test's recent factor (p x p) and its V (n x n) */
+    duffid_real *R_recent;            /* the change test's recent factor (p x p) */
     duffid_real *departure;           /* n: recent - accumulated solution in combined errors */
     duffid_real cond, rhs_share, rows, rows_recent, residual;
     int64_t departed;                 /* samples the departure has mattered in a row, saturated
@@ -143,7 +143,6 @@ typedef struct { /* the state of one block of the description */
                                        * the recent memory */
     int64_t resume;                   /* after a change: the first sample whose window follows it */
     int64_t recent_resume;            /* ... after a surprise: the same for the recent estimate */
-    int warm_recent;
     duffid_real rounding;             /* float: the rows' relative rounding error (their average) */
     int warm;                         /* V is from the previous sample */
     integrators_t reg, det;           /* paper */
@@ -870,7 +869,6 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
         CARVE(&c, eq->V, n * n);
         CARVE(&c, eq->R, robust ? p * p : 0);
         CARVE(&c, eq->R_recent, robust ? p * p : 0);
-        CARVE(&c, eq->V_recent, robust ? n * n : 0);
         CARVE(&c, eq->departure, n);
         if (!robust) {
             integrators_t *it = &eq->reg;
@@ -1184,7 +1182,6 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     }
     for (i = 0; i < est->n_eq; i++) {
         STATE_RANGE(est->eq[i].warm, 0, 1)
-        STATE_RANGE(est->eq[i].warm_recent, 0, 1)
         STATE_RANGE(est->eq[i].departed, 0, est->settle_count)
         STATE_RANGE(est->eq[i].surprised, 0, est->settle_count)
         STATE_RANGE(est->eq[i].drifted, 0, est->memory)
@@ -1352,7 +1349,6 @@ static void clear_change(equation_t *eq, int n)
     eq->resume = 0;
     eq->recent_resume = 0;
     eq->residual = R_NAN;
-    eq->warm_recent = 0;
 }
 
 static void guard_reset(duffid_estimator *est);
@@ -1972,6 +1968,63 @@ static duffid_real relative_fit(const duffid_real *R, int n, const duffid_real *
     return balance > RC(0.0) ? R_FABS(R[n * p + n]) / R_SQRT(balance) : R_NAN;
 }
 
+/* engine.recent_solution: the unknowns and relative standard errors of the factor R without its
+ * condition number (no singular values): the column-equilibrated factor U is inverted as a
+ * triangle and sqrt(n) |U^-1|_F (|U|_F = sqrt(n)), an upper bound of the condition number
+ * at most sqrt(n) times too large, must stay at most COND_SINGULAR; returns 1 if not */
+static int recent_solution(int n, const duffid_real *R, duffid_real rows, duffid_real overlap, duffid_real *scale,
+                           duffid_real *U, duffid_real *Rinv, duffid_real *theta, duffid_real *rse)
+{
+    duffid_real sum = RC(0.0), bound;
+    int i;
+    if (duffid_la_factor_prepare(n, R, scale, U, Rinv) != 0) {
+        return 1;
+    }
+    for (i = 0; i < n * n; i++) {
+        sum += Rinv[i] * Rinv[i];
+    }
+    bound = R_SQRT((duffid_real)n * sum);
+    if (!(bound <= COND_SINGULAR)) { /* also NaN */
+        return 1;
+    }
+    duffid_la_factor_unknowns(n, R, rows, overlap, scale, Rinv, theta, rse);
+    return 0;
+}
+
+/* engine._alone: per unknown, whether changing it alone reduces the prediction error of theta
+ * on the rows held in the p x p factor R of [A D] by at least share of what their own solution
+ * reduces it by: (c_i . r)^2 >= share |c_i|^2 |r[0..n-1]|^2, with c_i the factor's column i and
+ * r = R [theta; -1] (none when theta is not finite) */
+static void alone(const duffid_real *R, int n, const duffid_real *theta, duffid_real share, int *confirmed)
+{
+    const int p = n + 1;
+    duffid_real r[DUFFID_MAX_UNKNOWNS + 1], gain = RC(0.0);
+    int i, k, finite = 1;
+    for (i = 0; i < n; i++) {
+        finite = finite && is_finite(theta[i]);
+        confirmed[i] = 0;
+    }
+    if (!finite) {
+        return;
+    }
+    for (k = 0; k < n; k++) {
+        duffid_real sum = RC(0.0);
+        for (i = k; i < n; i++) {
+            sum += R[k * p + i] * theta[i];
+        }
+        r[k] = sum - R[k * p + n];
+        gain += r[k] * r[k];
+    }
+    for (i = 0; i < n; i++) {
+        duffid_real dot = RC(0.0), norm2 = RC(0.0);
+        for (k = 0; k <= i; k++) {
+            dot += R[k * p + i] * r[k];
+            norm2 += R[k * p + i] * R[k * p + i];
+        }
+        confirmed[i] = dot * dot >= share * norm2 * gain;
+    }
+}
+
 /* OnlineIdentifier._restart: equation e's data contradict its estimate; its parameters are
  * marked changed (an unknown in departed, or any for the right-hand side) or uncertain */
 static void restart(duffid_estimator *est, int e, const int *departed)
@@ -2006,20 +2059,21 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit)
 {
     equation_t *eq = &est->eq[e];
     const int n = est->m.blocks[e].n_unknowns, p = n + 1;
-    duffid_real theta[DUFFID_MAX_UNKNOWNS], rse[DUFFID_MAX_UNKNOWNS], cond;
-    int departed[DUFFID_MAX_UNKNOWNS], drifted[DUFFID_MAX_UNKNOWNS], i, any = 0, any_drift = 0;
+    duffid_real theta[DUFFID_MAX_UNKNOWNS], rse[DUFFID_MAX_UNKNOWNS];
+    int departed[DUFFID_MAX_UNKNOWNS], drifted[DUFFID_MAX_UNKNOWNS], confirmed[DUFFID_MAX_UNKNOWNS];
+    int i, any = 0, any_drift = 0;
     if (est->n < eq->recent_resume) { /* the recent estimate restarted after a surprise */
         return;
     }
     duffid_la_qr_accumulate(eq->R_recent, p, est->sqrt_lam_recent, est->B_copy, m);
     eq->rows_recent = est->lam_recent * eq->rows_recent + (duffid_real)m;
-    if (duffid_la_solve_factor(n, eq->R_recent, eq->rows_recent, est->last_L, COND_SINGULAR, est->scale, est->U,
-                               est->Rinv, eq->V_recent, &eq->warm_recent, theta, rse, &cond) != 0) {
-        eq->warm_recent = 0;
+    if (recent_solution(n, eq->R_recent, eq->rows_recent, est->last_L, est->scale, est->U, est->Rinv, theta,
+                        rse) != 0) {
         for (i = 0; i < n; i++) {
             theta[i] = R_NAN;
         }
     }
+    alone(eq->R_recent, n, eq->theta, RC(DUFFID_CHANGE_ALONE_SHARE), confirmed);
     for (i = 0; i < n; i++) { /* engine._departure and OnlineIdentifier._departed */
         const duffid_real combined = duffid_la_hypot(eq->rse[i] * R_FABS(eq->theta[i]), rse[i] * R_FABS(theta[i]));
         const int ok = is_finite(eq->theta[i]) && is_finite(theta[i]) && is_finite(combined) && combined > RC(0.0);
@@ -2027,7 +2081,8 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit)
         /* beyond the band a published value may move: significant (departed) or, lasting the
          * recent memory, a share of that (drifted) */
         const int wide = R_FABS(theta[i] - eq->theta[i]) >
-                         RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty * R_FABS(eq->theta[i]);
+                             RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty * R_FABS(eq->theta[i]) &&
+                         confirmed[i]; /* ... and confirmed alone (CHANGE_ALONE_SHARE) */
         departed[i] = wide && eq->departure[i] > est->change_threshold;
         drifted[i] = wide && eq->departure[i] > RC(DUFFID_CHANGE_DRIFT_SHARE) * est->change_threshold;
         any |= departed[i];
@@ -2055,7 +2110,6 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit)
     } else if (eq->surprised >= est->settle_count) { /* the recent estimate starts afresh after it */
         memset(eq->R_recent, 0, (size_t)(p * p) * sizeof(duffid_real));
         eq->rows_recent = RC(0.0);
-        eq->warm_recent = 0;
         for (i = 0; i < n; i++) {
             eq->departure[i] = RC(0.0);
         }

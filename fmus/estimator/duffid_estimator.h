@@ -78,7 +78,11 @@ extern "C" {
  *                than change_threshold combined standard errors and by more than a published
  *                value may move, DUFFID_LOSS_FACTOR x max_uncertainty, for settle s, or by
  *                DUFFID_CHANGE_DRIFT_SHARE of those standard errors and that band for the
- *                recent estimate's memory (a drift); after a
+ *                recent estimate's memory (a drift); either counts an unknown only while
+ *                changing it alone (the others kept at the accumulated values) reduces the
+ *                accumulated estimate's prediction error on the recent rows by at least
+ *                DUFFID_CHANGE_ALONE_SHARE of what the recent estimate reduces it by (a bias
+ *                that moves with the excitation moves the unknowns jointly); after a
  *                window whose prediction error was DUFFID_CHANGE_SURPRISE times that of the
  *                accumulated rows, the recent estimate starts afresh): the least squares
  *                restart with the first window after the change, the value is withdrawn

@@ -76,6 +76,8 @@ PUBLICATION: tuple[Fact, ...] = (
          "change test: a window's prediction error this many times the accumulated rows' restarts the recent estimate"),
     Fact("DUFFID_CHANGE_DRIFT_SHARE", engine.CHANGE_DRIFT_SHARE,
          "change test: a departure of this share of the threshold beyond the band, lasting the recent memory, is a drift"),
+    Fact("DUFFID_CHANGE_ALONE_SHARE", engine.CHANGE_ALONE_SHARE,
+         "change test: an unknown counts while changing it alone gains this share of the recent fit's prediction gain"),
     Fact("DUFFID_GROWTH_STEADY", engine.GROWTH_STEADY,
          "a growing window's estimate steady while the window grew by this share"),
     Fact("DUFFID_MIN_SAMPLES", engine.MIN_SAMPLES, "samples before any solution is identified"),

@@ -38,8 +38,8 @@ from .orthogonal import BASES
 from .regressors import KernelBank, SlidingMoments, row_exponents
 
 __all__ = ["OnlineIdentifier", "check_record", "Identification", "Estimate", "METHODS",
-           "STATUSES", "CHANGE_WINDOWS", "CHANGE_SURPRISE", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "prior_sizes", "filtered_cramer", "combine_equations",
-           "auto_window", "Integrators", "solve_factor", "triangular_factor", "equilibrated_condition"]
+           "STATUSES", "CHANGE_WINDOWS", "CHANGE_SURPRISE", "CHANGE_ALONE_SHARE", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "prior_sizes", "filtered_cramer", "combine_equations",
+           "auto_window", "Integrators", "solve_factor", "recent_solution", "triangular_factor", "equilibrated_condition"]
 
 #: The online methods (OnlineIdentifier, :data:`duffid.identification.options.ONLINE_METHODS`)
 #: and the buffered orthogonal-function methods of section 4 (duffid.identification.buffered);
@@ -99,6 +99,15 @@ CHANGE_SURPRISE = 12.0
 #: published value may move (:data:`LOSS_FACTOR` times ``max_uncertainty``) and lasts the recent
 #: estimate's memory (``change_memory``) is a change too.
 CHANGE_DRIFT_SHARE = 0.5
+#: The change test's confirmation, a likelihood ratio of one changed unknown against all: either
+#: rule counts an unknown only while changing it alone (every other unknown kept at the
+#: accumulated values) reduces the accumulated estimate's prediction error on the recent rows
+#: by at least this share of what the recent solution reduces it by (see :func:`_alone`). A
+#: changed parameter explains the recent rows' misfit on its own; a constant plant whose
+#: estimator bias moves with the excitation (a swept sine narrows the band of the recent rows,
+#: whose solution then slides along an almost collinear pair such as the mass and the
+#: stiffness, fitting their noise) is fitted better only by moving the unknowns jointly.
+CHANGE_ALONE_SHARE = 0.5
 
 
 # ---------------------------------------------------------------------- channels
@@ -334,6 +343,56 @@ def solve_factor(R_aug: np.ndarray, rows: float, overlap: float
     return theta, cond, rse, share, rhs_share
 
 
+def recent_solution(R_aug: np.ndarray, rows: float, overlap: float) -> tuple[np.ndarray, np.ndarray]:
+    """The unknowns and relative standard errors of :func:`solve_factor`, without its condition
+    number (the change test's recent estimate needs neither that nor the shares).
+
+    The column-equilibrated factor ``U`` is inverted as a triangle; instead of the singular
+    values, ``sqrt(n) |U^-1|_F`` (``|U|_F = sqrt(n)``: its columns have unit norm), which bounds
+    the condition number from above and exceeds it by at most ``sqrt(n)`` times, must stay at
+    most ``1e14`` (:func:`solve_factor`'s limit) for a solution.
+
+    Parameters
+    ----------
+    R_aug : ndarray, shape (n + 1, n + 1)
+        Upper-triangular factor of the rows ``[A D]``.
+    rows : float
+        Number of rows it holds (weighted by the forgetting).
+    overlap : float
+        Inflation of the residual variance, as :func:`solve_factor`'s.
+
+    Returns
+    -------
+    theta : ndarray, shape (n,)
+        The unknowns (NaN when the factor is singular or its bound above the limit).
+    rse : ndarray, shape (n,)
+        Their relative standard errors (inf when undetermined).
+    """
+    n = R_aug.shape[0] - 1
+    R = R_aug[:n, :n]
+    scale = np.linalg.norm(R, axis=0)
+    nan, inf = np.full(n, np.nan), np.full(n, np.inf)
+    if not np.all(scale > 0):
+        return nan, inf
+    U = R / scale
+    if not np.all(np.diag(U) != 0):
+        return nan, inf
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        Rinv = np.linalg.inv(U)
+        bound = float(np.sqrt(n * np.sum(Rinv**2)))
+    if not bound <= 1e14:  # also NaN
+        return nan, inf
+    theta = Rinv @ R_aug[:n, n] / scale
+    dof = rows - n
+    if dof <= 0:
+        return theta, inf
+    s2 = R_aug[n, n] ** 2 / dof * overlap
+    std = np.sqrt(s2 * np.sum(Rinv**2, axis=1)) / scale
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rse = np.where(theta != 0, std / np.abs(theta), np.inf)
+    return theta, rse
+
+
 class Integrators:
     """Cascade of ``depth`` integrators per input channel, fixed t0 at the first sample."""
 
@@ -411,6 +470,39 @@ def _departure(theta: np.ndarray, rse: np.ndarray, recent: np.ndarray, recent_rs
     combined = np.hypot(rse * np.abs(theta), recent_rse * np.abs(recent))
     ok = np.isfinite(theta) & np.isfinite(recent) & np.isfinite(combined) & (combined > 0)
     return np.where(ok, np.abs(recent - theta) / np.where(ok, combined, 1.0), 0.0)
+
+
+def _alone(R_aug: np.ndarray, theta: np.ndarray, share: float) -> np.ndarray:
+    """Per unknown, whether changing it alone reduces the prediction error of ``theta`` on the
+    rows held in the factor ``R_aug`` of ``[A D]`` by at least ``share`` of what their own
+    least-squares solution reduces it by.
+
+    With ``r = R_aug [theta; -1]`` (the rows' residual under ``theta``, rotated; its last entry
+    is minus their own residual), their own solution reduces the squared prediction error by
+    ``|r[:n]|^2``, and the best change of unknown ``i`` alone by ``(c_i . r)^2 / |c_i|^2`` (``c_i``
+    the factor's column ``i``). Compared without a division; a non-finite ``theta`` confirms none.
+
+    Parameters
+    ----------
+    R_aug : ndarray, shape (n + 1, n + 1)
+        Upper-triangular factor of the rows ``[A D]`` (the recent least squares).
+    theta : ndarray, shape (n,)
+        The solution whose prediction error is tested (the accumulated one).
+    share : float
+        The least share of the rows' own gain a change of one unknown must achieve.
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+        Per unknown: its change alone is confirmed.
+    """
+    n = R_aug.shape[0] - 1
+    if not np.all(np.isfinite(theta)):
+        return np.zeros(n, dtype=bool)
+    residual = R_aug @ np.append(theta, -1.0)
+    columns = R_aug[:, :n]
+    gain = float(np.sum(residual[:n] ** 2))
+    return (columns.T @ residual) ** 2 >= share * np.sum(columns**2, axis=0) * gain
 
 
 def prior_sizes(model: Chain, nominal: Mapping[str, float] | None) -> dict[str, float]:
@@ -832,11 +924,13 @@ class OnlineIdentifier(Identifier):
             if threshold is None or self.n < st.recent_resume:  # no test, or the recent estimate restarted
                 continue
             recent.update(A, D)
-            theta, _, rse = solve_factor(recent.R, recent.rows, float(L))[:3]
+            theta, rse = recent_solution(recent.R, recent.rows, float(L))
             st.departure = _departure(st.theta, st.rse, theta, rse)
             # a departure matters when significant and larger than a published value may move;
             # a smaller one beyond that band matters once it lasts the recent memory (a drift)
             wide = np.abs(theta - st.theta) > LOSS_FACTOR * self.options["max_uncertainty"] * np.abs(st.theta)
+            # ... and only while a change of it alone explains the recent rows (CHANGE_ALONE_SHARE)
+            wide &= _alone(recent.R, st.theta, CHANGE_ALONE_SHARE)
             departed = (st.departure > threshold) & wide
             drifted = (st.departure > CHANGE_DRIFT_SHARE * threshold) & wide
             st.departed = st.departed + 1 if departed.any() else 0
