@@ -170,3 +170,29 @@ def test_the_cli_identifies_an_accelerometer_record_and_refuses_what_does_not_ap
         assert f"{named} do(es) not apply to this acceleration record" in capsys.readouterr().err
     assert main(["nonlinearity", str(path), "--columns", "t=time,f=load,a=acc", "--scale", "a=9.80665"]) == 2
     assert "velocity (v) and acceleration (a) channels are identified by duffid identify" in capsys.readouterr().err
+
+
+def test_two_dofs_without_a_physical_start_are_refused_in_words():
+    """A 2-DOF chain: the integrated accelerations give the algebraic estimator no physical start
+    (and the frequency-response start is 1-DOF only): nothing is published, the note says why."""
+    from duffid import Duffing2
+    from duffid.identification.refine import OdeSimulator
+
+    model = Duffing2(m1=2.0, b1=4.0, k1=8000.0, kp1=4e7, m2=1.5, b2=3.0, k2=6000.0, kp2=3e7)
+    dt = 5e-4
+    t = np.arange(0.0, 6.0, dt)
+    f = Multisine(60.0, 1.0, 40.0, 6.0, phases="random", seed=1)(t)
+    a = OdeSimulator(model, dt, substeps=8, free=()).simulate(model.canonical_parameters(), f, [0, 0], [0, 0],
+                                                                output="a")
+    result = identify_motion(Record(t, f, measured(a, 50, 10), source="two", motion="a"), Duffing2())
+    assert not any(np.isfinite(v) for v in result.parameters.values())
+    assert "no physical start" in result.assessment.notes[0]
+
+
+def test_an_equation_model_is_refused_by_name():
+    from duffid.models.equation_model import EquationModel
+
+    t = np.arange(200) * 1e-3
+    model = EquationModel("m*der(x,2) + k*x = f")
+    with pytest.raises(InputError, match="an equation model needs a displacement for now"):
+        identify_motion(Record(t, np.sin(t), np.cos(t), source="r", motion="a"), model)

@@ -207,6 +207,10 @@ def identify_motion(record: Record, model: Chain, motion: str | None = None, *, 
         ``explained``, ``bias`` and ``bias_std`` per DOF, ``start`` and ``cutoff_hz``), and
         notes in words.
     """
+    if not isinstance(model, Chain):
+        raise InputError(f"{getattr(model, 'name', model)!r}: identification from a velocity or acceleration takes "
+                         "the built-in models and chains (duffing1, duffing2, chain, circuit); an equation model "
+                         "needs a displacement for now")
     motion = record.motion if motion is None else motion
     if motion not in MOTIONS:
         raise InputError(f"motion must be one of {', '.join(MOTIONS)} (velocity, acceleration), got {motion!r}; "
