@@ -14,7 +14,9 @@ gives a starting point, never a published value:
 1. the measured signal is integrated once (velocity) or twice (acceleration), its mean and
    a polynomial trend removed, and high-passed without phase (:func:`integrated_displacement`);
 2. the algebraic estimator runs on that displacement (a constant force among its unknowns):
-   its final solution is the start;
+   its final solution is the start, or, when that is not physical (the integrated
+   displacement's drift can spoil it: a swept sine, two DOFs), the chain's linear matrices
+   fitted to the frequency response;
 3. the output-error fit of :func:`duffid.identification.refine.refine` then simulates the
    model under the measured force and matches the simulated velocity or acceleration to the
    measured one (no integration of the measurement enters the criterion, so its noise adds
@@ -60,8 +62,8 @@ FIT_TOLERANCE = 1.2
 #: force's power lies (the force's lowest content), never below two cycles per record.
 START_POWER = 0.01
 
-#: A fallback start (1 DOF, when the algebraic one is not physical): each nonlinear stiffness
-#: term this share of the linear one at the displacement's RMS (hardening).
+#: The fallback start (when the algebraic one is not physical): each nonlinear stiffness term
+#: this share of its DOF's linear one at the displacement's RMS (hardening).
 START_NONLINEAR = 0.05
 #: ... fitted over the frequency bins with at least this share of the force's largest power.
 START_BINS = 1e-3
@@ -124,7 +126,7 @@ def _start(record: Record, model: Chain, motion: str, cutoff: float | None
     # the estimator's final solution (a constant force among its unknowns), never published
     values = final_estimates(displacement, with_force_offsets(model))
     start = {k: float(values.get(k, math.nan)) for k in model.parameters}
-    if not _physical(model, start) and model.n_dof == 1:
+    if not _physical(model, start):
         start = _linear_start(record, model, x)
     return start, cutoff, (x, v)
 
@@ -141,35 +143,42 @@ def _physical(model: Chain, values: dict[str, float]) -> bool:
 
 
 def _linear_start(record: Record, model: Chain, x: np.ndarray) -> dict[str, float]:
-    """A 1-DOF start from the frequency response: mass, damping and linear stiffness fitted to
-    F / X = k - m w^2 + i b w over the bins that carry the force's power (the band-limited
-    displacement ``x``), every nonlinear stiffness at :data:`START_NONLINEAR` of the linear
-    one at the displacement's RMS."""
-    f = record.f[:, 0] - record.f[:, 0].mean()
-    spectrum_f, spectrum_x = np.fft.rfft(f), np.fft.rfft(x[:, 0])
-    w = 2 * np.pi * np.fft.rfftfreq(len(f), record.dt)
-    power = np.abs(spectrum_f) ** 2
-    used = (power >= START_BINS * power[1:].max()) & (w > 0) & (np.abs(spectrum_x) > 0)
-    h = spectrum_f[used] / spectrum_x[used]
-    design = np.vstack([np.column_stack([np.ones(used.sum()), -w[used] ** 2, np.zeros(used.sum())]),
-                        np.column_stack([np.zeros(used.sum()), np.zeros(used.sum()), w[used]])])
-    weights = np.concatenate([np.abs(spectrum_x[used]), np.abs(spectrum_x[used])])  # F/X error ~ 1/|X|
-    k, m, b = np.linalg.lstsq(design * weights[:, None], np.concatenate([h.real, h.imag]) * weights, rcond=None)[0]
-    spread = float(np.std(x))
-    canonical = {}
+    """A start from the frequency response: the masses, dampings and linear stiffnesses fitted
+    to ``(K - w^2 M + i w B) X = F`` (:meth:`~duffid.models.chain.Chain.linear_matrices`, linear
+    in them) over the bins that carry the force's power, with the band-limited displacements
+    ``x``; every nonlinear stiffness term at :data:`START_NONLINEAR` of its DOF's linear one at
+    the displacement's RMS (hardening), other terms (friction, offsets) 0."""
+    n = model.n_dof
+    spectrum_f = np.fft.rfft(record.f - record.f.mean(axis=0), axis=0)
+    spectrum_x = np.fft.rfft(x, axis=0)
+    w = 2 * np.pi * np.fft.rfftfreq(len(x), record.dt)
+    power = np.sum(np.abs(spectrum_f) ** 2, axis=1)
+    used = (power >= START_BINS * power[1:].max()) & (w > 0)
+    names = [k for k in model.canonical_parameters() if k[0] in "mb" or (k[0] == "k" and k.endswith("_1"))]
+    columns = []
+    for name in names:  # each linear parameter's share of (K - w^2 M + i w B) X, every bin and DOF
+        unit = {**{f"m{i + 1}": 0.0 for i in range(n)}, name: 1.0}  # every mass is needed, 0 but this one
+        M, B, K = model.linear_matrices(unit)
+        term = (np.einsum("ij,wj->wi", K, spectrum_x[used]) - w[used, None] ** 2 * np.einsum(
+            "ij,wj->wi", M, spectrum_x[used]) + 1j * w[used, None] * np.einsum("ij,wj->wi", B, spectrum_x[used]))
+        columns.append(term.ravel())
+    forces = np.zeros((used.sum(), n), dtype=complex)
+    forces[:, :record.n_forces] = spectrum_f[used]
+    design = np.array(columns).T
+    solution = np.linalg.lstsq(np.vstack([design.real, design.imag]),
+                               np.concatenate([forces.ravel().real, forces.ravel().imag]), rcond=None)[0]
+    canonical = dict(zip(names, solution))
+    spread = np.std(x, axis=0)
     for name in model.canonical_parameters():
-        if name == "m1":
-            canonical[name] = m
-        elif name == "b1":
-            canonical[name] = b
-        elif name == "k1_1":
-            canonical[name] = k
-        elif name.startswith("k1_"):
-            canonical[name] = START_NONLINEAR * k / spread ** (int(name[3:]) - 1)
+        if name in canonical:
+            continue
+        dof, _, order = name[1:].partition("_")
+        if name[0] == "k" and order.isdigit() and dof.isdigit():
+            i = int(dof) - 1
+            canonical[name] = START_NONLINEAR * canonical[f"k{i + 1}_1"] / spread[i] ** (int(order) - 1)
         else:
             canonical[name] = 0.0
     return model.from_canonical(canonical)
-
 
 def identify_motion(record: Record, model: Chain, motion: str | None = None, *, max_uncertainty: float = 0.01,
                     cutoff: float | None = None, segment: int | None = None,

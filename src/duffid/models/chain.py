@@ -598,8 +598,11 @@ class Chain:
             net = net - np.asarray(self.coulomb) * np.tanh(v / friction_velocity)
         return net / np.asarray(self.masses)
 
-    def _linear_matrices(self, parameters: Mapping[str, float] | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Mass, damping and stiffness matrices of the chain linearised about x = 0."""
+    def linear_matrices(self, parameters: Mapping[str, float] | None = None
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Mass, damping and stiffness matrices of the chain linearised about x = 0, from canonical
+        ``parameters`` (default: the model's values); linear in the masses, dampings and linear
+        stiffnesses (a missing damping or stiffness counts as 0)."""
         p = self.canonical_parameters() if parameters is None else parameters
         n = self.n_dof
 
@@ -617,13 +620,13 @@ class Chain:
 
     def linear_natural_frequencies(self, parameters: Mapping[str, float] | None = None) -> np.ndarray:
         """Undamped natural frequencies [rad/s] of the linearised chain about x = 0."""
-        M, _, K = self._linear_matrices(parameters)
+        M, _, K = self.linear_matrices(parameters)
         eig = np.linalg.eigvals(np.linalg.solve(M, K))
         return np.sqrt(np.sort(np.abs(eig.real)))
 
     def linear_poles(self, parameters: Mapping[str, float] | None = None) -> np.ndarray:
         """Poles [rad/s] of the chain linearised about x = 0 (viscous damping included)."""
-        M, B, K = self._linear_matrices(parameters)
+        M, B, K = self.linear_matrices(parameters)
         n = self.n_dof
         A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, K), -np.linalg.solve(M, B)]])
         return np.linalg.eigvals(A)
