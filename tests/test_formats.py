@@ -466,7 +466,7 @@ def test_csv_refuses_velocity_and_acceleration_roles(files):
         Record.read(files["csv"], columns={"t": "t", "f": "f", "a": "x"})
 
 
-def test_motion_records_read_velocities_and_accelerations_in_si(tmp_path, record, files):
+def test_motion_records_read_velocities_and_accelerations_in_si(tmp_path, record, files, capsys):
     """With motion=True (duffid identify), v= or a= take the displacement's place; units convert
     (g to m/s^2), the record says what it measures, and a displacement's user refuses it."""
     path = _tdms(tmp_path, record, disp={"unit_string": "g"})
@@ -474,6 +474,9 @@ def test_motion_records_read_velocities_and_accelerations_in_si(tmp_path, record
     assert got.motion == "a" and got.column_names == ["t", "f", "a"]
     np.testing.assert_allclose(got.x, record.x * 1e3 * 9.80665, rtol=1e-12)  # the helper writes mm
     assert Record.read(path, motion=True).motion == "a"  # one force, one acceleration: found by unit
+    assert main(["inspect", str(path)]) == 0
+    assert "without --columns: f=Data/force, a=Data/disp (an acceleration: duffid identify only)" in \
+        capsys.readouterr().out
     assert got.slice(0.1, 0.5).motion == "a" and got.scaled({"a": 2.0}).motion == "a"
     with pytest.raises(RecordError, match=r"the record measures accelerations \(a\), not displacements: the "
                                           r"nonlinearity index needs a displacement"):

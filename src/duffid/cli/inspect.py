@@ -31,9 +31,11 @@ def run(args: argparse.Namespace) -> int:
     """Run ``duffid inspect``: one line per channel, then the channels read by default (or why none)."""
     channels = list_channels(args.file, args.format)
     rows = channel_table(channels)
-    try:
-        chosen = {role: c.name for role, c in select(channels, None, str(args.file)).items()}
+    try:  # identify also takes a velocity or acceleration; the other commands a displacement only
+        chosen = {role: c.name for role, c in select(channels, None, str(args.file), motion=True).items()}
         default = "without --columns: " + ", ".join(f"{role}={name}" for role, name in chosen.items())
+        if not {"v", "a"}.isdisjoint(chosen):
+            default += " (" + ("a velocity" if "v" in chosen else "an acceleration") + ": duffid identify only)"
     except RecordError as exc:
         chosen = {}
         reason = str(exc).split(" (channels: ")[0].removeprefix(f"{args.file}: ")
