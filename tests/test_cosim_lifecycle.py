@@ -36,13 +36,17 @@ def pyfmus(tmp_path_factory):
 
 
 @pytest.fixture
-def no_new_cosim_folders():
-    mine = "duffid-cosim-"
-    before = {n for n in os.listdir(tempfile.gettempdir()) if n.startswith(mine)}
+def no_new_cosim_folders(tmp_path_factory, monkeypatch):
+    """The test's temporary folders go to a folder of its own (this process's tempfile and a
+    child's TMPDIR), so that runs of other tests beside it (pytest-xdist) are not counted; none
+    of them may be left there."""
+    private = tmp_path_factory.mktemp("tmpdir")
+    monkeypatch.setattr(tempfile, "tempdir", str(private))
+    monkeypatch.setenv("TMPDIR", str(private))
     cwd = os.getcwd()
     yield
     assert os.getcwd() == cwd and os.path.isdir(cwd)  # never left in a deleted folder
-    assert {n for n in os.listdir(tempfile.gettempdir()) if n.startswith(mine)} <= before
+    assert not [n for n in os.listdir(private) if n.startswith("duffid-cosim-")]
 
 
 # ------------------------------------------------------------------ an FMU that asks to stop

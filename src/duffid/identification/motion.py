@@ -249,10 +249,11 @@ def identify_motion(record: Record, model: Chain, motion: str | None = None, *, 
     spread = float(np.max(np.std(record.x, axis=0)))
     explained = bool(fit.success and fit.rms <= FIT_TOLERANCE * noise)
     status, uncertainty = {}, {}
-    for name, value in fit.parameters.items():
-        relative = fit.relative_std.get(model.canonical_name(name), math.nan)
+    for name in fit.parameters:
+        canonical = model.canonical_name(name)
+        relative = fit.relative_std.get(canonical, math.nan)
         uncertainty[name] = relative
-        ok = explained and model.is_physical(name, value) and relative <= max_uncertainty
+        ok = explained and model.is_physical(canonical, fit.canonical[canonical]) and relative <= max_uncertainty
         status[name] = STATUSES[1] if ok else STATUSES[0]
     if explained:
         notes.append(f"the model simulated under the measured force follows the measured {word} to its noise "
