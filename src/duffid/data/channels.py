@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import RecordError
 from .units import QUANTITY_OF_ROLE, lookup, si_factor
 
-__all__ = ["Channel", "READ_PART", "ROLE_PATTERN", "MOTION_NOT_YET", "MOTION_FAMILIES", "numeric", "check_roles",
+__all__ = ["Channel", "READ_PART", "ROLE_PATTERN", "MOTION_NOT_YET", "MOTION_FAMILIES", "FAMILY_WORDS", "numeric", "check_roles",
            "channel_table", "select", "motion_of", "assemble"]
 
 #: A role of the selection syntax: ``t``, ``f``, ``x``, ``v``, ``a`` or numbered ``f1``, ``x2``, ...
@@ -41,7 +41,8 @@ _NAME_HINTS = {
     "velocity": re.compile(r"v\d*|vel\w*|velocity\w*", re.I),
     "acceleration": re.compile(r"a\d*|acc\w*|accel\w*|acceleration\w*", re.I),
 }
-_FAMILY_WORDS = {"f": "forces", "x": "displacements", "v": "velocities", "a": "accelerations"}
+#: What a role family holds, in words (plural).
+FAMILY_WORDS = {"f": "forces", "x": "displacements", "v": "velocities", "a": "accelerations"}
 
 
 def numeric(dtype: np.dtype) -> bool:
@@ -161,7 +162,7 @@ def check_roles(roles: Sequence[str], source: str, *, motion: bool = False
                               f"drop {named} from the selection")
         raise RecordError(f"{source}: {named} selects {what} channel and no displacement: {MOTION_NOT_YET}")
     if len(kinds) > 1:
-        raise RecordError(f"{source}: the selection mixes {' and '.join(_FAMILY_WORDS[k] for k in kinds)}; give one "
+        raise RecordError(f"{source}: the selection mixes {' and '.join(FAMILY_WORDS[k] for k in kinds)}; give one "
                           "kind of motion (x, v or a) for every DOF")
     fam = kinds[0] if kinds else "x"
     if not families["f"]:
@@ -171,7 +172,7 @@ def check_roles(roles: Sequence[str], source: str, *, motion: bool = False
                           + (", or v / a: velocities or accelerations)" if motion else ")"))
     if len(families["f"]) > len(families[fam]):
         raise RecordError(f"{source}: {len(families['f'])} force channels but {len(families[fam])} "
-                          f"{_FAMILY_WORDS[fam][:-1]} channels; force j acts on DOF j, so there may not be more forces "
+                          f"{FAMILY_WORDS[fam][:-1]} channels; force j acts on DOF j, so there may not be more forces "
                           "than motion channels")
     return ("t" if "t" in roles else None), families["f"], families[fam]
 

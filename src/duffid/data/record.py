@@ -31,7 +31,7 @@ import scipy.io
 from scipy.io.matlab import MatReadError
 
 from ..errors import InputError, OptionError, RecordError
-from .channels import MOTION_FAMILIES, Channel, assemble, check_roles, motion_of, select
+from .channels import FAMILY_WORDS, MOTION_FAMILIES, Channel, assemble, check_roles, motion_of, select
 from .formats import detect_format, read_arrays
 from .readers.matlab import is_v73
 from .readers.matlab import open_channels as open_mat_channels
@@ -359,7 +359,7 @@ class Record:
             Naming the record, what it measures and where such a record is taken.
         """
         if self.motion != "x":
-            word = {"v": "velocities", "a": "accelerations"}[self.motion]
+            word = FAMILY_WORDS[self.motion]
             raise RecordError(f"{self.source}: the record measures {word} ({self.motion}), not displacements: "
                               f"{what} needs a displacement. A velocity or acceleration record is identified by "
                               "duffid identify (duffid.identification.motion.identify_motion)")
