@@ -13,7 +13,7 @@ from ..data.record import Record  # noqa: E402
 from ..identification.engine import Identification  # noqa: E402
 
 __all__ = ["plot_estimates", "plot_record", "plot_hilbert", "plot_eta_vs_amplitude", "plot_closed_loop", "plot_payload",
-           "plot_silverbox"]
+           "plot_silverbox", "plot_discovery_residual"]
 
 
 def plot_estimates(result: Identification, path: str | os.PathLike[str], *,
@@ -357,5 +357,35 @@ def plot_silverbox(result: SilverboxResult, path: str | os.PathLike[str]) -> Non
             ax.grid(alpha=0.3)
             ax.legend(fontsize=8, loc="upper left")
     fig.suptitle("Silverbox: simulated vs measured output (dashed: end of the no-extrapolation part)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def plot_discovery_residual(found, record: Record, path: str | os.PathLike[str]) -> None:
+    """The force residual of :func:`duffid.identification.discover.discover`'s best equation
+    against the displacement and the velocity (:func:`~duffid.identification.discover.residual_shape`).
+
+    Parameters
+    ----------
+    found : Discovery
+        The search's outcome.
+    record : Record
+        The record it searched.
+    path : path
+        PNG file to write.
+    """
+    from ..identification.discover import residual_shape
+
+    shape = found.residual or residual_shape(record, found.best.model, found.best.identification.estimates)
+    x, v, r = (np.asarray(shape[k]) for k in ("x", "v", "residual"))
+    fig = Figure(figsize=(10, 4.5))
+    axes = fig.subplots(1, 2, sharey=True)
+    for ax, data, label in ((axes[0], x, "x [m]"), (axes[1], v, "dx/dt [m/s]")):
+        ax.scatter(data, r, s=2, c=np.sign(v), cmap="coolwarm", alpha=0.6)
+        ax.set_xlabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("force residual [N] (red: moving up, blue: down)")
+    fig.suptitle(f"{found.best.equation}\nresidual {shape['rms']:.3g} N RMS: {shape['shape']} "
+                 f"({100 * shape['explained']:.0f} % of it)", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -1,4 +1,4 @@
-"""The command-line interface ``duffid``: one module per subcommand (identify, inspect, simulate,
+"""The command-line interface ``duffid``: one module per subcommand (identify, discover, inspect, simulate,
 nonlinearity, silverbox, build-fmus, cosim, campaign, demo, paper-cases, paper-report), each with ``add_parser``
 and ``run``."""
 from __future__ import annotations
@@ -16,6 +16,7 @@ from . import (
     campaign,
     cosim,
     demo,
+    discover,
     identify,
     inspect,
     nonlinearity,
@@ -28,7 +29,7 @@ from . import (
 __all__ = ["main", "build_parser", "COMMANDS"]
 
 #: Subcommand -> its module (``add_parser(sub)``, ``run(args)``), in the order of ``duffid --help``.
-COMMANDS = {"identify": identify, "inspect": inspect, "simulate": simulate, "nonlinearity": nonlinearity, "silverbox": silverbox,
+COMMANDS = {"identify": identify, "discover": discover, "inspect": inspect, "simulate": simulate, "nonlinearity": nonlinearity, "silverbox": silverbox,
             "build-fmus": build_fmus, "build-estimator": build_estimator, "cosim": cosim, "campaign": campaign,
             "demo": demo, "paper-cases": paper_cases, "paper-report": paper_report}
 

@@ -329,6 +329,22 @@ class EquationModel:
             out[name] = max(shares) if shares else math.nan
         return out
 
+    def equation_residuals(self, values: Mapping[str, float], x: np.ndarray, v: np.ndarray, a: np.ndarray,
+                           f: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """Each equation's residual (left side minus right side, in the equation's own
+        units, e.g. N) at every sample of given displacements, velocities, accelerations,
+        forces and times (arrays of samples x DOFs or forces); the velocity's sign stands for
+        ``sign(der(x))``. Returns samples x equations."""
+        x = np.asarray(x, dtype=float).reshape(len(x), -1)
+        n = len(x)
+        v = np.asarray(v, dtype=float).reshape(n, -1)
+        a = np.asarray(a, dtype=float).reshape(n, -1)
+        f = np.asarray(f, dtype=float).reshape(n, -1)
+        theta = self._theta_vector(values)
+        out = self._residual.map(n)(x.T, v.T, a.T, f.T if self.n_forces else np.zeros((0, n)), np.sign(v).T,
+                                    np.asarray(t, dtype=float)[None, :], np.tile(theta[:, None], (1, n)))
+        return np.asarray(out, dtype=float).T
+
     # ------------------------------------------------------------------ construction
     def _check_scales(self) -> None:
         reg = self.regressor

@@ -1,0 +1,649 @@
+"""When the model does not fit: find the terms a record asks for (``duffid discover``).
+
+Starting from a base equation (a named model's equations or the user's own), :func:`discover`
+searches a library of physically meaningful terms (:data:`DEFAULT_LIBRARY`: x², x³, x⁵,
+|x|·x, x²·ẋ, sign(ẋ) and a constant force; users add their own in the equation syntax of
+:mod:`duffid.models.equation`) for the smallest set the record supports.
+
+How a term is chosen
+--------------------
+1. **Screening, by cross-validation on held-out stretches** (cheap, numpy only). The base
+   equation with every library term is written once as one equation model; the buffered
+   method's rows (:class:`~duffid.identification.buffered.BufferedIdentifier`: Legendre
+   coefficients of the integrated-by-parts equation, :data:`WINDOW_PERIODS` periods per
+   window, windows side by side) are computed once. Terms are ranked by how much each lowers
+   the equation error on stretches the fit did not see (:data:`FOLDS` contiguous folds):
+   cross-validation rather than an information criterion, because the rows of neighbouring
+   windows and the simulation errors of neighbouring samples are correlated, so that no
+   count of samples is the right ``n`` for AIC or BIC, while a held-out stretch measures
+   what a term predicts directly.
+2. **Confirmation, by the checks of** :func:`~duffid.identification.trust.identify`: the best
+   ranked term (then the next, up to :data:`CONFIRM_TRIES`) is added to the equation and the
+   whole record identified with every check. The term enters only if its coefficient is
+   *published* (excited, determined within its bootstrap uncertainty, physically signed) and
+   the simulation of the identified model driven by the measured force removes at least
+   :data:`MIN_GAIN` of what the current model leaves unexplained beyond the noise.
+3. The search stops when the model reproduces the record to its noise (simulation NRMSE at
+   most :data:`NOISE_FIT` times the noise's share), when no term passes, or after
+   ``max_terms`` terms. A model that already explains the record to its noise gets nothing:
+   a term is never "found" in noise.
+
+When no model explains the record, :func:`residual_shape` says what the remaining force
+residual looks like (asymmetry, a hysteresis or friction loop, a dead zone, a change along
+the record) from the smoothed record.
+
+Velocity nonlinearities other than Coulomb friction (``abs(der(x))*der(x)``) cannot be
+integrated by parts without differentiating the measured displacement, so the algebraic
+estimator does not take them (:mod:`duffid.models.equation` rejects the term with that
+reason); they are not in the library.
+"""
+from __future__ import annotations
+
+import math
+import re
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from ..data.record import Record
+from ..errors import EquationError, InputError, RecordError
+from ..models.chain import Chain
+from ..models.equation_model import EquationModel
+from ..models.units import parameter_units
+from .buffered import BufferedIdentifier, velocity_signs
+from .engine import Identification
+from .sampling import content_frequency, noise_level
+from .trust import identify
+
+__all__ = ["DEFAULT_LIBRARY", "TERM_WORDS", "NOISE_FIT", "MIN_GAIN", "Candidate", "Discovery", "discover",
+           "residual_shape"]
+
+#: The default library: each term in the equation syntax, in the equation's own displacement
+#: ``x`` (``x1``, ``x2`` ... in the equations of several masses), with its coefficient's name
+#: and what it means in words.
+DEFAULT_LIBRARY = ("x^2", "x^3", "x^5", "abs(x)*x", "x^2*der(x)", "sign(der(x))", "1")
+#: Coefficient names of the default terms (other terms: ``d1``, ``d2`` ...).
+TERM_NAMES = {"x^2": "k2", "x^3": "k3", "x^5": "k5", "abs(x)*x": "ka", "x^2*der(x)": "c2",
+              "sign(der(x))": "fc", "1": "c0"}
+#: What each default term adds, in words.
+TERM_WORDS = {
+    "x^2": "a quadratic stiffness (a spring stiffer one way than the other)",
+    "x^3": "a cubic stiffness (hardening or softening)",
+    "x^5": "a fifth-power stiffness (a spring that stiffens faster at large amplitude)",
+    "abs(x)*x": "a stiffness growing with |x| (a piecewise-quadratic, symmetric spring)",
+    "x^2*der(x)": "a damping growing with the amplitude (x²·ẋ)",
+    "sign(der(x))": "dry (Coulomb) friction",
+    "1": "a constant force (a force-sensor bias or a preload)",
+}
+#: A model reproduces the record to its noise when its simulation NRMSE is at most this
+#: multiple of the noise's share.
+NOISE_FIT = 1.2
+#: Share of the unexplained variance (simulation NRMSE² minus the noise's) a term must
+#: remove to enter.
+MIN_GAIN = 0.5
+#: A term whose coefficient is not published (not determined to ``max_uncertainty``) is still
+#: present when its coefficient lies at least 1/PRESENCE_UNCERTAINTY standard errors from zero
+#: (relative standard error at most this), physically signed, and its term excited.
+PRESENCE_UNCERTAINTY = 0.2
+#: Terms confirmed (identified with every check) per step, best screened first.
+CONFIRM_TRIES = 2
+#: Most terms added by default.
+MAX_TERMS = 3
+#: Contiguous folds of the screening's cross-validation.
+FOLDS = 5
+#: Screening window, in periods of the displacement's main frequency.
+WINDOW_PERIODS = 4.0
+#: Legendre coefficients per screening window (at most the window's samples).
+SCREEN_TERMS = 24
+
+
+@dataclass
+class Candidate:
+    """One equation tried: the base, or the base with added terms.
+
+    Attributes
+    ----------
+    equation : str
+        Its text.
+    added : tuple of str
+        The terms added to the base, in the equation syntax without their coefficients
+        (``x^2``; in the equations of several masses the term in that mass's displacement,
+        ``x2^2``).
+    coefficients : tuple of str
+        The added terms' coefficient names, in the order of ``added``.
+    identification : Identification
+        The checked identification of the record with it.
+    model : EquationModel
+        The equation as a model.
+    units : dict
+        Parameter -> unit (from the record's SI units, m and N).
+    screening : float
+        Held-out equation error relative to the model it was screened against (below 1: it
+        predicts the held-out stretches better); NaN for the base.
+    verdict : str
+        ``base``, ``accepted`` or why the term was not taken, in words.
+    """
+
+    equation: str
+    added: tuple[str, ...]
+    coefficients: tuple[str, ...]
+    identification: Identification
+    model: EquationModel
+    units: dict[str, str]
+    screening: float = math.nan
+    verdict: str = "base"
+
+    @property
+    def fit(self) -> dict[str, Any]:
+        """The checked identification's fit figures (``simulation_nrmse``, ``noise_nrmse`` ...)."""
+        return dict(self.identification.assessment.fit)
+
+    @property
+    def excess(self) -> float:
+        """What the simulation misses beyond the noise (NRMSE, root of the difference of
+        squares); infinite when the model escapes or cannot be simulated."""
+        fit = self.identification.assessment.fit
+        sim, noise = fit.get("simulation_nrmse", math.nan), fit.get("noise_nrmse", math.nan)
+        if not (sim is not None and np.isfinite(sim)):
+            return math.inf
+        return math.sqrt(max(sim ** 2 - (noise if np.isfinite(noise) else 0.0) ** 2, 0.0))
+
+    @property
+    def explained(self) -> bool:
+        """True when the simulation reproduces the record to its noise (:data:`NOISE_FIT`)."""
+        fit = self.identification.assessment.fit
+        sim, noise = fit.get("simulation_nrmse", math.nan), fit.get("noise_nrmse", math.nan)
+        return bool(sim is not None and np.isfinite(sim) and sim <= NOISE_FIT * noise)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready: equation, added terms, fit, parameters (published values or None),
+        status, uncertainty (relative standard errors), units, screening and verdict."""
+        result = self.identification
+        a = result.assessment.to_dict()
+        return {
+            "equation": self.equation,
+            "added": list(self.added),
+            "fit": a["fit"],
+            "parameters": {k: (float(v) if np.isfinite(v) else None) for k, v in result.parameters.items()},
+            "status": a["status"],
+            "uncertainty": a["uncertainty"],
+            "units": dict(self.units),
+            "screening": float(self.screening) if np.isfinite(self.screening) else None,
+            "verdict": self.verdict,
+            "notes": a["notes"],
+        }
+
+
+@dataclass
+class Discovery:
+    """What :func:`discover` found.
+
+    Attributes
+    ----------
+    base : str
+        The base equation.
+    best : Candidate
+        The smallest supported equation that explains the record best (the base when no
+        term was taken).
+    candidates : list of Candidate
+        Every equation identified with every check, in the order tried (the base first).
+    ranking : list of (str, float)
+        The library's terms with their held-out equation error relative to the base (the
+        screening's first step; below 1: the term predicts held-out stretches better).
+    notes : list of str
+        What was found, in words.
+    residual : dict or None
+        When the best equation does not reproduce the record to its noise:
+        :func:`residual_shape` of its force residual.
+    seconds : float
+        Wall-clock time of the search.
+    """
+
+    base: str
+    best: Candidate
+    candidates: list[Candidate]
+    ranking: list[tuple[str, float]]
+    notes: list[str] = field(default_factory=list)
+    residual: dict[str, Any] | None = None
+    seconds: float = math.nan
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON object of ``duffid discover --json``."""
+        return {
+            "base": self.base,
+            "best": self.best.to_dict(),
+            "candidates": [c.to_dict() for c in self.candidates],
+            "ranking": [{"term": term, "screening": (float(s) if np.isfinite(s) else None)}
+                        for term, s in self.ranking],
+            "notes": list(self.notes),
+            "residual": self.residual,
+            "seconds": self.seconds,
+        }
+
+
+# ---------------------------------------------------------------------- the library
+@dataclass(frozen=True)
+class _Term:
+    """One library term placed in one equation."""
+
+    text: str        #: the library's text, in x
+    placed: str      #: in the equation's own displacement (``x2^2``)
+    equation: int    #: index of the equation
+    coefficient: str #: its coefficient's name
+
+
+def _split_equations(text: str) -> list[str]:
+    return [e.strip() for e in text.split(";") if e.strip()]
+
+
+def _placed(term: str, displacement: str) -> str:
+    """``term`` (in ``x``) written in ``displacement``."""
+    return re.sub(r"\bx\b", displacement, term)
+
+
+def _terms(base: EquationModel, library: Sequence[str], columns: Sequence[str]) -> list[_Term]:
+    """The library's terms, one per equation of the base (in that equation's displacement),
+    with coefficient names not already taken."""
+    taken = set(base.parameters) | set(columns)
+    n_eq = len(base.texts)
+    displacements = ["x"] if "x" in columns else [f"x{i + 1}" for i in range(base.n_dof)]
+    out = []
+    generic = 0
+    for text in library:
+        text = text.strip()
+        if not text:
+            raise InputError("--library: an empty term")
+        stem = TERM_NAMES.get(text.replace(" ", ""))
+        if stem is None:
+            generic += 1
+            stem = f"d{generic}"
+        for i in range(n_eq):
+            name = stem if n_eq == 1 else f"{stem}_{i + 1}"
+            while name in taken:
+                name += "b"
+            taken.add(name)
+            where = displacements[min(i, len(displacements) - 1)]
+            out.append(_Term(text, _placed(text, where), i, name))
+    return out
+
+
+def _with_terms(base_texts: Sequence[str], terms: Sequence[_Term]) -> str:
+    """The base equations with ``terms`` added to the left-hand sides."""
+    texts = list(base_texts)
+    for term in terms:
+        left, right = texts[term.equation].split("=", 1)
+        product = term.coefficient if term.placed == "1" else f"{term.coefficient}*{term.placed}"
+        texts[term.equation] = f"{left.rstrip()} + {product} ={right}"
+    return "; ".join(texts)
+
+
+def _check_term(base_texts: Sequence[str], term: _Term, columns: Sequence[str]) -> None:
+    """An :class:`InputError` naming ``term`` when the equation syntax or the estimator refuses it."""
+    try:
+        EquationModel(_with_terms(base_texts, [term]), columns)
+    except (EquationError, InputError) as exc:
+        raise InputError(f"--library: the term {term.text!r} cannot be identified: {exc}") from None
+
+
+# ---------------------------------------------------------------------- screening
+def _screening_rows(record: Record, model: EquationModel, frequency: float
+                    ) -> list[tuple[list[np.ndarray], list[np.ndarray]]]:
+    """Per equation: the buffered method's rows ``(A, D)`` of every window side by side."""
+    n = record.n_samples
+    period = record.fs / frequency if np.isfinite(frequency) and frequency > 0 else n / 8
+    samples = int(min(max(WINDOW_PERIODS * period, 3 * SCREEN_TERMS), n - 1))
+    reg = model.regression()
+    screen = BufferedIdentifier(reg, record.dt, "legendre", window=samples * record.dt,
+                                n_terms=min(SCREEN_TERMS, samples))
+    N = screen.n_intervals
+    G = reg.evaluate(record.x, record.f, record.t, velocity_signs(record.x))
+    rows: list[tuple[list[np.ndarray], list[np.ndarray]]] = [([], []) for _ in reg.unknowns]
+    for end in range(N, n, N):
+        for i, (A, D) in enumerate(screen.systems(G[end - N:end + 1])):
+            rows[i][0].append(A)
+            rows[i][1].append(D)
+    return rows
+
+
+def _held_out_error(A: list[np.ndarray], D: list[np.ndarray], columns: list[int]) -> float:
+    """Equation error on held-out folds of windows (sum of squares over the held-out
+    right-hand sides'), fitting ``columns`` of the rows on the other folds."""
+    n = len(A)
+    folds = min(FOLDS, n)
+    if folds < 2 or not columns:
+        return math.nan
+    edges = np.linspace(0, n, folds + 1).astype(int)
+    error = total = 0.0
+    for k in range(folds):
+        train = [j for j in range(n) if not edges[k] <= j < edges[k + 1]]
+        test = range(edges[k], edges[k + 1])
+        At = np.vstack([A[j][:, columns] for j in train])
+        Dt = np.concatenate([D[j] for j in train])
+        scale = np.linalg.norm(At, axis=0)
+        scale[scale == 0] = 1.0
+        theta = np.linalg.lstsq(At / scale, Dt, rcond=None)[0] / scale
+        for j in test:
+            error += float(np.sum((D[j] - A[j][:, columns] @ theta) ** 2))
+            total += float(np.sum(D[j] ** 2))
+    return error / total if total > 0 else math.nan
+
+
+class _Screen:
+    """The screening's rows for the base with every library term, and the held-out error of
+    any subset of the terms."""
+
+    def __init__(self, record: Record, base: EquationModel, terms: list[_Term], columns: Sequence[str],
+                 frequency: float) -> None:
+        full = EquationModel(_with_terms(base.texts, terms), columns)
+        self.unknowns = full.regression().unknowns
+        self.rows = _screening_rows(record, full, frequency)
+        self.base_names = set(base.parameters)
+        self.duplicates = self._duplicates(terms)
+
+    def _duplicates(self, terms: list[_Term]) -> set[str]:
+        """Coefficients of terms whose rows are a multiple of a base term's (already in the base)."""
+        out = set()
+        for term in terms:
+            A = np.vstack(self.rows[term.equation][0])
+            names = self.unknowns[term.equation]
+            column = A[:, names.index(term.coefficient)]
+            norm = np.linalg.norm(column)
+            if norm == 0:
+                out.add(term.coefficient)
+                continue
+            for j, name in enumerate(names):
+                if name in self.base_names:
+                    other = A[:, j]
+                    denominator = norm * np.linalg.norm(other)
+                    if denominator > 0 and abs(float(column @ other)) / denominator > 1 - 1e-9:
+                        out.add(term.coefficient)
+        return out
+
+    def error(self, equation: int, chosen: Sequence[str]) -> float:
+        """Held-out equation error of ``equation`` with the base's and ``chosen`` coefficients."""
+        names = self.unknowns[equation]
+        columns = [j for j, k in enumerate(names) if k in self.base_names or k in chosen]
+        A, D = self.rows[equation]
+        return _held_out_error(A, D, columns)
+
+
+# ---------------------------------------------------------------------- search
+def _base_text(base: str | Chain | EquationModel, record: Record) -> str:
+    if isinstance(base, EquationModel):
+        return "; ".join(base.texts)
+    if isinstance(base, Chain):
+        return base.equation_text()
+    return str(base)
+
+
+def discover(record: Record, base: str | Chain | EquationModel = "duffing1", *,
+             library: Sequence[str] | None = None, max_terms: int = MAX_TERMS, refine: bool = True,
+             progress: bool | None = None, jobs: int | None = None,
+             log: Callable[[str], Any] | None = None, **options: Any) -> Discovery:
+    """Find the smallest set of library terms that the record supports.
+
+    Parameters
+    ----------
+    record : Record
+        Forces and displacements (SI units: m, N).
+    base : str, Chain or EquationModel
+        The base equation: its text (``"m*der(x,2) + b*der(x) + k*x + kp*x^3 = f"``), a
+        model name of the registry (``duffing1``, ``duffing2``: that model's equations), or
+        a model.
+    library : sequence of str, optional
+        Candidate terms in the equation syntax, in ``x`` and ``der(x)`` (each placed in every
+        equation in that equation's displacement); default :data:`DEFAULT_LIBRARY`. ``"1"`` is
+        a constant force.
+    max_terms : int
+        Most terms added.
+    refine : bool
+        Refine the chosen equation's values by output-error least squares where the algebraic
+        estimate leaves excited values undetermined (as :func:`~duffid.identification.trust.identify`
+        does; the candidates are judged without it, which never changes whether a term is
+        present, only how many of its values are published).
+    progress : bool or None
+        A line on stderr per identification (None: on a terminal).
+    jobs : int or None
+        Threads of each identification's checks (see :func:`~duffid.identification.trust.identify`).
+    log : callable, optional
+        Receives each progress line instead of stderr.
+    **options
+        Options of the robust method for every identification (``max_uncertainty`` ...).
+
+    Returns
+    -------
+    Discovery
+
+    Raises
+    ------
+    InputError
+        A library term the estimator cannot take, or a base that is not an equation.
+    """
+    from ..models.registry import MODEL_NAMES, model_from_name
+
+    started = time.perf_counter()
+    record.require_displacement("duffid discover (a displacement record)")
+    if max_terms < 0:
+        raise InputError(f"--max-terms must be at least 0, got {max_terms}")
+    columns = record.column_names
+    if isinstance(base, str) and base.strip() in MODEL_NAMES:
+        base = model_from_name(base.strip(), record.n_dof)
+    base_text = _base_text(base, record)
+    base_model = EquationModel(base_text, columns)
+    texts = list(base_model.texts)
+    terms = _terms(base_model, DEFAULT_LIBRARY if library is None else library, columns)
+    checked: set[str] = set()
+    for term in terms:
+        if term.text not in checked:
+            _check_term(texts, term, columns)
+            checked.add(term.text)
+    if progress is None:
+        progress = sys.stderr.isatty()
+    say = log if log is not None else ((lambda line: print(line, file=sys.stderr)) if progress else (lambda line: None))
+
+    def identified(added: list[_Term], screening: float = math.nan, refined: bool = False) -> Candidate:
+        text = _with_terms(texts, added)
+        model = EquationModel(text, columns)
+        say(f"duffid discover: identifying {text}" + (" (with the output-error refinement)" if refined else ""))
+        result = identify(record, model, progress=False, jobs=jobs, refine=refined, **options)
+        units = _units(model)
+        return Candidate(text, tuple(t.placed for t in added), tuple(t.coefficient for t in added), result,
+                         model, units, screening)
+
+    current = identified([])
+    candidates = [current]
+    notes: list[str] = []
+    content = content_frequency(record.x, record.dt, noise=noise_level(record.x))
+    screen = _Screen(record, base_model, terms, columns, content)
+    for term in terms:
+        if term.coefficient in screen.duplicates:
+            notes.append(f"{term.placed}: already in the base equation (not searched)")
+    pool = [t for t in terms if t.coefficient not in screen.duplicates]
+    ranking = _ranked(screen, pool, [])
+    chosen: list[_Term] = []
+    while pool and len(chosen) < max_terms and not current.explained:
+        order = _ranked(screen, pool, [t.coefficient for t in chosen]) if chosen else ranking
+        accepted = None
+        for term, ratio in order[:CONFIRM_TRIES]:
+            if not ratio < 1.0:
+                break
+            trial = identified(chosen + [term], ratio)
+            trial.verdict = _verdict(trial, term, current)
+            candidates.append(trial)
+            if trial.verdict == "accepted":
+                accepted = (term, trial)
+                break
+        if accepted is None:
+            break
+        term, current = accepted
+        chosen.append(term)
+        pool.remove(term)
+    best = current
+    if refine and "uncertain" in best.identification.assessment.status.values():
+        refined = identified(chosen, best.screening, refined=True)
+        refined.verdict = best.verdict
+        candidates[candidates.index(best)] = best = refined
+    notes = _words(best, candidates[0], chosen, max_terms, pool) + notes
+    residual = None
+    if not best.explained:
+        residual = residual_shape(record, EquationModel(best.equation, columns),
+                                  best.identification.estimates)
+        notes.append(residual["words"])
+    return Discovery(base_text, best, candidates, [(t.placed, r) for t, r in ranking], notes, residual,
+                     time.perf_counter() - started)
+
+
+def _ranked(screen: _Screen, pool: list[_Term], chosen: list[str]) -> list[tuple[_Term, float]]:
+    """``pool``'s terms by held-out equation error with ``chosen`` (relative to without), best first."""
+    out = []
+    for term in pool:
+        before = screen.error(term.equation, chosen)
+        after = screen.error(term.equation, chosen + [term.coefficient])
+        out.append((term, after / before if before > 0 else math.nan))
+    out.sort(key=lambda item: item[1] if np.isfinite(item[1]) else math.inf)
+    return out
+
+
+def _verdict(trial: Candidate, term: _Term, current: Candidate) -> str:
+    """``accepted``, or why ``term`` was not taken."""
+    a = trial.identification.assessment
+    name = term.coefficient
+    status = a.status.get(name, "unknown")
+    value = a.values.get(name, trial.identification.estimates.get(name, math.nan))
+    uncertainty = a.uncertainty.get(name, math.nan)
+    if status == "uncertain":
+        if not uncertainty <= PRESENCE_UNCERTAINTY:
+            return (f"not taken: its coefficient {name} is not told from zero (relative standard error "
+                    f"{100 * uncertainty:.2g} %)" if np.isfinite(uncertainty) else
+                    f"not taken: its coefficient {name} is not determined")
+        if not trial.model.is_physical(name, value):
+            return f"not taken: its coefficient {name} = {value:.4g} has the sign of no physical {term.text}"
+    elif status != "published":
+        return f"not taken: its coefficient {name} is {status}"
+    before, after = current.excess, trial.excess
+    if not np.isfinite(after):
+        return "not taken: the model with it does not reproduce the record (its simulation escapes)"
+    if np.isfinite(before) and after ** 2 > (1 - MIN_GAIN) * before ** 2:
+        return (f"not taken: it removes {100 * (1 - after ** 2 / before ** 2):.0f} % of the unexplained "
+                f"variance ({100 * MIN_GAIN:.0f} % needed)")
+    return "accepted"
+
+
+def _words(best: Candidate, base: Candidate, chosen: list[_Term], max_terms: int,
+           pool: list[_Term]) -> list[str]:
+    """The search's outcome in words."""
+    fit = best.identification.assessment.fit
+    sim, noise = fit.get("simulation_nrmse", math.nan), fit.get("noise_nrmse", math.nan)
+    shown = (f"{100 * sim:.3g} % RMS (noise {100 * noise:.2g} %)" if sim is not None and np.isfinite(sim)
+             else "not at all (its simulation escapes)")
+    if not chosen:
+        if base.explained:
+            return [f"the base equation reproduces the record to its noise ({shown}): nothing to add"]
+        return [f"no library term is supported by the record: the base equation misses the measured "
+                f"displacement by {shown}, and no term makes it fit with a published coefficient"]
+    added = "; ".join(f"{t.placed}: {TERM_WORDS.get(t.text, 'the term ' + t.text)}" for t in chosen)
+    lines = [f"the record asks for {len(chosen)} term{'s' if len(chosen) > 1 else ''} beyond the base "
+             f"({added}); with {'them' if len(chosen) > 1 else 'it'} the model misses the measured "
+             f"displacement by {shown}"]
+    if any(t.text == "x^2" for t in chosen) and re.search(r"\bx\d*\s*\^\s*3\b", best.equation):
+        lines.append("a quadratic stiffness next to a cubic one is also what a displacement-sensor offset "
+                     "looks like (k(x - x0) + kp(x - x0)^3 holds an x^2 term and a constant): if the spring "
+                     "should be symmetric, try duffid identify --offset displacement")
+    if not best.explained and len(chosen) >= max_terms and pool:
+        lines.append(f"stopped after {max_terms} terms (--max-terms) before the record was explained")
+    return lines
+
+
+def _units(model: EquationModel) -> dict[str, str]:
+    """Parameter units from the record's SI signals (m, N; s for time)."""
+    sig = model.regressor.signals
+    units = {name: "m" for name in sig.x_names} | {name: "N" for name in sig.f_names}
+    try:
+        return parameter_units(model, units)
+    except InputError:
+        return {}
+
+
+# ---------------------------------------------------------------------- residual
+#: Cutoff of the residual's smoothing, in multiples of the displacement's highest frequency.
+SMOOTHING = 2.0
+#: Feature groups that describe a force residual, with what each means.
+_SHAPES = (
+    ("asymmetry", "it is even in the displacement (an asymmetric spring, a preload or a sensor offset)"),
+    ("hysteresis", "it depends on the direction of motion (a hysteresis or friction loop)"),
+    ("dead zone", "it is odd in the displacement and concentrated near rest (a dead zone or a clearance)"),
+    ("time variation", "it grows or shrinks along the record (a parameter that changes: drift, wear, temperature)"),
+    ("stronger stiffness", "it is odd in the displacement and grows at large amplitude (a higher-order spring)"),
+)
+
+
+def residual_shape(record: Record, model: EquationModel, values: Mapping[str, float]) -> dict[str, Any]:
+    """What the force residual of ``model`` with ``values`` looks like on ``record``.
+
+    The displacement is low-pass filtered without phase shift (8th-order Butterworth at
+    :data:`SMOOTHING` times the highest frequency of the displacement or the force) and differentiated to evaluate each equation's residual (in N). The residual of the first
+    equation is regressed on groups of features (even functions of x; the direction of
+    motion and its product with x; odd functions concentrated near rest; the model's own
+    terms times time; odd powers of x beyond the cube), and the group explaining most of
+    its variance names the shape.
+
+    Returns
+    -------
+    dict
+        ``shape`` (the best group's name or ``"unstructured"``), ``explained`` (its share of
+        the residual's variance), ``shares`` (every group's), ``rms`` (residual RMS, N),
+        ``force_rms`` (the force's RMS, N), ``words``, and the samples ``x``, ``v`` and
+        ``residual`` (for a plot; at most 4,000, evenly picked).
+    """
+    from scipy.signal import butter, sosfiltfilt
+
+    content = max(content_frequency(record.x, record.dt, noise=noise_level(record.x)),
+                  content_frequency(record.f, record.dt))
+    cutoff = min(SMOOTHING * content, 0.4 * record.fs) if np.isfinite(content) and content > 0 else 0.1 * record.fs
+    period = record.fs / cutoff
+    edge = int(4 * period)
+    if record.n_samples < 4 * edge:
+        raise RecordError(f"{record.source}: too short to describe the residual ({record.n_samples} samples)")
+    x = sosfiltfilt(butter(8, cutoff, fs=record.fs, output="sos"), record.x, axis=0)
+    v = np.gradient(x, record.dt, axis=0)
+    a = np.gradient(v, record.dt, axis=0)
+    clean = {k: (float(val) if np.isfinite(val) else 0.0) for k, val in values.items()}
+    residual = model.equation_residuals(clean, x, v, a, record.f, record.t)[:, 0]
+    x1, v1, r = x[edge:-edge, 0], v[edge:-edge, 0], residual[edge:-edge]
+    t = record.t[edge:-edge] - record.t[edge]
+    scale = max(float(np.max(np.abs(x1))), 1e-300)
+    u = x1 / scale
+    direction = np.sign(v1)
+    near = np.exp(-(u / 0.2) ** 2)
+    tau = t / max(float(t[-1]), 1e-300) - 0.5
+    groups = {
+        "asymmetry": [u ** 2, np.abs(u), u ** 4, np.ones_like(u)],
+        "hysteresis": [direction, direction * u, direction * u ** 2, v1 / max(float(np.max(np.abs(v1))), 1e-300)],
+        "dead zone": [near * u, np.sign(u) * (1 - near)],
+        "time variation": [tau * u, tau * u ** 3, tau * a[edge:-edge, 0] / max(float(np.max(np.abs(a))), 1e-300)],
+        "stronger stiffness": [u ** 5, u ** 7, np.abs(u) * u],
+    }
+    total = float(np.sum((r - r.mean()) ** 2))
+    shares = {}
+    for name, features in groups.items():
+        F = np.column_stack(features + [np.ones_like(u)])
+        fitted = F @ np.linalg.lstsq(F, r, rcond=None)[0]
+        shares[name] = float(1 - np.sum((r - fitted) ** 2) / total) if total > 0 else 0.0
+    shape, explained = max(shares.items(), key=lambda item: item[1])
+    rms = math.sqrt(float(np.mean(r ** 2)))
+    force_rms = math.sqrt(float(np.mean(record.f[edge:-edge, 0] ** 2)))
+    if explained < 0.3:
+        shape = "unstructured"
+        words = (f"the force residual ({rms:.3g} N RMS, {100 * rms / force_rms:.2g} % of the force) has no "
+                 f"structure in x, ẋ or time that these features capture (the best, {max(shares, key=shares.get)}, "
+                 f"explains {100 * explained:.0f} % of it)")
+    else:
+        meaning = dict(_SHAPES)[shape]
+        words = (f"the force residual ({rms:.3g} N RMS, {100 * rms / force_rms:.2g} % of the force) looks like "
+                 f"{shape}: {meaning}; that explains {100 * explained:.0f} % of it")
+    pick = np.linspace(0, len(r) - 1, min(len(r), 4000)).astype(int)
+    return {"shape": shape, "explained": explained, "shares": shares, "rms": rms, "force_rms": force_rms,
+            "words": words, "x": x1[pick].tolist(), "v": v1[pick].tolist(), "residual": r[pick].tolist()}
