@@ -81,9 +81,11 @@ def run(args: argparse.Namespace) -> int:
 def discovery_text(found: Discovery) -> str:
     """The search as the CLI prints it: the candidates tried, the best equation's values
     (published only) and the notes."""
-    lines = [f"  base: {found.base}", "  screening (held-out equation error with the term / without; below 1 "
-             "predicts better): " + ", ".join(f"{term} {ratio:.3g}" for term, ratio in found.ranking
-                                                 if np.isfinite(ratio))]
+    lines = [f"  base: {found.base}",
+             "  screening (held-out equation error with the term / without it; below 1: it predicts better):"]
+    for chosen, ranking in found.screening:
+        lines.append(f"    {'with ' + ', '.join(chosen) if chosen else 'base'}: "
+                     + ", ".join(f"{term} {ratio:.3g}" for term, ratio in ranking if np.isfinite(ratio)))
     lines.append(f"  {'added terms':<28} {'simulation':>10} {'noise':>7}  verdict")
     for c in found.candidates:
         fit = c.fit

@@ -24,9 +24,10 @@ How a term is chosen
    the simulation of the identified model driven by the measured force removes at least
    :data:`MIN_GAIN` of what the current model leaves unexplained beyond the noise.
 3. The search stops when the model reproduces the record to its noise (simulation NRMSE at
-   most :data:`NOISE_FIT` times the noise's share), when no term passes, or after
-   ``max_terms`` terms. A model that already explains the record to its noise gets nothing:
-   a term is never "found" in noise.
+   most :data:`NOISE_FIT` times the noise's share) and no term screens far better
+   (:data:`STRONG_SCREENING`), when no term passes, or after ``max_terms`` terms. A model
+   that explains the record to its noise gets a term only if the term halves the whole
+   simulation error: a term is never "found" in noise.
 
 When no model explains the record, :func:`residual_shape` says what the remaining force
 residual looks like (asymmetry, a hysteresis or friction loop, a dead zone, a change along
@@ -88,6 +89,10 @@ MIN_GAIN = 0.5
 #: present when its coefficient lies at least 1/PRESENCE_UNCERTAINTY standard errors from zero
 #: (relative standard error at most this), physically signed, and its term excited.
 PRESENCE_UNCERTAINTY = 0.2
+#: Once the model reproduces the record to the noise estimate, a term is still tried when it
+#: predicts the held-out stretches this much better (held-out error ratio at most this): a
+#: noise estimate can be too high (a record with few samples per period).
+STRONG_SCREENING = 0.5
 #: Terms confirmed (identified with every check) per step, best screened first.
 CONFIRM_TRIES = 2
 #: Most terms added by default.
@@ -190,9 +195,10 @@ class Discovery:
         term was taken).
     candidates : list of Candidate
         Every equation identified with every check, in the order tried (the base first).
-    ranking : list of (str, float)
-        The library's terms with their held-out equation error relative to the base (the
-        screening's first step; below 1: the term predicts held-out stretches better).
+    screening : list of (tuple of str, list of (str, float))
+        Each step of the search: the terms chosen before it, and every remaining term with
+        its held-out equation error relative to without it, best first (below 1: the term
+        predicts the held-out stretches better).
     notes : list of str
         What was found, in words.
     residual : dict or None
@@ -205,7 +211,7 @@ class Discovery:
     base: str
     best: Candidate
     candidates: list[Candidate]
-    ranking: list[tuple[str, float]]
+    screening: list[tuple[tuple[str, ...], list[tuple[str, float]]]]
     notes: list[str] = field(default_factory=list)
     residual: dict[str, Any] | None = None
     seconds: float = math.nan
@@ -216,8 +222,9 @@ class Discovery:
             "base": self.base,
             "best": self.best.to_dict(),
             "candidates": [c.to_dict() for c in self.candidates],
-            "ranking": [{"term": term, "screening": (float(s) if np.isfinite(s) else None)}
-                        for term, s in self.ranking],
+            "screening": [{"with": list(chosen), "terms": [{"term": term, "ratio": (float(r) if np.isfinite(r) else None)}
+                                                           for term, r in ranking]}
+                          for chosen, ranking in self.screening],
             "notes": list(self.notes),
             "residual": self.residual,
             "seconds": self.seconds,
@@ -462,14 +469,16 @@ def discover(record: Record, base: str | Chain | EquationModel = "duffing1", *,
         if term.coefficient in screen.duplicates:
             notes.append(f"{term.placed}: already in the base equation (not searched)")
     pool = [t for t in terms if t.coefficient not in screen.duplicates]
-    ranking = _ranked(screen, pool, [])
+    screening: list[tuple[tuple[str, ...], list[tuple[str, float]]]] = []
     chosen: list[_Term] = []
-    while pool and len(chosen) < max_terms and not current.explained:
-        order = _ranked(screen, pool, [t.coefficient for t in chosen]) if chosen else ranking
+    while pool and len(chosen) < max_terms:
+        order = _ranked(screen, pool, [t.coefficient for t in chosen])
+        screening.append((tuple(t.placed for t in chosen), [(t.placed, r) for t, r in order]))
         accepted = None
-        for term, ratio in order[:CONFIRM_TRIES]:
-            if not ratio < 1.0:
-                break
+        tries = [(term, ratio) for term, ratio in order[:CONFIRM_TRIES] if ratio < 1.0]
+        if current.explained:  # only a term that predicts far better: the noise may be overestimated
+            tries = [(term, ratio) for term, ratio in tries[:1] if ratio <= STRONG_SCREENING]
+        for term, ratio in tries:
             trial = identified(chosen + [term], ratio)
             trial.verdict = _verdict(trial, term, current)
             candidates.append(trial)
@@ -492,7 +501,7 @@ def discover(record: Record, base: str | Chain | EquationModel = "duffing1", *,
         residual = residual_shape(record, EquationModel(best.equation, columns),
                                   best.identification.estimates)
         notes.append(residual["words"])
-    return Discovery(base_text, best, candidates, [(t.placed, r) for t, r in ranking], notes, residual,
+    return Discovery(base_text, best, candidates, screening, notes, residual,
                      time.perf_counter() - started)
 
 
@@ -523,12 +532,16 @@ def _verdict(trial: Candidate, term: _Term, current: Candidate) -> str:
             return f"not taken: its coefficient {name} = {value:.4g} has the sign of no physical {term.text}"
     elif status != "published":
         return f"not taken: its coefficient {name} is {status}"
-    before, after = current.excess, trial.excess
-    if not np.isfinite(after):
+    if not np.isfinite(trial.excess):
         return "not taken: the model with it does not reproduce the record (its simulation escapes)"
+    # beyond the noise; or, when the current model already reaches the noise estimate, of the
+    # whole simulation error (which a correct noise estimate leaves no room to halve)
+    before, after = ((current.excess, trial.excess) if not current.explained else
+                     (current.fit["simulation_nrmse"], trial.fit["simulation_nrmse"]))
     if np.isfinite(before) and after ** 2 > (1 - MIN_GAIN) * before ** 2:
-        return (f"not taken: it removes {100 * (1 - after ** 2 / before ** 2):.0f} % of the unexplained "
-                f"variance ({100 * MIN_GAIN:.0f} % needed)")
+        what = "unexplained variance" if not current.explained else "simulation error's variance"
+        return (f"not taken: it removes {100 * (1 - after ** 2 / before ** 2):.0f} % of the {what} "
+                f"({100 * MIN_GAIN:.0f} % needed)")
     return "accepted"
 
 
