@@ -349,13 +349,17 @@ class BufferedIdentifier(Identifier):
         flat = E.reshape(E.shape[0], -1)
         return [(flat @ lhs, flat @ rhs) for lhs, rhs in self._maps]
 
+    def block_systems(self, G: np.ndarray) -> list[tuple[list[int], list[str], np.ndarray, np.ndarray]]:
+        """``(equations, unknown names, A, D)`` of each least-squares problem of one window
+        (the equations that share unknowns stacked, each scaled to unit norm)."""
+        systems = self.systems(G)
+        return [(eqs, names, *_stack(systems, eqs, names, self.regression.unknowns)) for eqs, names in self._groups]
+
     def solve_window(self, G: np.ndarray) -> Estimate:
         """Identify from one window of channel samples ``G`` and update the estimate."""
-        systems = self.systems(G)
-        solutions: list[dict[str, float]] = [dict() for _ in systems]
+        solutions: list[dict[str, float]] = [dict() for _ in self.regression.unknowns]
         cond, worst = 0.0, 0.0
-        for g, (eqs, names) in enumerate(self._groups):
-            A, D = _stack(systems, eqs, names, self.regression.unknowns)
+        for g, (eqs, names, A, D) in enumerate(self.block_systems(G)):
             R = triangular_factor(np.column_stack([A, D]), len(names) + 1)
             rows = float(len(A))
             if self.options["accumulate"] and self._factors[g] is not None:

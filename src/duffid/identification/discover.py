@@ -240,6 +240,7 @@ class _Term:
     placed: str      #: in the equation's own displacement (``x2^2``)
     equation: int    #: index of the equation
     coefficient: str #: its coefficient's name
+    label: str       #: as reported: ``placed``, with its equation when that is ambiguous
 
 
 def _split_equations(text: str) -> list[str]:
@@ -273,7 +274,9 @@ def _terms(base: EquationModel, library: Sequence[str], columns: Sequence[str]) 
                 name += "b"
             taken.add(name)
             where = displacements[min(i, len(displacements) - 1)]
-            out.append(_Term(text, _placed(text, where), i, name))
+            placed = _placed(text, where)
+            label = placed if n_eq == 1 or placed != text else f"{placed} (equation {i + 1})"
+            out.append(_Term(text, placed, i, name, label))
     return out
 
 
@@ -297,8 +300,9 @@ def _check_term(base_texts: Sequence[str], term: _Term, columns: Sequence[str]) 
 
 # ---------------------------------------------------------------------- screening
 def _screening_rows(record: Record, model: EquationModel, frequency: float
-                    ) -> list[tuple[list[np.ndarray], list[np.ndarray]]]:
-    """Per equation: the buffered method's rows ``(A, D)`` of every window side by side."""
+                    ) -> list[tuple[list[int], list[str], list[np.ndarray], list[np.ndarray]]]:
+    """Per least-squares block of the equations: its equations, unknowns, and the buffered
+    method's rows ``A`` and ``D`` of every window side by side."""
     n = record.n_samples
     period = record.fs / frequency if np.isfinite(frequency) and frequency > 0 else n / 8
     samples = int(min(max(WINDOW_PERIODS * period, 3 * SCREEN_TERMS), n - 1))
@@ -307,12 +311,14 @@ def _screening_rows(record: Record, model: EquationModel, frequency: float
                                 n_terms=min(SCREEN_TERMS, samples))
     N = screen.n_intervals
     G = reg.evaluate(record.x, record.f, record.t, velocity_signs(record.x))
-    rows: list[tuple[list[np.ndarray], list[np.ndarray]]] = [([], []) for _ in reg.unknowns]
+    blocks: list[tuple[list[int], list[str], list[np.ndarray], list[np.ndarray]]] = []
     for end in range(N, n, N):
-        for i, (A, D) in enumerate(screen.systems(G[end - N:end + 1])):
-            rows[i][0].append(A)
-            rows[i][1].append(D)
-    return rows
+        for b, (eqs, names, A, D) in enumerate(screen.block_systems(G[end - N:end + 1])):
+            if b == len(blocks):
+                blocks.append((eqs, names, [], []))
+            blocks[b][2].append(A)
+            blocks[b][3].append(D)
+    return blocks
 
 
 def _held_out_error(A: list[np.ndarray], D: list[np.ndarray], columns: list[int]) -> float:
@@ -345,17 +351,20 @@ class _Screen:
     def __init__(self, record: Record, base: EquationModel, terms: list[_Term], columns: Sequence[str],
                  frequency: float) -> None:
         full = EquationModel(_with_terms(base.texts, terms), columns)
-        self.unknowns = full.regression().unknowns
-        self.rows = _screening_rows(record, full, frequency)
+        self.blocks = _screening_rows(record, full, frequency)
         self.base_names = set(base.parameters)
         self.duplicates = self._duplicates(terms)
+
+    def block(self, term: _Term) -> tuple[list[int], list[str], list[np.ndarray], list[np.ndarray]]:
+        """The least-squares block holding ``term``'s equation."""
+        return next(b for b in self.blocks if term.equation in b[0])
 
     def _duplicates(self, terms: list[_Term]) -> set[str]:
         """Coefficients of terms whose rows are a multiple of a base term's (already in the base)."""
         out = set()
         for term in terms:
-            A = np.vstack(self.rows[term.equation][0])
-            names = self.unknowns[term.equation]
+            _, names, As, _ = self.block(term)
+            A = np.vstack(As)
             column = A[:, names.index(term.coefficient)]
             norm = np.linalg.norm(column)
             if norm == 0:
@@ -369,11 +378,10 @@ class _Screen:
                         out.add(term.coefficient)
         return out
 
-    def error(self, equation: int, chosen: Sequence[str]) -> float:
-        """Held-out equation error of ``equation`` with the base's and ``chosen`` coefficients."""
-        names = self.unknowns[equation]
+    def error(self, term: _Term, chosen: Sequence[str]) -> float:
+        """Held-out equation error of ``term``'s block with the base's and ``chosen`` coefficients."""
+        _, names, A, D = self.block(term)
         columns = [j for j, k in enumerate(names) if k in self.base_names or k in chosen]
-        A, D = self.rows[equation]
         return _held_out_error(A, D, columns)
 
 
@@ -457,7 +465,7 @@ def discover(record: Record, base: str | Chain | EquationModel = "duffing1", *,
         say(f"duffid discover: identifying {text}" + (" (with the output-error refinement)" if refined else ""))
         result = identify(record, model, progress=False, jobs=jobs, refine=refined, **options)
         units = _units(model)
-        return Candidate(text, tuple(t.placed for t in added), tuple(t.coefficient for t in added), result,
+        return Candidate(text, tuple(t.label for t in added), tuple(t.coefficient for t in added), result,
                          model, units, screening)
 
     current = identified([])
@@ -467,13 +475,13 @@ def discover(record: Record, base: str | Chain | EquationModel = "duffing1", *,
     screen = _Screen(record, base_model, terms, columns, content)
     for term in terms:
         if term.coefficient in screen.duplicates:
-            notes.append(f"{term.placed}: already in the base equation (not searched)")
+            notes.append(f"{term.label}: already in the base equation (not searched)")
     pool = [t for t in terms if t.coefficient not in screen.duplicates]
     screening: list[tuple[tuple[str, ...], list[tuple[str, float]]]] = []
     chosen: list[_Term] = []
     while pool and len(chosen) < max_terms:
         order = _ranked(screen, pool, [t.coefficient for t in chosen])
-        screening.append((tuple(t.placed for t in chosen), [(t.placed, r) for t, r in order]))
+        screening.append((tuple(t.label for t in chosen), [(t.label, r) for t, r in order]))
         accepted = None
         tries = [(term, ratio) for term, ratio in order[:CONFIRM_TRIES] if ratio < 1.0]
         if current.explained:  # only a term that predicts far better: the noise may be overestimated
@@ -509,8 +517,8 @@ def _ranked(screen: _Screen, pool: list[_Term], chosen: list[str]) -> list[tuple
     """``pool``'s terms by held-out equation error with ``chosen`` (relative to without), best first."""
     out = []
     for term in pool:
-        before = screen.error(term.equation, chosen)
-        after = screen.error(term.equation, chosen + [term.coefficient])
+        before = screen.error(term, chosen)
+        after = screen.error(term, chosen + [term.coefficient])
         out.append((term, after / before if before > 0 else math.nan))
     out.sort(key=lambda item: item[1] if np.isfinite(item[1]) else math.inf)
     return out
@@ -557,7 +565,7 @@ def _words(best: Candidate, base: Candidate, chosen: list[_Term], max_terms: int
             return [f"the base equation reproduces the record to its noise ({shown}): nothing to add"]
         return [f"no library term is supported by the record: the base equation misses the measured "
                 f"displacement by {shown}, and no term makes it fit with a published coefficient"]
-    added = "; ".join(f"{t.placed}: {TERM_WORDS.get(t.text, 'the term ' + t.text)}" for t in chosen)
+    added = "; ".join(f"{t.label}: {TERM_WORDS.get(t.text, 'the term ' + t.text)}" for t in chosen)
     lines = [f"the record asks for {len(chosen)} term{'s' if len(chosen) > 1 else ''} beyond the base "
              f"({added}); with {'them' if len(chosen) > 1 else 'it'} the model misses the measured "
              f"displacement by {shown}"]
@@ -581,82 +589,100 @@ def _units(model: EquationModel) -> dict[str, str]:
 
 
 # ---------------------------------------------------------------------- residual
-#: Cutoff of the residual's smoothing, in multiples of the displacement's highest frequency.
-SMOOTHING = 2.0
-#: Feature groups that describe a force residual, with what each means.
-_SHAPES = (
-    ("asymmetry", "it is even in the displacement (an asymmetric spring, a preload or a sensor offset)"),
-    ("hysteresis", "it depends on the direction of motion (a hysteresis or friction loop)"),
-    ("dead zone", "it is odd in the displacement and concentrated near rest (a dead zone or a clearance)"),
-    ("time variation", "it grows or shrinks along the record (a parameter that changes: drift, wear, temperature)"),
-    ("stronger stiffness", "it is odd in the displacement and grows at large amplitude (a higher-order spring)"),
-)
+#: The residual's smoothing keeps the displacement's spectrum where it stands this far above
+#: the noise floor (power ratio).
+SIGNAL_OVER_NOISE = 10.0
+
+
+def smoothing_cutoff(record: Record) -> float:
+    """The highest frequency [Hz] at which the displacement's power spectrum (Welch, of the
+    first DOF) stands :data:`SIGNAL_OVER_NOISE` times above the white-noise floor of
+    :func:`~duffid.identification.sampling.noise_level` (harmonics of a nonlinear response
+    included), at most 0.4 of the sampling rate."""
+    from scipy.signal import welch
+
+    noise = float(noise_level(record.x)[0])
+    segment = int(min(record.n_samples, max(256, 8 * record.fs)))
+    frequencies, power = welch(record.x[:, 0], fs=record.fs, nperseg=segment)
+    floor = 2.0 * noise ** 2 / record.fs  # one-sided density of white noise of that variance
+    above = np.nonzero(power > SIGNAL_OVER_NOISE * floor)[0]
+    highest = float(frequencies[above[-1]]) if len(above) else 0.1 * record.fs
+    return min(max(highest, 2.0 * frequencies[1]), 0.4 * record.fs)
+
+#: Shapes of what a model leaves unexplained: name -> (terms in ``x`` that describe it, in the
+#: equation syntax; ``W`` stands for a fifth of the largest displacement), what it means.
+SHAPES: dict[str, tuple[tuple[str, ...], str]] = {
+    "asymmetry": (("x^2", "abs(x)", "x^4", "1"),
+                  "even in the displacement (an asymmetric spring, a preload or a sensor offset)"),
+    "hysteresis": (("sign(der(x))", "sign(der(x))*x", "sign(der(x))*x^2"),
+                   "dependent on the direction of motion (a hysteresis or friction loop)"),
+    "dead zone": (("x*exp(-(x/W)^2)", "sign(x)"),
+                  "odd in the displacement and concentrated near rest (a dead zone or a clearance)"),
+    "time variation": (("t*x", "t*x^3", "t"),
+                       "changing along the record (a parameter that drifts: temperature, wear, a loosening joint)"),
+    "stronger stiffness": (("x^5", "x^7", "abs(x)*x"),
+                           "odd in the displacement and growing fast at large amplitude (a higher-order spring)"),
+}
+#: A shape is named when its terms remove at least this share of the held-out equation error.
+SHAPE_SHARE = 0.3
 
 
 def residual_shape(record: Record, model: EquationModel, values: Mapping[str, float]) -> dict[str, Any]:
-    """What the force residual of ``model`` with ``values`` looks like on ``record``.
+    """What ``model`` (with the identified ``values``) leaves unexplained on ``record``.
 
-    The displacement is low-pass filtered without phase shift (8th-order Butterworth at
-    :data:`SMOOTHING` times the highest frequency of the displacement or the force) and differentiated to evaluate each equation's residual (in N). The residual of the first
-    equation is regressed on groups of features (even functions of x; the direction of
-    motion and its product with x; odd functions concentrated near rest; the model's own
-    terms times time; odd powers of x beyond the cube), and the group explaining most of
-    its variance names the shape.
+    Each shape of :data:`SHAPES` is tried as extra terms of the first equation, on the
+    screening's rows (integrated by parts: no derivative of the noisy displacement), and
+    scored by the share of the held-out equation error it removes; the best one is named
+    when it removes at least :data:`SHAPE_SHARE`. For a plot, the force residual is also
+    evaluated pointwise with the displacement low-pass filtered without phase shift
+    (8th-order Butterworth at :func:`smoothing_cutoff`, where its spectrum meets the noise)
+    and differentiated: that residual holds the differentiated noise too.
 
     Returns
     -------
     dict
-        ``shape`` (the best group's name or ``"unstructured"``), ``explained`` (its share of
-        the residual's variance), ``shares`` (every group's), ``rms`` (residual RMS, N),
-        ``force_rms`` (the force's RMS, N), ``words``, and the samples ``x``, ``v`` and
-        ``residual`` (for a plot; at most 4,000, evenly picked).
+        ``shape`` (the best shape's name or ``"unstructured"``), ``explained`` (the share of
+        the held-out equation error its terms remove), ``shares`` (every shape's), ``words``,
+        and for a plot ``rms`` and ``force_rms`` (N) of the pointwise residual and the
+        force, and its samples ``x``, ``v``, ``residual`` (at most 4,000, evenly picked).
     """
     from scipy.signal import butter, sosfiltfilt
 
-    content = max(content_frequency(record.x, record.dt, noise=noise_level(record.x)),
-                  content_frequency(record.f, record.dt))
-    cutoff = min(SMOOTHING * content, 0.4 * record.fs) if np.isfinite(content) and content > 0 else 0.1 * record.fs
-    period = record.fs / cutoff
-    edge = int(4 * period)
+    columns = record.column_names
+    texts = list(model.texts)
+    first = "x" if "x" in columns else "x1"
+    width = f"{0.2 * float(np.max(np.abs(record.x[:, 0]))):.6g}"
+    frequency = content_frequency(record.x, record.dt, noise=noise_level(record.x))
+    shares = {}
+    for name, (terms, _) in SHAPES.items():
+        extra = [_Term(t, _placed(t.replace("W", width), first), 0, f"shape{j + 1}", t) for j, t in enumerate(terms)]
+        block = next(b for b in _screening_rows(record, EquationModel(_with_terms(texts, extra), columns), frequency)
+                     if 0 in b[0])
+        _, names, A, D = block
+        known = [j for j, k in enumerate(names) if k in model.parameters]
+        without = _held_out_error(A, D, known)
+        with_shape = _held_out_error(A, D, list(range(len(names))))
+        shares[name] = float(1 - with_shape / without) if without > 0 else 0.0
+    shape, explained = max(shares.items(), key=lambda item: item[1])
+    if explained < SHAPE_SHARE:
+        words = (f"what the model leaves unexplained has none of the shapes duffid knows (the closest, {shape}, "
+                 f"removes {100 * max(explained, 0.0):.0f} % of the held-out equation error)")
+        shape = "unstructured"
+    else:
+        words = (f"what the model leaves unexplained looks like {shape}: {SHAPES[shape][1]}; terms of that shape "
+                 f"remove {100 * explained:.0f} % of the held-out equation error")
+    cutoff = smoothing_cutoff(record)
+    edge = int(4 * record.fs / cutoff)
     if record.n_samples < 4 * edge:
         raise RecordError(f"{record.source}: too short to describe the residual ({record.n_samples} samples)")
     x = sosfiltfilt(butter(8, cutoff, fs=record.fs, output="sos"), record.x, axis=0)
     v = np.gradient(x, record.dt, axis=0)
     a = np.gradient(v, record.dt, axis=0)
     clean = {k: (float(val) if np.isfinite(val) else 0.0) for k, val in values.items()}
-    residual = model.equation_residuals(clean, x, v, a, record.f, record.t)[:, 0]
-    x1, v1, r = x[edge:-edge, 0], v[edge:-edge, 0], residual[edge:-edge]
-    t = record.t[edge:-edge] - record.t[edge]
-    scale = max(float(np.max(np.abs(x1))), 1e-300)
-    u = x1 / scale
-    direction = np.sign(v1)
-    near = np.exp(-(u / 0.2) ** 2)
-    tau = t / max(float(t[-1]), 1e-300) - 0.5
-    groups = {
-        "asymmetry": [u ** 2, np.abs(u), u ** 4, np.ones_like(u)],
-        "hysteresis": [direction, direction * u, direction * u ** 2, v1 / max(float(np.max(np.abs(v1))), 1e-300)],
-        "dead zone": [near * u, np.sign(u) * (1 - near)],
-        "time variation": [tau * u, tau * u ** 3, tau * a[edge:-edge, 0] / max(float(np.max(np.abs(a))), 1e-300)],
-        "stronger stiffness": [u ** 5, u ** 7, np.abs(u) * u],
-    }
-    total = float(np.sum((r - r.mean()) ** 2))
-    shares = {}
-    for name, features in groups.items():
-        F = np.column_stack(features + [np.ones_like(u)])
-        fitted = F @ np.linalg.lstsq(F, r, rcond=None)[0]
-        shares[name] = float(1 - np.sum((r - fitted) ** 2) / total) if total > 0 else 0.0
-    shape, explained = max(shares.items(), key=lambda item: item[1])
-    rms = math.sqrt(float(np.mean(r ** 2)))
+    residual = model.equation_residuals(clean, x, v, a, record.f, record.t)[edge:-edge, 0]
+    x1, v1 = x[edge:-edge, 0], v[edge:-edge, 0]
+    rms = math.sqrt(float(np.mean(residual ** 2)))
     force_rms = math.sqrt(float(np.mean(record.f[edge:-edge, 0] ** 2)))
-    if explained < 0.3:
-        shape = "unstructured"
-        words = (f"the force residual ({rms:.3g} N RMS, {100 * rms / force_rms:.2g} % of the force) has no "
-                 f"structure in x, ẋ or time that these features capture (the best, {max(shares, key=shares.get)}, "
-                 f"explains {100 * explained:.0f} % of it)")
-    else:
-        meaning = dict(_SHAPES)[shape]
-        words = (f"the force residual ({rms:.3g} N RMS, {100 * rms / force_rms:.2g} % of the force) looks like "
-                 f"{shape}: {meaning}; that explains {100 * explained:.0f} % of it")
-    pick = np.linspace(0, len(r) - 1, min(len(r), 4000)).astype(int)
+    pick = np.linspace(0, len(residual) - 1, min(len(residual), 4000)).astype(int)
     return {"shape": shape, "explained": explained, "shares": shares, "rms": rms, "force_rms": force_rms,
-            "words": words, "x": x1[pick].tolist(), "v": v1[pick].tolist(), "residual": r[pick].tolist()}
+            "words": words, "x": x1[pick].tolist(), "v": v1[pick].tolist(), "residual": residual[pick].tolist()}
