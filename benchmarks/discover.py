@@ -50,6 +50,8 @@ CASES: dict[str, tuple[str, ...]] = {
 }
 DT = 1e-3
 DURATION = 20.0
+#: The cost case's library: the default and two more terms, nine in all (the issue's size).
+COST_LIBRARY = ("x^2", "x^3", "x^5", "abs(x)*x", "x^2*der(x)", "sign(der(x))", "1", "x^4", "x*der(x)")
 
 
 @dataclass
@@ -104,12 +106,12 @@ def simulate_record(terms: tuple[str, ...], snr_db: float, *, seed: int = 1, dur
 
 
 def silverbox_record():
-    """The Silverbox record's multisine part (as ``duffid silverbox`` reads it), or None."""
-    try:
-        from duffid.analysis.silverbox import discovery_record
-    except ImportError:
+    """The Silverbox training record (``duffid silverbox``'s), or None without the data."""
+    from duffid.analysis.silverbox import default_data_dir, load_silverbox
+
+    if not (default_data_dir() / "SNLS80mV.mat").is_file():
         return None
-    return discovery_record()
+    return load_silverbox().training
 
 
 def run_case(record, truth: tuple[str, ...], refine: bool) -> dict:
@@ -125,12 +127,42 @@ def run_case(record, truth: tuple[str, ...], refine: bool) -> dict:
             "simulation": found.best.fit.get("simulation_nrmse"), "noise": found.best.fit.get("noise_nrmse")}
 
 
+def cost(runs: int) -> tuple[list[float], float]:
+    """The issue's cost case: the 4-term base, the 9-term :data:`COST_LIBRARY`, 20,000 samples of
+    the plant with x^2 added at 50 dB. Returns the warm times (the candidates' C estimators
+    already compiled, as on a second search) and one cold time (a fresh process with an empty
+    build directory: every C library compiled on the way)."""
+    import os
+    import subprocess
+    import tempfile
+
+    from duffid.identification.discover import discover
+
+    record = simulate_record(("x^2",), 50.0)
+    warm = []
+    discover(record, "duffing1", library=COST_LIBRARY, progress=False)  # compile once
+    for _ in range(runs):
+        started = time.perf_counter()
+        discover(record, "duffing1", library=COST_LIBRARY, progress=False)
+        warm.append(time.perf_counter() - started)
+    with tempfile.TemporaryDirectory() as build:
+        path = Path(build) / "record.csv"
+        record.to_csv(path)
+        env = dict(os.environ, DUFFID_BUILD_DIR=build)
+        started = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "duffid", "discover", str(path), "--library", "; ".join(COST_LIBRARY)],
+                       check=True, env=env, capture_output=True)
+        cold = time.perf_counter() - started
+    return warm, cold
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", default=",".join(CASES), help="comma-separated case names")
     parser.add_argument("--snr", default="40,50,60", help="displacement SNRs [dB]")
     parser.add_argument("--quick", action="store_true", help="50 dB only")
     parser.add_argument("--no-refine", action="store_true", help="discover without the output-error refinement")
+    parser.add_argument("--cost-runs", type=int, default=5, help="warm runs of the cost case (0: skip it)")
     args = parser.parse_args()
     sys.path.insert(0, str(ROOT / "src"))
     names = [n.strip() for n in args.cases.split(",") if n.strip()]
@@ -150,6 +182,17 @@ def main() -> int:
             print(f"{name:<24} {snr:>4g}  {', '.join(row['found']) or '-':<26} {', '.join(row['false']) or '-':<14} "
                   f"{', '.join(row['missed']) or '-':<14} {ratio:>10.3g} {row['seconds']:>8.1f}", flush=True)
     print(f"{totals['runs']} searches: {totals['false']} false terms, {totals['missed']} missed terms")
+    record = silverbox_record()
+    if record is not None:
+        row = run_case(record, ("1", "x^2"), not args.no_refine)
+        print(f"Silverbox training record ({record.n_samples} samples): found {', '.join(row['found']) or '-'}; "
+              f"simulation NRMSE {100 * row['simulation']:.3g} % (noise estimate {100 * row['noise']:.2g} %); "
+              f"{row['seconds']:.1f} s")
+    if args.cost_runs > 0:
+        warm, cold = cost(args.cost_runs)
+        print(f"cost: 4-term base, 9-term library, 20,000 samples: warm median {np.median(warm):.2f} s "
+              f"(min {min(warm):.2f}, max {max(warm):.2f}, {len(warm)} runs); cold (fresh process, every C "
+              f"library compiled) {cold:.1f} s; target < 10 s")
     return 0
 
 

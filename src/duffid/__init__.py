@@ -17,6 +17,7 @@ from .cosim.system import System
 from .data.record import Record
 from .data.signals import Chirp, Multisine, Step, from_spec
 from .errors import CosimError, RecordError, SimulationError
+from .identification.discover import discover
 from .identification.engine import METHODS, Estimate, Identification, OnlineIdentifier
 from .identification.trust import identify
 from .models.chain import Chain, Duffing1, Duffing2, DuffingCircuit
@@ -30,7 +31,7 @@ __all__ = [
     "Record", "RecordError",
     "Step", "Chirp", "Multisine", "from_spec",
     "simulate", "measure", "SimulationError",
-    "OnlineIdentifier", "identify", "Identification", "Estimate", "METHODS",
+    "OnlineIdentifier", "identify", "discover", "Identification", "Estimate", "METHODS",
     "System", "CosimError", "AdaptiveController", "design",
     "__version__",
 ]
