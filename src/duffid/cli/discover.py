@@ -49,9 +49,9 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("--max-terms", type=int, default=MAX_TERMS, metavar="N",
                    help=f"most terms added (default {MAX_TERMS})")
     add_shared_arguments(p, ("max_uncertainty",), ("robust",))
-    p.add_argument("--no-refine", action="store_true",
-                   help="do not refine the chosen equation's values by output-error least squares (faster; fewer "
-                        "values published)")
+    p.add_argument("--refine", action="store_true",
+                   help="refine the chosen equation's values by output-error least squares where the algebraic "
+                        "estimate leaves them undetermined, as identify does (slower; more values published)")
     p.add_argument("--jobs", type=positive_int, default=None, metavar="N",
                    help="threads for each identification's checks (default: every core)")
     add_file_arguments(p)
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     record = read_record(args)
     options = options_from_arguments(args, "robust")
     found = discover(record, args.base, library=args.library, max_terms=args.max_terms,
-                     refine=not args.no_refine, jobs=args.jobs, progress=not args.json and None, **options)
+                     refine=args.refine, jobs=args.jobs, progress=not args.json and None, **options)
     if args.plot is not None:
         from ..apps.plots import plot_discovery_residual
         plot_discovery_residual(found, record, args.plot)

@@ -229,7 +229,8 @@ def _simulation_fit(record: Record, model: Chain, canonical: Mapping[str, float]
             f"misses the measured displacement by {100 * nrmse:.3g} % RMS (noise explains "
             f"{100 * noise_nrmse:.2g} %, {100 * SIMULATION_TOLERANCE:.0f} % more is allowed); check the "
             f"columns (force and displacement swapped?), units, sensor offsets (--offset), and that "
-            f"the model fits the plant (friction, other nonlinearities)")
+            f"the model fits the plant (friction, other nonlinearities: duffid discover finds the terms the record "
+            f"asks for)")
     return fit, simulated, None
 
 def _segments_in_c(simulator: OdeSimulator, canonical: Mapping[str, float], record: Record,

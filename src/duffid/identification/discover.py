@@ -402,7 +402,7 @@ def _base_text(base: str | Chain | EquationModel, record: Record) -> str:
 
 
 def discover(record: Record, base: str | Chain | EquationModel = "duffing1", *,
-             library: Sequence[str] | None = None, max_terms: int = MAX_TERMS, refine: bool = True,
+             library: Sequence[str] | None = None, max_terms: int = MAX_TERMS, refine: bool = False,
              progress: bool | None = None, jobs: int | None = None,
              log: Callable[[str], Any] | None = None, **options: Any) -> Discovery:
     """Find the smallest set of library terms that the record supports.
@@ -423,9 +423,11 @@ def discover(record: Record, base: str | Chain | EquationModel = "duffing1", *,
         Most terms added.
     refine : bool
         Refine the chosen equation's values by output-error least squares where the algebraic
-        estimate leaves excited values undetermined (as :func:`~duffid.identification.trust.identify`
-        does; the candidates are judged without it, which never changes whether a term is
-        present, only how many of its values are published).
+        estimate leaves excited values undetermined, as
+        :func:`~duffid.identification.trust.identify` does by default (seconds to a minute
+        more). Off by default: the candidates are judged without it (it never changes
+        whether a term is present, only how many values are published), and the notes name
+        the values ``identify --equation`` would refine.
     progress : bool or None
         A line on stderr per identification (None: on a terminal).
     jobs : int or None
@@ -453,6 +455,10 @@ def discover(record: Record, base: str | Chain | EquationModel = "duffing1", *,
     columns = record.column_names
     if isinstance(base, str) and base.strip() in MODEL_NAMES:
         base = model_from_name(base.strip(), record.n_dof)
+    if isinstance(base, Chain) and base.n_dof != record.n_dof:
+        raise InputError(f"{record.source}: the base {base.name} has {base.n_dof} masses, the record "
+                         f"{record.n_dof} displacement{'s' if record.n_dof > 1 else ''} "
+                         f"({', '.join(c for c in columns if c.startswith('x'))})")
     base_text = _base_text(base, record)
     base_model = EquationModel(base_text, columns)
     texts = list(base_model.texts)
@@ -528,6 +534,11 @@ def discover(record: Record, base: str | Chain | EquationModel = "duffing1", *,
         refined.verdict = best.verdict
         candidates[candidates.index(best)] = best = refined
     notes = _words(best, candidates[0], chosen, max_terms, pool) + notes
+    undetermined = [k for k, v in best.identification.assessment.status.items() if v == "uncertain"]
+    if undetermined and not refine and best.identification.assessment.fit.get("explained", False):
+        notes.append(f"{', '.join(undetermined)}: not determined by the algebraic estimate alone; "
+                     f"duffid identify --equation \"{best.equation}\" refines them by output error (or "
+                     f"discover --refine)")
     residual = None
     if not best.explained:
         residual = residual_shape(record, EquationModel(best.equation, columns),
