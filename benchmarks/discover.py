@@ -81,14 +81,32 @@ def multisine(seed: int, rms: float = 10.0, low: float = 1.0, high: float = 20.0
     return force
 
 
+def sweep(duration: float, rms: float = 10.0, low: float = 1.0, high: float = 20.0) -> Callable[[np.ndarray], np.ndarray]:
+    """A linear swept sine from ``low`` to ``high`` Hz over ``duration``, ``rms`` N."""
+    rate = (high - low) / duration
+
+    def force(t: np.ndarray) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        return rms * math.sqrt(2.0) * np.sin(2 * np.pi * (low * t + 0.5 * rate * t**2))
+    return force
+
+
+#: Excitations: name -> force of (seed, duration).
+EXCITATIONS: dict[str, Callable[[int, float], Callable[[np.ndarray], np.ndarray]]] = {
+    "multisine": lambda seed, duration: multisine(seed),
+    "sweep": lambda seed, duration: sweep(duration),
+}
+
+
 def simulate_record(terms: tuple[str, ...], snr_db: float, *, seed: int = 1, duration: float = DURATION,
-                    dt: float = DT):
-    """A record of the base plant with ``terms`` added, simulated by scipy (not duffid), with
-    ``snr_db`` displacement noise and 60 dB force noise: a :class:`duffid.Record`."""
+                    dt: float = DT, excitation: str = "multisine"):
+    """A record of the base plant with ``terms`` added, simulated by scipy (not duffid), under
+    ``excitation`` (:data:`EXCITATIONS`), with ``snr_db`` displacement noise and 60 dB force
+    noise: a :class:`duffid.Record`."""
     from duffid import Record
 
     plant = Plant({term: TERMS[term][0] for term in terms})
-    force = multisine(seed)
+    force = EXCITATIONS[excitation](seed, duration)
     t = np.arange(0.0, duration + dt / 2, dt)
 
     def rhs(tt: float, y: np.ndarray) -> list[float]:
@@ -102,7 +120,8 @@ def simulate_record(terms: tuple[str, ...], snr_db: float, *, seed: int = 1, dur
     rng = np.random.default_rng(seed + 100)
     x_noisy = x + rng.normal(0.0, np.std(x) / 10 ** (snr_db / 20), x.shape)
     f_noisy = f + rng.normal(0.0, np.std(f) / 10 ** 3, f.shape)
-    return Record(t, f_noisy[:, None], x_noisy[:, None], source=f"{'+'.join(terms) or 'plain'} at {snr_db:g} dB")
+    return Record(t, f_noisy[:, None], x_noisy[:, None],
+                  source=f"{'+'.join(terms) or 'plain'}, {excitation}, {snr_db:g} dB, dt {dt:g} s")
 
 
 #: A Bouc–Wen hysteretic element (no library term describes it): force ``alpha * z`` with
@@ -209,6 +228,16 @@ def main() -> int:
             ratio = row["simulation"] / row["noise"] if row["simulation"] is not None else math.nan
             print(f"{name:<24} {snr:>4g}  {', '.join(row['found']) or '-':<26} {', '.join(row['false']) or '-':<14} "
                   f"{', '.join(row['missed']) or '-':<14} {ratio:>10.3g} {row['seconds']:>8.1f}", flush=True)
+    for excitation, dt in (("sweep", DT), ("multisine", 5e-3), ("sweep", 5e-3)):
+        for name in ("plain", "+ x^2", "+ sign(der(x))"):
+            row = run_case(simulate_record(CASES[name], 50.0, excitation=excitation, dt=dt), CASES[name], args.refine)
+            totals["false"] += len(row["false"])
+            totals["missed"] += len(row["missed"])
+            totals["runs"] += 1
+            label = f"{name}, {excitation}, {1 / dt:g} Hz"
+            print(f"{label:<36} {', '.join(row['found']) or '-':<26} {', '.join(row['false']) or '-':<14} "
+                  f"{', '.join(row['missed']) or '-':<14} {row['simulation'] / row['noise']:>10.3g} "
+                  f"{row['seconds']:>8.1f}", flush=True)
     print(f"{totals['runs']} searches: {totals['false']} false terms, {totals['missed']} missed terms")
     record = bouc_wen_record()
     started = time.perf_counter()
