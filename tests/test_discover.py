@@ -211,3 +211,15 @@ def test_hysteresis_outside_the_library_adds_no_term():
     assert found.best.added == ()
     assert found.residual is not None
     assert any("no library term is supported" in note for note in found.notes)
+
+
+def test_displacement_offset_shows_as_quadratic_and_constant_with_its_size():
+    from duffid import Record
+
+    record = record_with()
+    shifted = Record(record.t, record.f, record.x + 0.002, source="a displacement sensor 2 mm off")
+    found = discover(shifted, "duffing1", progress=False)
+    assert set(found.best.added) == {"x^2", "1"}
+    note = next(n for n in found.notes if "displacement-sensor offset" in n)
+    implied = float(note.split("(3 kp) = ")[1].split(" m")[0])
+    assert implied == pytest.approx(0.002, rel=0.02)

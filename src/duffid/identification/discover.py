@@ -620,10 +620,16 @@ def _words(best: Candidate, base: Candidate, chosen: list[_Term], max_terms: int
     lines = [f"the record asks for {len(chosen)} term{'s' if len(chosen) > 1 else ''} beyond the base "
              f"({added}); with {'them' if len(chosen) > 1 else 'it'} the model misses the measured "
              f"displacement by {shown}"]
-    if any(t.text == "x^2" for t in chosen) and re.search(r"\bx\d*\s*\^\s*3\b", best.equation):
+    cubic = re.search(r"([A-Za-z_]\w*)\s*\*\s*x\s*\^\s*3\b", best.equation)
+    quadratic = next((t for t in chosen if t.text == "x^2"), None)
+    if quadratic is not None and cubic is not None:
+        values = best.identification.parameters
+        k2, kp = values.get(quadratic.coefficient, math.nan), values.get(cubic.group(1), math.nan)
+        implied = (f" (here x0 = -{quadratic.coefficient}/(3 {cubic.group(1)}) = {-k2 / (3 * kp):.4g} m)"
+                   if np.isfinite(k2) and np.isfinite(kp) and kp != 0 else "")
         lines.append("a quadratic stiffness next to a cubic one is also what a displacement-sensor offset "
-                     "looks like (k(x - x0) + kp(x - x0)^3 holds an x^2 term and a constant): if the spring "
-                     "should be symmetric, try duffid identify --offset displacement")
+                     f"looks like (k(x - x0) + kp(x - x0)^3 holds an x^2 term and a constant){implied}: if the "
+                     "spring should be symmetric, try duffid identify --offset displacement")
     if not best.explained and len(chosen) >= max_terms and pool:
         lines.append(f"stopped after {max_terms} terms (--max-terms) before the record was explained")
     return lines
