@@ -340,6 +340,14 @@ def test_a_worker_killed_mid_campaign_its_tasks_run_again_elsewhere(tmp_path):
     ('[campaign\n', "not valid TOML"),
     ('[campaign]\nkind = "identification"\n[task]\nmodel = "duffing1"\nexcitation = "step:10"\nt_end = 1.0\n'
      'dt = 1e-3\noptions = { windw = 0.5 }\n', "task.options:"),
+    ('[campaign]\nkind = "identification"\n[task]\nmodel = "duffing1"\nequation = "m*der(x,2) + k*x = f"\n'
+     'excitation = "step:10"\nt_end = 1.0\ndt = 1e-3\n', "model (a name) or equation (a text), not both"),
+    ('[campaign]\nkind = "identification"\n[task]\nexcitation = "step:10"\nt_end = 1.0\ndt = 1e-3\n',
+     "neither is there"),
+    ('[campaign]\nkind = "identification"\n[task]\nequation = "m*der(x,2) + k*abs(der(x))*der(x) = f"\n'
+     'excitation = "step:10"\nt_end = 1.0\ndt = 1e-3\n', "task.equation: must be an equation duffid can identify"),
+    ('[campaign]\nkind = "identification"\n[task]\nequation = "m*der(x,2) + k*x = f"\nplant = { q = 1.0 }\n'
+     'excitation = "step:10"\nt_end = 1.0\ndt = 1e-3\n', "plant.q: the equation has no parameter 'q'"),
 ])
 def test_spec_errors_name_the_file_and_the_key(tmp_path, text, message):
     spec = _write(tmp_path, "bad.toml", text)
@@ -447,3 +455,17 @@ def test_identification_task_reads_a_record_in_any_format(tmp_path, suffix):
     row = run_task(Task(id="t", kind="identification", settings=settings, factors={}))
     assert row["status"] == "ok", row["error"]
     assert abs(row["error_k"]) < 1.0  # percent
+
+
+def test_an_equation_campaign_simulates_and_identifies_the_equation(tmp_path):
+    """The equation duffid discover chose, run as a campaign unchanged (one task, serially)."""
+    from duffid.campaign.tasks import run_task
+
+    spec = _write(tmp_path, "equation.toml", '[campaign]\nkind = "identification"\n[task]\n'
+                  'equation = "m*der(x,2) + b*der(x) + k*x + kp*x^3 + k2*x^2 = f"\n'
+                  'plant = { m = 1.5, b = 3.1, k = 4000.0, kp = 3.2e7, k2 = 8e4 }\n'
+                  'excitation = "multisine:10,1,20,20"\nt_end = 10.0\ndt = 1e-3\nsnr_db = 50\nquantise = false\n')
+    task = load_spec(spec).tasks[0]
+    row = run_task(task)
+    assert row["published"] == 5
+    assert all(abs(row[f"error_{k}"]) < 0.5 for k in ("m", "b", "k", "kp", "k2"))

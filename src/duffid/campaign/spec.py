@@ -26,7 +26,9 @@ A spec names one kind of task, the settings every task shares, the factors that 
 Keys of ``[task]`` and ``[factors]`` per kind (:data:`KEYS`); nested tables
 (``plant = {kp = 0.0}``) and dotted keys (``"plant.kp" = 0.0``) are the same thing.
 
-- ``identification``: ``model`` (``duffing1``, ``duffing2``, ``circuit``), ``plant.<p>`` (the
+- ``identification``: ``model`` (``duffing1``, ``duffing2``, ``circuit``) or ``equation`` (a
+  text in the syntax of ``duffid identify --equation``, e.g. the equation ``duffid discover``
+  chose: simulated and identified as written, its parameters 0 unless given), ``plant.<p>`` (the
   true parameters of the simulated plant, the model's nominal values otherwise),
   ``excitation`` (a signal spec, :func:`duffid.data.signals.from_spec`), ``t_end``, ``dt``,
   ``snr_db`` (measurement noise; absent: none), ``quantise`` (the encoder, default true),
@@ -63,7 +65,8 @@ from ..identification.engine import METHODS
 from ..identification.options import ENGINES, ONLINE_METHODS, check_options
 from .metrics import resolve_metric
 from .systems import configured_system
-from .plants import PLANTS, RESERVED, plant_model
+from ..models.equation_model import EquationModel
+from .plants import PLANTS, RESERVED, equation_columns, plant_model
 
 __all__ = ["KINDS", "KEYS", "MODELS", "Task", "CampaignSpec", "load_spec"]
 
@@ -74,7 +77,7 @@ MODELS = tuple(PLANTS)
 #: Settings per kind: key -> what its value must be. ``plant.*``, ``options.*`` and (cosim)
 #: ``<component>.<parameter>`` keys are checked separately.
 KEYS: dict[str, dict[str, str]] = {
-    "identification": {"model": "model name", "excitation": "signal spec", "t_end": "positive number",
+    "identification": {"model": "model name", "equation": "equation", "excitation": "signal spec", "t_end": "positive number",
                        "dt": "positive number", "snr_db": "number", "quantise": "boolean",
                        "record": "record file", "method": "method", "check": "boolean", "engine": "engine"},
     "nonlinearity": {"model": "model name", "amplitude": "positive number", "rate": "positive number",
@@ -83,7 +86,7 @@ KEYS: dict[str, dict[str, str]] = {
     "cosim": {"system": "cosim file", "stop_time": "number", "step": "positive number",
               "parameter_set": "SSV file"},
 }
-_REQUIRED = {"identification": ("model",), "nonlinearity": ("model", "amplitude"), "cosim": ("system",)}
+_REQUIRED = {"identification": (), "nonlinearity": ("model", "amplitude"), "cosim": ("system",)}
 _PREFIXED = {"identification": ("plant", "options"), "nonlinearity": ("plant",), "cosim": ()}
 _TOP = {"campaign", "task", "factors", "metrics"}
 _RANGE = ("from", "to", "count")
@@ -202,6 +205,14 @@ def _check_value(path: Path, where: str, kind: str, key: str, value: Any) -> Any
     if check == "model name":
         if value not in MODELS:
             raise bad(f"one of {', '.join(MODELS)}")
+        return value
+    if check == "equation":
+        if not isinstance(value, str):
+            raise bad('an equation in the syntax of duffid identify --equation, e.g. "m*der(x,2) + k*x = f"')
+        try:
+            EquationModel(value, equation_columns(value))
+        except DuffidError as exc:
+            raise bad(f"an equation duffid can identify ({exc})") from None
         return value
     if check == "method":
         if value not in METHODS:
@@ -326,6 +337,11 @@ def load_spec(path: str | os.PathLike[str], *, seeds: int | None = None) -> Camp
     for key in _REQUIRED[kind]:
         if key not in settings and key not in factors:
             raise ConfigError(f"{path}: task.{key}: missing (needed by {kind} tasks)")
+    if kind == "identification":
+        given = [k for k in ("model", "equation") if k in settings or k in factors]
+        if len(given) != 1:
+            raise ConfigError(f"{path}: task: give the plant as model (a name) or equation (a text), "
+                              + ("not both" if given else "neither is there"))
     if kind == "identification" and "record" in settings and ("excitation" in settings or "excitation" in factors):
         raise ConfigError(f"{path}: task.record: a record is read, not simulated: drop task.excitation")
     if kind == "identification" and "record" not in settings and "record" not in factors:

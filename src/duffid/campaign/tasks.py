@@ -34,6 +34,7 @@ from ..data.record import Record
 from ..data.signals import from_spec
 from ..errors import InputError, SimulationError
 from ..identification.trust import identify
+from ..models.equation_model import EquationModel
 from ..models.simulation import measure, simulate
 from .metrics import resolve_metric
 from .plants import plant_model
@@ -45,9 +46,11 @@ if TYPE_CHECKING:
 __all__ = ["run_task"]
 
 @lru_cache(maxsize=8)
-def _exact(name: str, plant: tuple[tuple[str, float], ...], excitation: str, t_end: float, dt: float) -> Record:
-    """The noise-free simulation shared by the seeds of one setting (simulated once per process)."""
-    model = plant_model({"model": name, **{f"plant.{k}": v for k, v in plant}})
+def _exact(which: tuple[str, str], plant: tuple[tuple[str, float], ...], excitation: str, t_end: float,
+           dt: float) -> Record:
+    """The noise-free simulation shared by the seeds of one setting (simulated once per process);
+    ``which``: ``("model", name)`` or ``("equation", text)``."""
+    model = plant_model({which[0]: which[1], **{f"plant.{k}": v for k, v in plant}})
     return simulate(model, from_spec(excitation), t_end, dt)
 
 
@@ -58,7 +61,8 @@ def _identification(settings: Mapping[str, Any]) -> dict[str, Any]:
         truth = {k[len("plant."):]: float(v) for k, v in settings.items() if k.startswith("plant.")}
     else:
         key = tuple(sorted((k[len("plant."):], float(v)) for k, v in settings.items() if k.startswith("plant.")))
-        exact = _exact(settings["model"], key, settings["excitation"], settings["t_end"], settings["dt"])
+        which = ("equation", settings["equation"]) if "equation" in settings else ("model", settings["model"])
+        exact = _exact(which, key, settings["excitation"], settings["t_end"], settings["dt"])
         record = exact
         if "snr_db" in settings or settings.get("quantise", True):
             options: dict[str, Any] = {"seed": settings.get("seed", 0), "snr_db": settings.get("snr_db")}
@@ -68,7 +72,8 @@ def _identification(settings: Mapping[str, Any]) -> dict[str, Any]:
         truth = dict(plant.parameters)
     check = settings.get("check", True)
     options = {k[len("options."):]: v for k, v in settings.items() if k.startswith("options.")}
-    result = identify(record, plant, settings.get("method", "robust"), check=check,
+    identified = EquationModel(settings["equation"], record.column_names) if "equation" in settings else plant
+    result = identify(record, identified, settings.get("method", "robust"), check=check,
                       engine=settings.get("engine", "auto"), progress=False, **options)
     values = dict(result.assessment.values) if check and result.assessment is not None and \
         result.assessment.values else dict(result.parameters)
