@@ -561,7 +561,8 @@ def _ranked(screen: _Screen, pool: list[_Term], chosen: list[str]) -> list[tuple
 
 def _presence(candidate: Candidate, term: _Term) -> str:
     """``present`` (published, or at least 1/:data:`PRESENCE_UNCERTAINTY` standard errors from
-    zero with a physical sign), ``unknown`` (the identification refused the whole model
+    zero with a physical sign: a term that carries little of the force balance, not excited
+    enough for its value to be published, can still shape the motion), ``unknown`` (the identification refused the whole model
     because it does not reproduce the record) or why the term is absent, in words."""
     a = candidate.identification.assessment
     name = term.coefficient
@@ -570,7 +571,7 @@ def _presence(candidate: Candidate, term: _Term) -> str:
     uncertainty = a.uncertainty.get(name, math.nan)
     if status == "published":
         return "present"
-    if status != "uncertain":
+    if status not in ("uncertain", "not excited"):  # a term of little force can still shape the motion
         return f"its coefficient {name} is {status}"
     if not np.isfinite(uncertainty):
         return "unknown" if not a.fit.get("explained", False) else f"its coefficient {name} is not determined"
