@@ -124,10 +124,11 @@ def run(args: argparse.Namespace) -> int:
 def _run_motion(args: argparse.Namespace, record: Any, method: str, options: dict[str, Any]) -> int:
     """``identify`` of a velocity or acceleration record: the output-error fit of
     :func:`~duffid.identification.motion.identify_motion` (table or ``--json``)."""
-    from ..identification.motion import MOTIONS, identify_motion
+    from ..identification.motion import MOTIONS, displacement_columns, identify_motion
+    from ..models.equation_model import EquationModel
 
     word = MOTIONS[record.motion]
-    refused = [flag for flag, given in (("--equation", args.equation is not None), ("--segments", args.segments),
+    refused = [flag for flag, given in (("--segments", args.segments),
                                         ("--method", args.method not in (None, "robust")),
                                         ("--offset", args.offset is not None), ("--plot", args.plot is not None))
                if given]
@@ -136,8 +137,11 @@ def _run_motion(args: argparse.Namespace, record: Any, method: str, options: dic
         named = refused + [f"--{name.replace('_', '-')}" for name in others]
         raise InputError(f"{record.source}: {', '.join(named)} do(es) not apply to this {word} record: it is identified "
                          f"by fitting the simulated {word} to the measured one (with the sensor's bias), only "
-                         "--max-uncertainty, --jobs and the file flags apply")
-    model = model_from_arguments(args, record.n_dof)
+                         "--max-uncertainty, --equation, --jobs and the file flags apply")
+    if args.equation is not None:  # written in the displacements whose motion the record measures
+        model = EquationModel(equation_text(args, record.n_dof), displacement_columns(record))
+    else:
+        model = model_from_arguments(args, record.n_dof)
     extra = {"max_uncertainty": options["max_uncertainty"]} if "max_uncertainty" in options else {}
     result = identify_motion(record, model, **extra)
     if args.json:
@@ -145,7 +149,9 @@ def _run_motion(args: argparse.Namespace, record: Any, method: str, options: dic
         return 0
     print(f"{record.source}: {record.n_samples} samples, dt {record.dt:g} s, {word} measured, model {result.model}, "
           f"method {result.method}")
-    if not model.reciprocal:
+    if isinstance(model, EquationModel):
+        print(f"  equation: {'; '.join(model.texts)}")
+    elif not model.reciprocal:
         print(f"  equation: {model.equation_text()}")
     print(result_text(result))
     return 0

@@ -16,7 +16,8 @@ gives a starting point, never a published value:
 2. the algebraic estimator runs on that displacement (a constant force among its unknowns):
    its final solution is the start, or, when that is not physical (the integrated
    displacement's drift can spoil it: a swept sine, two DOFs), the chain's linear matrices
-   fitted to the frequency response;
+   fitted to the frequency response (a user's equation has no such start: it is refused
+   with that reason);
 3. the output-error fit of :func:`duffid.identification.refine.refine` then simulates the
    model under the measured force and matches the simulated velocity or acceleration to the
    measured one (no integration of the measurement enters the criterion, so its noise adds
@@ -40,6 +41,7 @@ import numpy as np
 from ..data.record import Record
 from ..errors import InputError, RecordError
 from ..models.chain import Chain
+from ..models.equation_model import EquationModel
 from .assessment import Assessment
 from .dispatch import final_estimates
 from .engine import STATUSES, Identification
@@ -47,7 +49,7 @@ from .offsets import with_force_offsets
 from .refine import OUTPUTS, canonical_from_public, refine
 from .sampling import natural_frequency, noise_level
 
-__all__ = ["MOTIONS", "SEGMENT_PERIODS", "FIT_TOLERANCE", "START_POWER", "START_NONLINEAR", "START_BINS",
+__all__ = ["displacement_columns", "MOTIONS", "SEGMENT_PERIODS", "FIT_TOLERANCE", "START_POWER", "START_NONLINEAR", "START_BINS",
            "integrated_displacement", "identify_motion"]
 
 #: The measured motions this module identifies from (a displacement goes to ``identify``).
@@ -126,7 +128,7 @@ def _start(record: Record, model: Chain, motion: str, cutoff: float | None
     # the estimator's final solution (a constant force among its unknowns), never published
     values = final_estimates(displacement, with_force_offsets(model))
     start = {k: float(values.get(k, math.nan)) for k in model.parameters}
-    if not _physical(model, start):
+    if not _physical(model, start) and isinstance(model, Chain):  # a chain's linear matrices give another
         start = _linear_start(record, model, x)
     return start, cutoff, (x, v)
 
@@ -180,7 +182,15 @@ def _linear_start(record: Record, model: Chain, x: np.ndarray) -> dict[str, floa
             canonical[name] = 0.0
     return model.from_canonical(canonical)
 
-def identify_motion(record: Record, model: Chain, motion: str | None = None, *, max_uncertainty: float = 0.01,
+def displacement_columns(record: Record) -> list[str]:
+    """The columns an equation for a velocity or acceleration record is written in: the
+    record's, with its motion columns named as the displacements they measure (``t, f, x``
+    for ``t, f, a``)."""
+    return [("x" + c[1:]) if c[:1] in MOTIONS else c for c in record.column_names]
+
+
+def identify_motion(record: Record, model: Chain | EquationModel, motion: str | None = None, *,
+                    max_uncertainty: float = 0.01,
                     cutoff: float | None = None, segment: int | None = None,
                     progress: bool | None = None) -> Identification:
     """Identify ``model`` from the force and a measured velocity or acceleration (offline).
@@ -191,8 +201,10 @@ def identify_motion(record: Record, model: Chain, motion: str | None = None, *, 
         Forces, and in the motion columns (``record.x``) the measured ``motion`` of each DOF
         in the model's displacement unit per second (velocity) or per second squared
         (acceleration).
-    model : Chain
-        Model structure (its values are not used).
+    model : Chain or EquationModel
+        Model structure (its values are not used); an equation is written in the
+        displacements (``x`` or ``x1 ..``, columns :func:`displacement_columns`), whose
+        velocity or acceleration the record measures.
     motion : {"v", "a"}, optional
         What the motion columns measure (:data:`MOTIONS`; default: the record's
         :attr:`~duffid.data.record.Record.motion`, which must agree when given).
@@ -216,10 +228,6 @@ def identify_motion(record: Record, model: Chain, motion: str | None = None, *, 
         ``explained``, ``bias`` and ``bias_std`` per DOF, ``start`` and ``cutoff_hz``), and
         notes in words.
     """
-    if not isinstance(model, Chain):
-        raise InputError(f"{getattr(model, 'name', model)!r}: identification from a velocity or acceleration takes "
-                         "the built-in models and chains (duffing1, duffing2, chain, circuit); an equation model "
-                         "needs a displacement for now")
     motion = record.motion if motion is None else motion
     if motion not in MOTIONS:
         raise InputError(f"motion must be one of {', '.join(MOTIONS)} (velocity, acceleration), got {motion!r}; "
