@@ -165,6 +165,20 @@ def test_two_dof_base_places_terms_per_equation():
 
 
 @pytest.mark.slow
+def test_two_dof_chain_missing_a_quadratic_spring_on_the_first_mass():
+    from duffid import Duffing2, Multisine, measure, simulate
+
+    text = Duffing2().equation_text().replace("kp1*x1^3", "kp1*x1^3 + q*x1^2", 1)
+    plant = EquationModel(text, ("t", "f1", "x1", "x2"), values=Duffing2().parameters | {"q": -4e4})
+    record = measure(simulate(plant, Multisine(5.0, 0.5, 12.0, 20.0, phases="random", seed=1), t_end=20.0,
+                              dt=1e-3), snr_db=50, seed=1)
+    found = discover(record, "duffing2", progress=False)
+    assert found.best.added == ("x1^2",) and found.best.coefficients == ("k2_eq1",)
+    value = found.best.identification.parameters["k2_eq1"]
+    assert value == pytest.approx(-4e4, rel=5 * found.best.identification.assessment.uncertainty["k2_eq1"])
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("snr", [40.0, 60.0])
 @pytest.mark.parametrize("terms", [(), ("x^2",), ("x^5",), ("abs(x)*x",), ("x^2*der(x)",), ("sign(der(x))",),
                                    ("1",), ("x^2", "sign(der(x))"), ("x^5", "x^2*der(x)")])

@@ -276,7 +276,7 @@ def _terms(base: EquationModel, library: Sequence[str], columns: Sequence[str]) 
             generic += 1
             stem = f"d{generic}"
         for i in range(n_eq):
-            name = stem if n_eq == 1 else f"{stem}_{i + 1}"
+            name = stem if n_eq == 1 else f"{stem}_eq{i + 1}"
             while name in taken:
                 name += "b"
             taken.add(name)
