@@ -9,13 +9,11 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from duffid.cli import main
 from duffid.errors import InputError
 from duffid.identification.discover import (
-    DEFAULT_LIBRARY,
     NOISE_FIT,
     TERM_NAMES,
     discover,

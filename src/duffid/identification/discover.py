@@ -393,7 +393,8 @@ class _Screen:
 
 
 # ---------------------------------------------------------------------- search
-def _base_text(base: str | Chain | EquationModel, record: Record) -> str:
+def _base_text(base: str | Chain | EquationModel) -> str:
+    """The base's equations as text."""
     if isinstance(base, EquationModel):
         return "; ".join(base.texts)
     if isinstance(base, Chain):
@@ -459,7 +460,7 @@ def discover(record: Record, base: str | Chain | EquationModel = "duffing1", *,
         raise InputError(f"{record.source}: the base {base.name} has {base.n_dof} masses, the record "
                          f"{record.n_dof} displacement{'s' if record.n_dof > 1 else ''} "
                          f"({', '.join(c for c in columns if c.startswith('x'))})")
-    base_text = _base_text(base, record)
+    base_text = _base_text(base)
     base_model = EquationModel(base_text, columns)
     texts = list(base_model.texts)
     terms = _terms(base_model, DEFAULT_LIBRARY if library is None else library, columns)
