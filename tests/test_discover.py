@@ -235,3 +235,10 @@ def test_displacement_offset_shows_as_quadratic_and_constant_with_its_size():
     note = next(n for n in found.notes if "displacement-sensor offset" in n)
     implied = float(note.split("(3 kp) = ")[1].split(" m")[0])
     assert implied == pytest.approx(0.002, rel=0.02)
+
+
+def test_a_record_too_short_to_screen_says_so_and_its_json_is_strict():
+    found = discover(record_with("x^2", duration=0.3), "duffing1", progress=False)
+    assert found.best.added == ()
+    assert any("too short to screen terms" in note for note in found.notes)
+    json.loads(json.dumps(found.to_dict(), allow_nan=False))

@@ -38,6 +38,7 @@ __all__ = [
     "BALANCE_FLOOR",
     "QUADRATURE_BIAS",
     "Assessment",
+    "json_ready",
     "term_shares",
     "SEGMENT_PERIODS",
     "MAX_ESCAPED",
@@ -77,6 +78,21 @@ UNCERTAINTY_FLOOR = 1e-5
 BALANCE_FLOOR = 1e-5
 
 QUADRATURE_BIAS = 50.0
+
+def json_ready(value: Any) -> Any:
+    """``value`` (numbers, arrays, lists, mappings) as plain JSON types, non-finite numbers as None."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if np.isfinite(value) else None
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [json_ready(u) for u in value]
+    if isinstance(value, Mapping):
+        return {k: json_ready(u) for k, u in value.items()}
+    return value
+
 
 @dataclass
 class Assessment:
@@ -128,18 +144,7 @@ class Assessment:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready ``status``, ``uncertainty``, ``share``, ``fit`` and ``notes``."""
-        def clean(v: Any) -> Any:
-            if isinstance(v, (bool, np.bool_)):
-                return bool(v)
-            if isinstance(v, (int, np.integer)):
-                return int(v)
-            if isinstance(v, (float, np.floating)):
-                return float(v) if np.isfinite(v) else None
-            if isinstance(v, (list, tuple, np.ndarray)):
-                return [clean(u) for u in v]
-            if isinstance(v, Mapping):
-                return {k: clean(u) for k, u in v.items()}
-            return v
+        clean = json_ready
         return {
             "status": dict(self.status),
             "uncertainty": {k: clean(v) for k, v in self.uncertainty.items()},

@@ -61,6 +61,7 @@ from ..errors import EquationError, InputError, RecordError
 from ..models.chain import Chain
 from ..models.equation_model import EquationModel
 from ..models.units import parameter_units
+from .assessment import json_ready
 from .buffered import BufferedIdentifier, velocity_signs
 from .engine import Identification
 from .sampling import content_frequency, noise_level
@@ -179,11 +180,11 @@ class Candidate:
             "equation": self.equation,
             "added": list(self.added),
             "fit": a["fit"],
-            "parameters": {k: (float(v) if np.isfinite(v) else None) for k, v in result.parameters.items()},
+            "parameters": json_ready(result.parameters),
             "status": a["status"],
             "uncertainty": a["uncertainty"],
             "units": dict(self.units),
-            "screening": float(self.screening) if np.isfinite(self.screening) else None,
+            "screening": json_ready(self.screening),
             "verdict": self.verdict,
             "notes": a["notes"],
         }
@@ -229,11 +230,10 @@ class Discovery:
             "base": self.base,
             "best": self.best.to_dict(),
             "candidates": [c.to_dict() for c in self.candidates],
-            "screening": [{"with": list(chosen), "terms": [{"term": term, "ratio": (float(r) if np.isfinite(r) else None)}
-                                                           for term, r in ranking]}
+            "screening": [{"with": list(chosen), "terms": [{"term": term, "ratio": json_ready(r)} for term, r in ranking]}
                           for chosen, ranking in self.screening],
             "notes": list(self.notes),
-            "residual": self.residual,
+            "residual": json_ready(self.residual),
             "seconds": self.seconds,
         }
 
@@ -521,6 +521,9 @@ def discover(record: Record, base: str | Chain | EquationModel = "duffing1", *,
             candidates.append(current)
         if all(_presence(current, t) == "present" for t in chosen):
             confirmed = current
+    if screening and not any(np.isfinite(r) for _, r in screening[0][1]):
+        notes.append(f"the record is too short to screen terms on held-out stretches ({FOLDS} stretches of "
+                     f"{WINDOW_PERIODS:g} periods of its main frequency at most, 2 at least): none was tried")
     if current is not confirmed:
         provisional = [t.label for t in chosen if t.label not in confirmed.added]
         notes.append(f"{', '.join(provisional)}: improve the fit, but the model with "
@@ -611,13 +614,15 @@ def _words(best: Candidate, base: Candidate, chosen: list[_Term], max_terms: int
     """The search's outcome in words."""
     fit = best.identification.assessment.fit
     sim, noise = fit.get("simulation_nrmse", math.nan), fit.get("noise_nrmse", math.nan)
-    shown = (f"{100 * sim:.3g} % RMS (noise {100 * noise:.2g} %)" if sim is not None and np.isfinite(sim)
-             else "not at all (its simulation escapes)")
+    finite = sim is not None and np.isfinite(sim)
+    shown = f"{100 * sim:.3g} % RMS (noise {100 * noise:.2g} %)" if finite else "an escaping simulation"
     if not chosen:
         if base.explained:
             return [f"the base equation reproduces the record to its noise ({shown}): nothing to add"]
-        return [f"no library term is supported by the record: the base equation misses the measured "
-                f"displacement by {shown}, and no term makes it fit with a published coefficient"]
+        misses = f"misses the measured displacement by {shown}" if finite else \
+            "does not reproduce the record (its simulation escapes)"
+        return [f"no library term is supported by the record: the base equation {misses}, and no term makes "
+                "it fit with a published coefficient"]
     added = "; ".join(f"{t.label}: {TERM_WORDS.get(t.text, 'the term ' + t.text)}" for t in chosen)
     lines = [f"the record asks for {len(chosen)} term{'s' if len(chosen) > 1 else ''} beyond the base "
              f"({added}); with {'them' if len(chosen) > 1 else 'it'} the model misses the measured "
@@ -721,9 +726,13 @@ def residual_shape(record: Record, model: EquationModel, values: Mapping[str, fl
         known = [j for j, k in enumerate(names) if k in model.parameters]
         without = _held_out_error(A, D, known)
         with_shape = _held_out_error(A, D, list(range(len(names))))
-        shares[name] = float(1 - with_shape / without) if without > 0 else 0.0
-    shape, explained = max(shares.items(), key=lambda item: item[1])
-    if explained < SHAPE_SHARE:
+        shares[name] = float(1 - with_shape / without) if without > 0 else (math.nan if math.isnan(without) else 0.0)
+    scored = {k: v for k, v in shares.items() if np.isfinite(v)}
+    shape, explained = max(scored.items(), key=lambda item: item[1]) if scored else ("unknown", math.nan)
+    if not scored:
+        words = (f"the record is too short to tell what the model leaves unexplained (held-out stretches of "
+                 f"{WINDOW_PERIODS:g} periods are needed on both sides)")
+    elif explained < SHAPE_SHARE:
         words = (f"what the model leaves unexplained has none of the shapes duffid knows (the closest, {shape}, "
                  f"removes {100 * max(explained, 0.0):.0f} % of the held-out equation error)")
         shape = "unstructured"
@@ -732,8 +741,10 @@ def residual_shape(record: Record, model: EquationModel, values: Mapping[str, fl
                  f"remove {100 * explained:.0f} % of the held-out equation error")
     cutoff = smoothing_cutoff(record)
     edge = int(4 * record.fs / cutoff)
-    if record.n_samples < 4 * edge:
-        raise RecordError(f"{record.source}: too short to describe the residual ({record.n_samples} samples)")
+    out = {"shape": shape, "explained": explained, "shares": shares, "rms": math.nan, "force_rms": math.nan,
+           "words": words, "x": [], "v": [], "residual": []}
+    if record.n_samples < 4 * edge:  # too short for the filter's edges: no pointwise residual
+        return out
     x = sosfiltfilt(butter(8, cutoff, fs=record.fs, output="sos"), record.x, axis=0)
     v = np.gradient(x, record.dt, axis=0)
     a = np.gradient(v, record.dt, axis=0)
@@ -743,5 +754,6 @@ def residual_shape(record: Record, model: EquationModel, values: Mapping[str, fl
     rms = math.sqrt(float(np.mean(residual ** 2)))
     force_rms = math.sqrt(float(np.mean(record.f[edge:-edge, 0] ** 2)))
     pick = np.linspace(0, len(residual) - 1, min(len(residual), 4000)).astype(int)
-    return {"shape": shape, "explained": explained, "shares": shares, "rms": rms, "force_rms": force_rms,
-            "words": words, "x": x1[pick].tolist(), "v": v1[pick].tolist(), "residual": residual[pick].tolist()}
+    out.update(rms=rms, force_rms=force_rms, x=x1[pick].tolist(), v=v1[pick].tolist(),
+               residual=residual[pick].tolist())
+    return out
