@@ -57,7 +57,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from ..data.record import Record
-from ..errors import EquationError, InputError, RecordError
+from ..errors import EquationError, InputError
 from ..models.chain import Chain
 from ..models.equation_model import EquationModel
 from ..models.units import parameter_units
