@@ -139,6 +139,7 @@ def test_cli_json_and_table(tmp_path, quadratic, capsys):
     text = capsys.readouterr().out
     assert "best: m*der(x,2) + b*der(x) + k*x + kp*x^3 + k2*x^2 = f" in text
     assert "x^4" in text  # screened
+    assert "units (the record's in SI, m and N): m kg, b N.s/m, k N/m, kp N/m3, k2 N/m2" in text
     assert main(["discover", str(path), "--library", "abs(der(x))*der(x)"]) == 2
     assert "abs(der(x))*der(x)" in capsys.readouterr().err
 

@@ -94,6 +94,9 @@ def discovery_text(found: Discovery) -> str:
         lines.append(f"  {(', '.join(c.added) or '(base)'):<28} {shown:>10} {100 * noise:>5.2g} %  {c.verdict}")
     lines.append(f"  best: {found.best.equation}")
     lines.append(result_text(found.best.identification))
+    if found.best.units:
+        lines.append("  units (the record's in SI, m and N): "
+                     + ", ".join(f"{name} {unit}" for name, unit in found.best.units.items()))
     lines.extend(f"  * {note}" for note in found.notes)
     lines.append(f"  ({found.seconds:.1f} s)")
     return "\n".join(lines)
