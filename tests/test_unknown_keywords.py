@@ -55,6 +55,7 @@ def _probes(record):
     from duffid.identification.c_buffered import CBufferedIdentifier
     from duffid.identification.c_core import CIdentifier
     from duffid.identification.changes import find_changes, identify_segments
+    from duffid.identification.discover import discover
     from duffid.identification.dispatch import final_estimates
     from duffid.identification.engine import OnlineIdentifier
     from duffid.identification.equation import identify_equation
@@ -88,6 +89,7 @@ def _probes(record):
         "duffid.identification.trust.identify": lambda: identify(record, plant, **{BOGUS: 1}),
         "duffid.identification.dispatch.run_estimator": lambda: run_estimator(record, plant, **{BOGUS: 1}),
         "duffid.identification.dispatch.final_estimates": lambda: final_estimates(record, plant, **{BOGUS: 1}),
+        "duffid.identification.discover.discover": lambda: discover(record, "duffing1", **{BOGUS: 1}),
         "duffid.models.chain.Chain.with_parameters": lambda: Chain.with_parameters(plant, **{BOGUS: 1.0}),
     }
 

@@ -64,6 +64,7 @@ from ..models.units import parameter_units
 from .assessment import json_ready
 from .buffered import BufferedIdentifier, velocity_signs
 from .engine import Identification
+from .options import check_options
 from .sampling import content_frequency, noise_level
 from .trust import identify
 
@@ -453,6 +454,7 @@ def discover(record: Record, base: str | Chain | EquationModel = "duffing1", *,
     record.require_displacement("duffid discover (a displacement record)")
     if max_terms < 0:
         raise InputError(f"--max-terms must be at least 0, got {max_terms}")
+    check_options("robust", options)  # an unknown option named before any work
     columns = record.column_names
     if isinstance(base, str) and base.strip() in MODEL_NAMES:
         base = model_from_name(base.strip(), record.n_dof)
