@@ -281,6 +281,10 @@ def test_csv_decimal_comma(tmp_path: Path) -> None:
     comma = tmp_path / "comma.csv"
     comma.write_text("t;f;x\n0;1,5;2e-3\n0,001;-2,25;1,5e-3\n0,002;0;1\n")
     assert Record.read_csv(comma, delimiter=";", decimal=",") == Record.read_csv(plain)
+    # every field of the first data row with a decimal comma: data, not a units row
+    every = tmp_path / "every.csv"
+    every.write_text("t;f;x\n0,000;1,5;2,0e-3\n0,001;-2,25;1,5e-3\n0,002;0,0;1,0\n")
+    assert Record.read_csv(every, delimiter=";", decimal=",") == Record.read_csv(plain)
     with pytest.raises(InputError, match="decimal mark and the delimiter are both ','"):
         Record.read_csv(plain, decimal=",")
     with pytest.raises(InputError, match="decimal mark must be"):

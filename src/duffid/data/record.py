@@ -1237,7 +1237,10 @@ def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Map
         pos += 1
     if pos < len(lines):
         fields = split(lines[pos])
-        if len(fields) == len(names) and all(f and not _is_number(f) for f in (fields[i] for i in used)):
+        def number(text: str) -> bool:  # in the file's decimal mark
+            return _is_number(text) or (decimal == "," and _is_number(text.replace(",", ".", 1)))
+
+        if len(fields) == len(names) and all(f and not number(f) for f in (fields[i] for i in used)):
             units = {role: fields[index[role]] for role in roles}
             units_line = pos + 1
             for role, unit in units.items():
