@@ -27,15 +27,20 @@ __all__ = [
     "final_estimates",
     "data_window",
     "BLOCK_SAMPLES",
+    "HISTORY_BLOCK",
     "Cancelled",
     "Pool",
     "all_cores",
 ]
 
-#: Samples handed to the C batch per call: its per-sample outputs exist for one block at a
-#: time (the history keeps only the parameters, condition and flags), and a cancelled run
-#: stops within a block.
+#: Samples handed to the C batch per call by a run that keeps only the final estimates (no
+#: per-sample output is written): a cancelled run stops within a block.
 BLOCK_SAMPLES = 1 << 16
+
+#: Samples per call of a run that keeps the history: their per-sample outputs (about a
+#: kilobyte each) go to one buffer reused from block to block, small enough to stay in the
+#: processor's cache (a fresh 64 k-sample buffer per block cost as much as the estimator).
+HISTORY_BLOCK = 1 << 12
 
 
 class Cancelled(Exception):
@@ -155,7 +160,7 @@ def final_estimates(record: Record, model: Chain, method: str = "robust", *, eng
                     cancel: Any = None, **options: Any) -> dict[str, float]:
     """The estimator's final solution over ``record`` (public names), as
     ``run_estimator(...).estimates``, without the history: on the C core block by block,
-    only the last output kept (``cancel`` as in :func:`run_estimator`)."""
+    no per-sample output written (``cancel`` as in :func:`run_estimator`)."""
     record.require_displacement("the algebraic estimator")
     identifier = _c_identifier(record, model, method, engine, options)
     if identifier is None:
@@ -163,23 +168,21 @@ def final_estimates(record: Record, model: Chain, method: str = "robust", *, eng
     with identifier:
         check_record(record, identifier.model, identifier.dt)
         identifier.reset()
-        last = None
         for start, stop in _blocks(record.n_samples, cancel):
-            last = identifier.run(record.x[start:stop], record.f[start:stop])[-1]
+            identifier.consume(record.x[start:stop], record.f[start:stop])
         flushed = identifier.flush()
-        names = identifier.parameter_names
-        values = {k: float(v) for k, v in flushed.current.items()} if flushed is not None else {
-            name: float(last["current"][i]) for i, name in enumerate(names)}
+        values = {k: float(v) for k, v in (flushed if flushed is not None else identifier.latest()).current.items()}
     if identifier.model is model:
         return values
     return model.from_canonical({identifier.model.canonical_name(k): v for k, v in values.items()})
 
-def _blocks(n: int, cancel: Any) -> Any:
-    """``(start, stop)`` of the blocks of ``n`` samples; :class:`Cancelled` once ``cancel`` is set."""
-    for start in range(0, n, BLOCK_SAMPLES):
+def _blocks(n: int, cancel: Any, size: int = BLOCK_SAMPLES) -> Any:
+    """``(start, stop)`` of the blocks of ``size`` samples of ``n``; :class:`Cancelled` once
+    ``cancel`` is set."""
+    for start in range(0, n, size):
         if cancel is not None and cancel.is_set():
             raise Cancelled()
-        yield start, min(start + BLOCK_SAMPLES, n)
+        yield start, min(start + size, n)
 
 def _c_identifier(record: Record, model: Chain, method: str, engine: str,
                   options: Mapping[str, Any]) -> CIdentifier | None:
@@ -216,8 +219,9 @@ def _identified_in_blocks(identifier: CIdentifier, record: Record, cancel: Any) 
     flags = np.empty(n, dtype=bool)
     outliers: list[dict[str, Any]] = []
     count, last = 0, None
-    for start, stop in _blocks(n, cancel):
-        rows = identifier.run(record.x[start:stop], record.f[start:stop])
+    buffer = np.empty(min(n, HISTORY_BLOCK), dtype=identifier.output_dtype)
+    for start, stop in _blocks(n, cancel, HISTORY_BLOCK):
+        rows = identifier.run(record.x[start:stop], record.f[start:stop], out=buffer)
         parameters[start:stop] = rows["parameters"][:, :len(names)]
         condition[start:stop] = rows["condition"]
         flags[start:stop] = rows["identified"].astype(bool)
