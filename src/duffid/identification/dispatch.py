@@ -25,6 +25,7 @@ from .options import ENGINES, ONLINE_METHODS
 __all__ = [
     "run_estimator",
     "final_estimates",
+    "on_c_core",
     "data_window",
     "BLOCK_SAMPLES",
     "HISTORY_BLOCK",
@@ -175,6 +176,16 @@ def final_estimates(record: Record, model: Chain, method: str = "robust", *, eng
     if identifier.model is model:
         return values
     return model.from_canonical({identifier.model.canonical_name(k): v for k, v in values.items()})
+
+def on_c_core(record: Record, model: Chain, method: str = "robust", *, engine: str = "auto",
+              **options: Any) -> bool:
+    """Whether :func:`run_estimator` and :func:`final_estimates` run ``model`` on the C core
+    for this record and these options (else the Python identifier runs it)."""
+    identifier = _c_identifier(record, model, method, engine, options)
+    if identifier is None:
+        return False
+    identifier.close()
+    return True
 
 def _blocks(n: int, cancel: Any, size: int = BLOCK_SAMPLES) -> Any:
     """``(start, stop)`` of the blocks of ``size`` samples of ``n``; :class:`Cancelled` once
