@@ -10,6 +10,7 @@ import pytest
 
 from duffid import Duffing1, Duffing2, Multisine, Record, identify, measure, simulate
 from duffid.identification import assessment, dispatch
+from duffid.identification.c_core import CIdentifier
 
 
 @pytest.fixture(scope="module")
@@ -27,10 +28,16 @@ def test_blocks_and_final_estimates_equal_one_batch_call(record, model, monkeypa
     if model.n_dof == 2:
         record = measure(simulate(model, Multisine(8.0, 0.5, 10.0, 2.0, phases="random", seed=1), 3.0, 1e-3),
                          pulses_per_cm=None, snr_db=40, seed=2)
-    monkeypatch.setattr(dispatch, "BLOCK_SAMPLES", 1 << 30)
+    for name in ("BLOCK_SAMPLES", "HISTORY_BLOCK"):
+        monkeypatch.setattr(dispatch, name, 1 << 30)
     whole = dispatch.run_estimator(record, model)
-    monkeypatch.setattr(dispatch, "BLOCK_SAMPLES", 700)
+    with CIdentifier(model, record.dt) as core:  # one batch call into fresh outputs
+        single = core.identify_record(record)
+    for name in ("BLOCK_SAMPLES", "HISTORY_BLOCK"):  # the history's buffer reused block to block
+        monkeypatch.setattr(dispatch, name, 700)
     blocks = dispatch.run_estimator(record, model)
+    np.testing.assert_array_equal(list(single.estimates.values()), list(whole.estimates.values()))
+    np.testing.assert_array_equal(single.condition, whole.condition)
     for name in whole.history:
         np.testing.assert_array_equal(whole.history[name], blocks.history[name])
     np.testing.assert_array_equal(whole.condition, blocks.condition)
