@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from duffid import Duffing1, Duffing2, Multisine, Record, identify, measure, simulate
+from duffid.errors import InputError
 from duffid.identification import assessment, dispatch
 from duffid.identification.c_core import CIdentifier
 
@@ -47,6 +48,24 @@ def test_blocks_and_final_estimates_equal_one_batch_call(record, model, monkeypa
         np.testing.assert_array_equal(list(whole.estimates.values()), [values[k] for k in whole.estimates])
     assert whole.outliers == blocks.outliers and whole.online_status == blocks.online_status
     assert whole.window == blocks.window
+
+
+def test_outputs_into_a_reused_buffer_or_none_advance_the_core_alike(record):
+    x, f = record.x[:3000], record.f[:3000]
+    with CIdentifier(Duffing1(), record.dt) as fresh, CIdentifier(Duffing1(), record.dt) as reused, \
+            CIdentifier(Duffing1(), record.dt) as silent:
+        rows = fresh.run(x, f)
+        buffer = np.empty(1000, dtype=reused.output_dtype)
+        for start in range(0, 3000, 1000):
+            into = reused.run(x[start:start + 1000], f[start:start + 1000], out=buffer)
+            assert into.tobytes() == rows[start:start + 1000].tobytes()
+        silent.consume(x, f)
+        last = silent.latest()
+        np.testing.assert_array_equal(list(last.current.values()), rows["current"][-1, :4])
+        np.testing.assert_array_equal(list(last.parameters.values()), rows["parameters"][-1, :4])
+        assert last.identified == bool(rows["identified"][-1]) and last.condition == rows["condition"][-1]
+        with pytest.raises(InputError, match="out must be"):
+            reused.run(x, f, out=buffer)  # too short for 3000 samples
 
 
 def test_a_set_cancel_event_stops_a_run(record):
