@@ -225,7 +225,7 @@ def _identified_in_blocks(identifier: CIdentifier, record: Record, cancel: Any) 
     identifier.reset()
     names = identifier.parameter_names
     n = record.n_samples
-    parameters = np.empty((n, len(names)))
+    parameters = np.empty((len(names), n))  # a row per parameter: the history's arrays are its rows
     condition = np.empty(n)
     flags = np.empty(n, dtype=bool)
     outliers: list[dict[str, Any]] = []
@@ -233,7 +233,7 @@ def _identified_in_blocks(identifier: CIdentifier, record: Record, cancel: Any) 
     buffer = np.empty(min(n, HISTORY_BLOCK), dtype=identifier.output_dtype)
     for start, stop in _blocks(n, cancel, HISTORY_BLOCK):
         rows = identifier.run(record.x[start:stop], record.f[start:stop], out=buffer)
-        parameters[start:stop] = rows["parameters"][:, :len(names)]
+        parameters[:, start:stop] = rows["parameters"][:, :len(names)].T
         condition[start:stop] = rows["condition"]
         flags[start:stop] = rows["identified"].astype(bool)
         found = np.flatnonzero(np.diff(rows["outliers"], prepend=count) > 0)
@@ -246,11 +246,11 @@ def _identified_in_blocks(identifier: CIdentifier, record: Record, cancel: Any) 
     online_status = {name: STATUSES[last["status"][i]] for i, name in enumerate(names)}
     flushed = identifier.flush()
     if flushed is not None:  # a sample held back at the end, processed as measured
-        parameters[-1] = [flushed.parameters[name] for name in names]
+        parameters[:, -1] = [flushed.parameters[name] for name in names]
         condition[-1], flags[-1], window = flushed.condition, flushed.identified, flushed.window
         current = {k: float(v) for k, v in flushed.current.items()}
         online_status = dict(flushed.status)
-    history = {name: parameters[:, i].copy() for i, name in enumerate(names)}
+    history = {name: parameters[i] for i, name in enumerate(names)}
     return Identification(
         model=identifier.model.name, method=identifier.method,
         parameters={name: float(history[name][-1]) for name in names},
