@@ -278,7 +278,9 @@ def _checked(record: Record, method: str, kind: str | None, physical: Chain, est
     estimation.factor = upsampling_needed(record, content=content)
     # a window of periods of the content frequency is redone in periods of the slowest
     # identified mode (the same only by chance): its first run's final values suffice
-    provisional = auto and opts["window"] < record.duration and estimation.final_is_cheaper()
+    first_window = opts.get("window") if auto else None  # None, or "auto" without a content frequency
+    provisional = isinstance(first_window, float) and first_window < record.duration and \
+        estimation.final_is_cheaper()
     result = None if provisional else estimation.run(estimation.sampled(), opts)
     first = estimation.final(estimation.sampled()) if result is None else result.estimates
     step("estimator")
