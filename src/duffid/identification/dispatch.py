@@ -38,9 +38,10 @@ __all__ = [
 #: per-sample output is written): a cancelled run stops within a block.
 BLOCK_SAMPLES = 1 << 16
 
-#: Samples per call of a run that keeps the history: their per-sample outputs (about a
-#: kilobyte each) go to one buffer reused from block to block, small enough to stay in the
-#: processor's cache (a fresh 64 k-sample buffer per block cost as much as the estimator).
+#: Samples per call of a run that keeps the history: their per-sample outputs (1.2 kB each)
+#: go to one 5 MB buffer reused from block to block (a fresh, zeroed buffer of 64 k samples
+#: per block cost nearly as much as the estimator: 1-DOF, 100 k samples, 0.60 s with such
+#: outputs against 0.33 s with none, on a loaded machine).
 HISTORY_BLOCK = 1 << 12
 
 
