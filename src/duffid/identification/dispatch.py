@@ -178,10 +178,10 @@ def final_estimates(record: Record, model: Chain, method: str = "robust", *, eng
         return values
     return model.from_canonical({identifier.model.canonical_name(k): v for k, v in values.items()})
 
-def on_c_core(record: Record, model: Chain, method: str = "robust", *, engine: str = "auto",
-              **options: Any) -> bool:
+def on_c_core(record: Record, model: Chain, method: str, engine: str, options: Mapping[str, Any]) -> bool:
     """Whether :func:`run_estimator` and :func:`final_estimates` run ``model`` on the C core
-    for this record and these options (else the Python identifier runs it)."""
+    for this record with these ``options`` (else the Python identifier runs it, which also
+    judges options the C core refuses)."""
     identifier = _c_identifier(record, model, method, engine, options)
     if identifier is None:
         return False

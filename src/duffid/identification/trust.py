@@ -372,8 +372,7 @@ class _Estimation:
     def final_is_cheaper(self) -> bool:
         """Whether :meth:`final` costs less than :meth:`run` on the record (the C core, which
         then writes no per-sample output; the Python identifier keeps its history either way)."""
-        return not self.shifted and on_c_core(self.record, self.physical, self.method, engine=self.engine,
-                                              **self.options)
+        return not self.shifted and on_c_core(self.record, self.physical, self.method, self.engine, self.options)
 
     def sampled(self) -> Record:
         """The record upsampled by the current factor (made once per factor)."""
