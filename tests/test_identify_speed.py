@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from duffid import Duffing1, Duffing2, Multisine, Record, identify, measure, simulate
+from duffid.errors import InputError
 from duffid.identification import assessment, dispatch
+from duffid.identification.c_core import CIdentifier
 
 
 @pytest.fixture(scope="module")
@@ -27,10 +29,16 @@ def test_blocks_and_final_estimates_equal_one_batch_call(record, model, monkeypa
     if model.n_dof == 2:
         record = measure(simulate(model, Multisine(8.0, 0.5, 10.0, 2.0, phases="random", seed=1), 3.0, 1e-3),
                          pulses_per_cm=None, snr_db=40, seed=2)
-    monkeypatch.setattr(dispatch, "BLOCK_SAMPLES", 1 << 30)
+    for name in ("BLOCK_SAMPLES", "HISTORY_BLOCK"):
+        monkeypatch.setattr(dispatch, name, 1 << 30)
     whole = dispatch.run_estimator(record, model)
-    monkeypatch.setattr(dispatch, "BLOCK_SAMPLES", 700)
+    with CIdentifier(model, record.dt) as core:  # one batch call into fresh outputs
+        single = core.identify_record(record)
+    for name in ("BLOCK_SAMPLES", "HISTORY_BLOCK"):  # the history's buffer reused block to block
+        monkeypatch.setattr(dispatch, name, 700)
     blocks = dispatch.run_estimator(record, model)
+    np.testing.assert_array_equal(list(single.estimates.values()), list(whole.estimates.values()))
+    np.testing.assert_array_equal(single.condition, whole.condition)
     for name in whole.history:
         np.testing.assert_array_equal(whole.history[name], blocks.history[name])
     np.testing.assert_array_equal(whole.condition, blocks.condition)
@@ -40,6 +48,24 @@ def test_blocks_and_final_estimates_equal_one_batch_call(record, model, monkeypa
         np.testing.assert_array_equal(list(whole.estimates.values()), [values[k] for k in whole.estimates])
     assert whole.outliers == blocks.outliers and whole.online_status == blocks.online_status
     assert whole.window == blocks.window
+
+
+def test_outputs_into_a_reused_buffer_or_none_advance_the_core_alike(record):
+    x, f = record.x[:3000], record.f[:3000]
+    with CIdentifier(Duffing1(), record.dt) as fresh, CIdentifier(Duffing1(), record.dt) as reused, \
+            CIdentifier(Duffing1(), record.dt) as silent:
+        rows = fresh.run(x, f)
+        buffer = np.empty(1000, dtype=reused.output_dtype)
+        for start in range(0, 3000, 1000):
+            into = reused.run(x[start:start + 1000], f[start:start + 1000], out=buffer)
+            assert into.tobytes() == rows[start:start + 1000].tobytes()
+        silent.consume(x, f)
+        last = silent.latest()
+        np.testing.assert_array_equal(list(last.current.values()), rows["current"][-1, :4])
+        np.testing.assert_array_equal(list(last.parameters.values()), rows["parameters"][-1, :4])
+        assert last.identified == bool(rows["identified"][-1]) and last.condition == rows["condition"][-1]
+        with pytest.raises(InputError, match="out must be"):
+            reused.run(x, f, out=buffer)  # too short for 3000 samples
 
 
 def test_a_set_cancel_event_stops_a_run(record):

@@ -64,7 +64,8 @@ CONSISTENCY_EXCESS = 1e-3
 REPLICATES = 8
 
 #: Records of at least this many samples show a progress bar while they are identified and
-#: checked (about a second at the checked identification's 20,000 to 50,000 samples/s).
+#: checked (about a third of a second at the checked identification's 60,000 to 75,000
+#: samples/s on one core, 1-DOF).
 PROGRESS_SAMPLES = 20_000
 
 #: The relative standard error is never stated below this (rounding).

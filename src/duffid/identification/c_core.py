@@ -254,6 +254,7 @@ def load_library(path: str | os.PathLike[str] | None = None, precision: str = "d
         "duffid_hold": (ctypes.c_int, [est_p]),
         "duffid_update": (ctypes.c_int, [est_p, dbl_p, dbl_p, out_p]),
         "duffid_run": (ctypes.c_int, [est_p, ctypes.c_long, dbl_p, dbl_p, out_p, ctypes.POINTER(ctypes.c_long)]),
+        "duffid_latest_output": (ctypes.c_long, [est_p, out_p]),
         "duffid_n_parameters": (ctypes.c_int, [est_p]),
         "duffid_parameter_name": (ctypes.c_char_p, [est_p, ctypes.c_int]),
         "duffid_capacity": (ctypes.c_long, [est_p]),
@@ -575,22 +576,56 @@ class CIdentifier(Identifier):
         return Estimate(out.t, params, bool(out.identified), out.condition, out.uncertainty, out.window, current,
                         status, int(out.outliers), std_errors=errors, residual=float(out.residual))
 
-    def run(self, x: np.ndarray, f: np.ndarray) -> np.ndarray:
+    def run(self, x: np.ndarray, f: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Consume many samples in one call: ``x`` (n, n_dof), ``f`` (n, n_forces).
 
         Returns the outputs as a structured array with fields ``t``, ``parameters``
         (n, parameters), ``identified``, ``condition``, ``uncertainty``, ``window``,
         ``current`` and ``status`` (codes: indices into
         :data:`~duffid.identification.engine.STATUSES`; see :class:`~duffid.identification.engine.Estimate`).
+
+        ``out``: an array of :attr:`output_dtype` of at least n rows to write them into (its
+        first n rows are returned; a buffer reused from block to block spares the allocation
+        and first touch of a fresh one, about a kilobyte per sample), else a new one.
         """
+        xa, fa = self._samples(x, f)
+        n = len(xa)
+        if out is None:
+            out = np.empty(n, dtype=self._dtype)
+        elif out.dtype != self._dtype or len(out) < n or not out.flags.c_contiguous:
+            raise InputError(f"run: out must be a contiguous array of output_dtype with at least {n} rows")
+        self._run(xa, fa, out.ctypes.data_as(ctypes.POINTER(self._output_type)) if n else None)
+        return out[:n]
+
+    def consume(self, x: np.ndarray, f: np.ndarray) -> None:
+        """Consume many samples like :meth:`run` without writing any per-sample output (the
+        state advances exactly as with :meth:`run`; :meth:`latest` gives the last output)."""
+        xa, fa = self._samples(x, f)
+        self._run(xa, fa, None)
+
+    def latest(self) -> Estimate:
+        """The output of the last sample processed (after :meth:`consume` or :meth:`run`)."""
+        self._lib.duffid_latest_output(self._live(), ctypes.byref(self._out))
+        return self._estimate()
+
+    @property
+    def output_dtype(self) -> np.dtype:
+        """The structured dtype of :meth:`run`'s per-sample outputs."""
+        return self._dtype
+
+    def _samples(self, x: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``x`` and ``f`` as contiguous arrays of the core's real type, shapes checked."""
         dtype = np.float32 if self.precision == "float" else float
         xa = np.ascontiguousarray(np.asarray(x, dtype=dtype).reshape(len(x), -1))
         fa = np.ascontiguousarray(np.asarray(f, dtype=dtype).reshape(len(f), -1))
         if xa.shape[1] != self.model.n_dof or fa.shape[1] != self.model.n_forces or len(xa) != len(fa):
             raise InputError(f"{self.model.name}: run needs x of shape (n, {self.model.n_dof}) and f of shape "
                              f"(n, {self.model.n_forces}), got {xa.shape} and {fa.shape}")
+        return xa, fa
+
+    def _run(self, xa: np.ndarray, fa: np.ndarray, out: Any) -> None:
+        """``duffid_run`` over the samples, its outputs to ``out`` (a pointer, or None: none)."""
         n = len(xa)
-        out = (self._output_type * n)()
         failed = ctypes.c_long(-1)
         dbl_p = ctypes.POINTER(self._real)
         rc = self._lib.duffid_run(self._live(), n, xa.ctypes.data_as(dbl_p), fa.ctypes.data_as(dbl_p),
@@ -602,7 +637,6 @@ class CIdentifier(Identifier):
         if rc != 0:
             raise RuntimeError(f"C estimator core: {_STATUS.get(rc, rc)}")
         self.n += n
-        return np.frombuffer(memoryview(out).cast("B"), dtype=self._dtype) if n else np.zeros(0, self._dtype)
 
     def identify_record(self, record: Record) -> Identification:
         """Run the identifier over a record in one call (like ``OnlineIdentifier.identify_record``)."""

@@ -89,7 +89,7 @@ from ..data.record import Record
 from ..errors import InputError
 from ..models.chain import Chain
 from .assessment import ASSESSMENT_UNCERTAINTY, PROGRESS_SAMPLES, assess
-from .dispatch import Pool, data_window, final_estimates, run_estimator
+from .dispatch import Pool, data_window, final_estimates, on_c_core, run_estimator
 from .engine import MIN_SHARE, Identification, check_record
 from .offsets import (
     canonical_of,
@@ -276,14 +276,20 @@ def _checked(record: Record, method: str, kind: str | None, physical: Chain, est
         opts["min_time"] = min(check_options(method, {})["min_time"], 0.5 * record.duration,
                                0.5 * periods / content if np.isfinite(content) and content > 0 else math.inf)
     estimation.factor = upsampling_needed(record, content=content)
-    result = estimation.run(estimation.sampled(), opts)
+    # a window of periods of the content frequency is redone in periods of the slowest
+    # identified mode (the same only by chance): its first run's final values suffice
+    first_window = opts.get("window") if auto else None  # None, or "auto" without a content frequency
+    provisional = isinstance(first_window, float) and first_window < record.duration and \
+        estimation.final_is_cheaper()
+    result = None if provisional else estimation.run(estimation.sampled(), opts)
+    first = estimation.final(estimation.sampled()) if result is None else result.estimates
     step("estimator")
-    slowest = natural_frequency(physical, canonical_of(physical, result.estimates) or {}, lowest=True)
-    again = upsampling_needed(record, result.estimates, physical, content=content)
+    slowest = natural_frequency(physical, canonical_of(physical, first) or {}, lowest=True)
+    again = upsampling_needed(record, first, physical, content=content)
     window = opts.get("window")
     if auto and np.isfinite(slowest) and slowest > 0:  # periods of the slowest mode
         window = data_window(record, slowest, periods)
-    if again > estimation.factor or window != opts.get("window"):
+    if result is None or again > estimation.factor or window != opts.get("window"):
         estimation.factor = max(estimation.factor, again)
         if window is not None:
             opts["window"] = window
@@ -362,6 +368,11 @@ class _Estimation:
             return mapped_to(raw, self.physical).estimates
         return final_estimates(record, self.physical, self.method, engine=self.engine, cancel=self.cancel,
                                **self.options)
+
+    def final_is_cheaper(self) -> bool:
+        """Whether :meth:`final` costs less than :meth:`run` on the record (the C core, which
+        then writes no per-sample output; the Python identifier keeps its history either way)."""
+        return not self.shifted and on_c_core(self.record, self.physical, self.method, self.engine, self.options)
 
     def sampled(self) -> Record:
         """The record upsampled by the current factor (made once per factor)."""
