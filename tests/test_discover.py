@@ -3,11 +3,8 @@
 the Silverbox record when ../shared holds it."""
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-import sys
-from pathlib import Path
 
 import pytest
 
@@ -22,11 +19,9 @@ from duffid.identification.discover import (
 from duffid.identification.equation import identify_equation
 from duffid.models.equation_model import EquationModel
 
-ROOT = Path(__file__).resolve().parents[1]
-_spec = importlib.util.spec_from_file_location("discover_benchmark", ROOT / "benchmarks" / "discover.py")
-bench = importlib.util.module_from_spec(_spec)
-sys.modules[_spec.name] = bench
-_spec.loader.exec_module(bench)
+from benchmark_modules import load_benchmark
+
+bench = load_benchmark("discover")
 
 BASE_TEXT = "m*der(x,2) + b*der(x) + k*x + kp*x^3 = f"
 

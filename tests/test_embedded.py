@@ -16,17 +16,11 @@ missing.
 """
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-_spec = importlib.util.spec_from_file_location("embedded_benchmark", ROOT / "benchmarks" / "embedded.py")
-embedded = importlib.util.module_from_spec(_spec)
-sys.modules[_spec.name] = embedded
-_spec.loader.exec_module(embedded)
+from benchmark_modules import load_benchmark
+
+embedded = load_benchmark("embedded")
 
 MISSING = embedded.missing_tools()
 pytestmark = pytest.mark.skipif(bool(MISSING), reason="needs " + "; ".join(MISSING))

@@ -13,10 +13,7 @@ its stated uncertainty.
 """
 from __future__ import annotations
 
-import importlib.util
 import shutil
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -29,11 +26,9 @@ from duffid.identification.engine import STATUSES
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None,
                                 reason="no C compiler")
 
-ROOT = Path(__file__).resolve().parents[1]
-_spec = importlib.util.spec_from_file_location("embedded_benchmark", ROOT / "benchmarks" / "embedded.py")
-embedded = importlib.util.module_from_spec(_spec)
-sys.modules[_spec.name] = embedded
-_spec.loader.exec_module(embedded)
+from benchmark_modules import load_benchmark
+
+embedded = load_benchmark("embedded")
 
 #: Well excited: both builds publish every parameter over the same window (compared samples).
 WELL_EXCITED = "lab softening random 40 dB"
