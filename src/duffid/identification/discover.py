@@ -547,8 +547,7 @@ def discover(record: Record, base: str | Chain | EquationModel = "duffing1", *,
                      f"discover --refine)")
     residual = None
     if not best.explained:
-        residual = residual_shape(record, EquationModel(best.equation, columns),
-                                  best.identification.estimates)
+        residual = residual_shape(record, best.model, best.identification.estimates)
         notes.append(residual["words"])
     return Discovery(base_text, best, candidates, screening, notes, residual,
                      time.perf_counter() - started)
