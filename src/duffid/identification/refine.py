@@ -47,11 +47,21 @@ from typing import Any, Mapping, Sequence
 
 import casadi as ca
 import numpy as np
+from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..data.record import Record
 from ..errors import BuildError, InputError, RecordError
 from ..models.chain import Chain
+
+#: The refinement's linear algebra (an SVD or QR of a Jacobian of up to a million entries per
+#: step) runs on this many BLAS threads: OpenBLAS's threads spin while they wait, and on a
+#: machine whose other cores are busy (the checks' own threads, another job) that costs more
+#: than it saves. Measured on a 2-core machine with its other core busy: an SVD of an 8,000 x
+#: 200 Jacobian, median 0.30 s on two threads (one of 7 runs 3 s) against 0.16 s on one; the
+#: checked identify of benchmarks/trust.py's "lab hardening random 40 dB" (3 runs each, jobs=1)
+#: 4.35 s against 3.25 s; with the machine idle 3.17 s against 3.10 s (medians; they vary with load).
+BLAS_THREADS = 1
 
 __all__ = [
     "upsample",
@@ -458,7 +468,8 @@ def _fit_state(simulator: OdeSimulator, parameters: Mapping[str, float], stages:
     start = np.concatenate([x0, v0]) / scales
     if not np.all(np.isfinite(residual(start))):
         return x0, v0
-    sol = least_squares(residual, start, jac=jacobian, method="lm", max_nfev=50, xtol=1e-12, ftol=1e-12)
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        sol = least_squares(residual, start, jac=jacobian, method="lm", max_nfev=50, xtol=1e-12, ftol=1e-12)
     s = sol.x * scales
     return s[:n], s[n:]
 
@@ -763,7 +774,8 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
                          "output); refinement needs a start that simulates")
     options = {"method": "trf", "x_scale": 1.0, "max_nfev": max_nfev, **lsq_options}
     try:
-        sol = least_squares(residual, start_vec, jac=jacobian, **options)
+        with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+            sol = least_squares(residual, start_vec, jac=jacobian, **options)
     finally:
         bar.close()
     params, offset, initial = unpack(sol.x)
