@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     record = read_record(args)
     options = options_from_arguments(args, "robust")
     found = discover(record, args.base, library=args.library, max_terms=args.max_terms,
-                     refine=args.refine, jobs=args.jobs, progress=not args.json and None, **options)
+                     refine=args.refine, jobs=args.jobs, progress=False if args.json else None, **options)
     if args.plot is not None:
         from ..apps.plots import plot_discovery_residual
         plot_discovery_residual(found, record, args.plot)
