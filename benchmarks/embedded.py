@@ -177,10 +177,12 @@ class RecordData:
     truth: dict[str, float]
 
 
-def make_record(model: str, samples: int | None, seconds: float = 3.0) -> RecordData:
+def make_record(model: str, samples: int | None, seconds: float = 3.0, change: bool = False) -> RecordData:
     """The record of ``model`` (duffing1: a hardening 1-DOF plant; duffing2: a 2-DOF chain),
     band-limited random force, 1 kHz, 60 dB displacement noise; ``samples`` samples (default
-    ``seconds`` s)."""
+    ``seconds`` s). With ``change``, the (first) stiffness steps by +25 % at a third of the
+    record: after the change test's flag, its estimator works with a line in time (the cost of
+    a plant that changes)."""
     from duffid import Duffing1, Duffing2, Multisine, measure, simulate
 
     dt = 1e-3
@@ -192,7 +194,9 @@ def make_record(model: str, samples: int | None, seconds: float = 3.0) -> Record
     else:
         plant = Duffing2(m1=1.0, b1=2.0, k1=3000.0, kp1=2e7, m2=0.6, b2=1.5, k2=1800.0, kp2=1e7)
         force = Multisine(15.0, 2.0, 30.0, 1.5, phases="random", seed=5)
-    record = simulate(plant, force, duration, dt)
+    stiffness = "k" if model == "duffing1" else "k1"
+    changes = [(duration / 3, type(plant)(**{**plant.parameters, stiffness: 1.25 * plant.parameters[stiffness]}))]
+    record = simulate(plant, force, duration, dt, changes=changes if change else ())
     record = measure(record, pulses_per_cm=None, snr_db=60.0, seed=17)
     return RecordData(model, np.asarray(record.x)[:n], np.asarray(record.f)[:n], dt, dict(plant.parameters))
 
@@ -652,7 +656,7 @@ def steady_start(out: Output, dt: float) -> int:
 
 def run(models: list[str], method: str = "robust", samples: int | None = None,
         precisions: list[str] | None = None, build_dir: Path | None = None,
-        progress=print, core: Path = CORE) -> tuple[list[Result], dict, list[str]]:
+        progress=print, core: Path = CORE, change: bool = False) -> tuple[list[Result], dict, list[str]]:
     """Build and run everything; (results, records, notes)."""
     missing = missing_tools()
     if missing:
@@ -674,7 +678,7 @@ def run(models: list[str], method: str = "robust", samples: int | None = None,
     results = []
     for model in models:
         progress(f"simulating the {model} record")
-        record = make_record(model, samples)
+        record = make_record(model, samples, change=change)
         records[model] = record
         record_dir = build_dir / f"record_{model}"
         record_dir.mkdir(exist_ok=True)
@@ -1105,7 +1109,7 @@ def embedded_section(args, models: list[str], precisions: list[str], samples: in
     try:
         try:
             results, info, notes = run(models, args.method, samples, precisions, build_dir,
-                                       core=args.core.resolve())
+                                       core=args.core.resolve(), change=args.change)
         except Unavailable as exc:
             print(f"embedded benchmark not run: {exc}")
             return 0
@@ -1165,6 +1169,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--models", default="duffing1,duffing2", help="duffing1,duffing2")
     parser.add_argument("--method", default="robust", choices=sorted(METHODS))
     parser.add_argument("--precisions", default="double,float", help="double,float")
+    parser.add_argument("--change", action="store_true",
+                        help="the stiffness steps +25 %% at a third of each record (lines after the change test's flag)")
     parser.add_argument("--repeats", type=int, default=5, help="x86 timing runs (median, min-max)")
     parser.add_argument("--top", type=int, default=10, help="functions listed per build")
     parser.add_argument("--no-timing", action="store_true", help="skip the x86 timing section")

@@ -16,8 +16,8 @@ import pytest
 from duffid import Chirp, Duffing1, DuffingCircuit, Multisine, OnlineIdentifier, measure, simulate
 from duffid.errors import InputError
 from duffid.identification.c_core import CIdentifier
-from duffid.identification.engine import (CHANGE_ALONE_SHARE, STATUSES, _alone, recent_solution, solve_factor,
-                                         triangular_factor)
+from duffid.identification.engine import (CHANGE_ALONE_SHARE, STATUSES, DriftLine, _alone, recent_solution,
+                                         solve_factor, triangular_factor)
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None,
                                 reason="no C compiler")
@@ -201,7 +201,50 @@ def test_a_drift_is_flagged_and_no_published_value_goes_stale(share, seed):
     assert worst_against_last_second(values, truth_of(record, changes)) <= 0.05
 
 
-@pytest.mark.parametrize("case, span", [("stiffness_step", (0.6, 3.0)), ("stiffness_drift", (0.0, 2.5))])
+def test_after_a_drift_is_flagged_the_drifting_stiffness_is_tracked():
+    """Once flagged, the drifting stiffness is a line in time (engine.DriftLine): published at
+    the line's newest value, within 2 % of the truth over the last second of the record (a
+    constant over the samples since the flag lagged the drift by half of them: 2.7-5.4 %,
+    or unpublished), and not flagged again while the drift stays linear."""
+    changes = drift_of(0.2, t_end=6.0)
+    record = record_of(changes, t_end=6.0, seed=4)
+    values, status = run_c(record)
+    truth = truth_of(record, changes)
+    j = NAMES.index("k")
+    flags = np.flatnonzero(np.diff((status[:, j] == "changed").astype(int)) == 1)
+    assert len(flags) == 1
+    last = record.t - record.t[0] >= 5.0
+    assert np.isfinite(values[last, j]).all()
+    assert np.max(np.abs(values[last, j] - truth[last, j]) / truth[last, j]) <= 0.02
+    assert worst_against_last_second(values, truth) <= 0.05
+
+
+def test_a_drift_line_is_the_least_squares_line_with_its_standard_errors():
+    """DriftLine's value and standard error at a time equal those of the explicit least squares
+    with the rate columns (numpy's lstsq and covariance)."""
+    rng = np.random.default_rng(7)
+    t = np.repeat(np.linspace(0.0, 2.0, 100), 3)
+    A = rng.normal(size=(300, 3)) * [1.0, 50.0, 3e3]
+    truth = np.array([2.0, 0.1, 4e-3])
+    D = A @ truth + 0.01 * A[:, 2] * t * truth[2] * 50 + rng.normal(scale=0.5, size=300)
+    line = DriftLine(np.array([False, False, True]))
+    rows = np.vstack([line.rows(A[i:i + 1], t[i]) for i in range(300)])
+    R = triangular_factor(np.column_stack([rows, D]), line.size + 1)
+    line.solve(R, 300.0, 1.0)
+    theta, *_ = np.linalg.lstsq(rows, D, rcond=None)
+    s2 = np.sum((D - rows @ theta) ** 2) / (300 - line.size)
+    cov = s2 * np.linalg.inv(rows.T @ rows)
+    for time in (0.0, 1.3, 2.0):
+        value, rse = line.at(time)
+        c = np.zeros(line.size)
+        c[2], c[3] = 1.0, time
+        assert np.allclose(value[:2], theta[:2], rtol=1e-10)
+        assert value[2] == pytest.approx(c @ theta, rel=1e-10)
+        assert rse[2] * abs(value[2]) == pytest.approx(np.sqrt(c @ cov @ c), rel=1e-8)
+        assert rse[0] * abs(value[0]) == pytest.approx(np.sqrt(cov[0, 0]), rel=1e-8)
+
+
+@pytest.mark.parametrize("case, span", [("stiffness_step", (0.6, 3.6)), ("stiffness_drift", (0.0, 3.5))])
 def test_python_and_c_agree_across_a_change(request, case, span):
     record, _ = request.getfixturevalue(case)
     part = record.slice(*span)
@@ -336,6 +379,39 @@ def test_the_fmus_flag_a_step_and_publish_the_new_stiffness(estimator_fmus, stif
     se = result["k_std_error"][-1]
     assert 0 < se < 0.01 * result["k_hat"][-1]
     assert np.nanmax(result["residual"]) > 0
+
+
+def test_an_fmu_state_with_drift_lines_round_trips(estimator_fmus, stiffness_drift, tmp_path):
+    """After a flag the stiffness is a line (more unknowns in the state block): a serialized
+    state restored in another instance continues exactly as the original."""
+    from fmu_helpers import start_fmi2
+
+    from duffid.fmu.estimator_table import TYPES
+
+    record, _ = stiffness_drift
+    values, status = run_c(record)
+    flag = int(np.flatnonzero(status[:, NAMES.index("k")] == "changed")[0])
+    stop = min(flag + int(1.0 / DT), record.n_samples - 200)
+
+    def step(fmu, vr, k):
+        fmu.setReal([vr["x"], vr["f"]], [float(record.x[k, 0]), float(record.f[k, 0])])
+        fmu.doStep(currentCommunicationPoint=k * DT, communicationStepSize=DT)
+        return fmu.getReal([vr["k_hat"], vr["k_std_error"], vr["residual"]])
+
+    fmu, vr = start_fmi2(estimator_fmus[2], tmp_path, [], {"sample_period": DT}, TYPES)
+    other, vr2 = start_fmi2(estimator_fmus[2], tmp_path, [], {"sample_period": DT}, TYPES)
+    try:
+        for k in range(stop):
+            step(fmu, vr, k)
+        data = fmu.serializeFMUstate(fmu.getFMUstate())
+        reference = np.array([step(fmu, vr, k) for k in range(stop, stop + 200)])
+        assert np.isfinite(reference[:, 0]).any()
+        other.setFMUstate(other.deSerializeFMUstate(data))
+        again = np.array([step(other, vr2, k) for k in range(stop, stop + 200)])
+        np.testing.assert_array_equal(again, reference)
+    finally:
+        fmu.freeInstance()
+        other.freeInstance()
 
 
 def test_the_fmu_holds_while_disabled_and_resets_on_request(estimator_fmus, payload):

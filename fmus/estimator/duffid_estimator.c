@@ -44,6 +44,8 @@
 #define MAX_CH DUFFID_MAX_CHANNELS
 #define MAX_UNK DUFFID_MAX_UNKNOWNS
 #define MAX_AUG (MAX_UNK + 1)        /* augmented factor [A D] */
+#define MAX_LINE DUFFID_MAX_LINE_UNKNOWNS /* unknowns of a block whose unknowns are lines in time */
+typedef char line_unknowns_fit[MAX_LINE <= MAX_UNK ? 1 : -1]; /* the workspaces are sized by MAX_UNK */
 #define MAX_EQ DUFFID_MAX_BLOCKS
 #define MAX_ORDER DUFFID_MAX_DERIVATIVE /* derivative orders 0..2 */
 #define N_ORD (MAX_ORDER + 1)
@@ -131,9 +133,19 @@ typedef struct {
 
 typedef struct { /* the state of one block of the description */
     duffid_real *theta, *rse, *share; /* n_unknowns each */
-    duffid_real *R;                   /* robust: accumulated factor of [A D], p x p (p = n + 1) */
+    duffid_real *R;                   /* robust: accumulated factor of [A D], p x p (p = n_line + 1) */
     duffid_real *V;                   /* right singular vectors of the last solve (warm start) */
     duffid_real *R_recent;            /* the change test's recent factor (p x p) */
+    /* engine.DriftLine: after a change, the departed unknowns are lines in time */
+    int n_line;                       /* unknowns of the accumulated least squares: n + the lines */
+    int line_cap;                     /* ... at most (the block's factors are sized for it) */
+    int *drifting;                    /* n: 1 if unknown i is a line (its rate: the next unknown) */
+    int64_t origin;                   /* the sample whose rows have time 0 */
+    duffid_real *line, *line_inv;     /* accumulated: the unknowns (values at 0, then the rates),
+                                       * C = U^-1 / scale row-wise (n_line x n_line) */
+    duffid_real *line_recent, *line_recent_inv; /* ... the recent least squares' */
+    duffid_real line_sigma, line_recent_sigma, times_recent; /* residual scales; the recent
+                                       * rows' times, weighted as the rows */
     duffid_real *departure;           /* n: recent - accumulated solution in combined errors */
     duffid_real cond, rhs_share, rows, rows_recent, residual;
     int64_t departed;                 /* samples the departure has mattered in a row, saturated
@@ -640,7 +652,7 @@ typedef struct {
     rt_model m;          /* counts, and (counting only) the scratch tables below */
     int method, n_rows, degree, n_coef;
     long capacity;
-    int unknowns[MAX_EQ], parts[MAX_EQ];
+    int unknowns[MAX_EQ], parts[MAX_EQ], lines[MAX_EQ]; /* lines: most unknowns with the lines' rates */
     block_t blocks[BUILTIN_BLOCKS > MAX_EQ ? BUILTIN_BLOCKS : MAX_EQ];
     term_t terms[BUILTIN_TERMS];
     duffid_rule rules[BUILTIN_RULES];
@@ -696,7 +708,12 @@ static void shape_of(const duffid_config *cfg, shape_t *s)
         }
     }
     for (e = 0; e < s->m.c.n_blocks; e++) {
-        n_max = s->unknowns[e] > n_max ? s->unknowns[e] : n_max;
+        const int n = s->unknowns[e];
+        n_max = n > n_max ? n : n_max;
+        /* the lines only come with the change test */
+        s->lines[e] = cfg->method == DUFFID_ROBUST && cfg->change_threshold > 0 ? (2 * n < MAX_LINE ? 2 * n : MAX_LINE)
+                                                                                   : n;
+        s->lines[e] = s->lines[e] > n ? s->lines[e] : n;
     }
     s->method = cfg->method;
     s->n_rows = cfg->n_rows ? cfg->n_rows : (n_max + 1 > 8 ? n_max + 1 : 8);
@@ -815,7 +832,7 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
     carver_t c;
     const int n_ch = s->m.c.n_channels, n_blk = s->m.c.n_blocks, np = s->m.c.n_params;
     const int D = s->degree, robust = s->method == DUFFID_ROBUST;
-    int e, n_max = 0, p_max, rows_max = 0;
+    int e, n_max = 0, p_max, rows_max = 0, line_max = 0;
     c.base = base;
     c.used = 0;
     if (est == NULL) {
@@ -825,6 +842,7 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
     for (e = 0; e < n_blk; e++) {
         n_max = s->unknowns[e] > n_max ? s->unknowns[e] : n_max;
         rows_max = s->parts[e] * s->n_rows > rows_max ? s->parts[e] * s->n_rows : rows_max;
+        line_max = s->lines[e] > line_max ? s->lines[e] : line_max;
     }
     p_max = n_max + 1;
     /* structure */
@@ -862,14 +880,20 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
     CARVE(&c, est->lin, 2 * s->m.c.n_dof * s->m.c.n_dof);
     for (e = 0; e < n_blk; e++) {
         equation_t *eq = &est->eq[e];
-        const int n = s->unknowns[e], p = n + 1;
+        const int n = s->unknowns[e], nl = s->lines[e], p = nl + 1, lines = robust && nl > n;
         CARVE(&c, eq->theta, n);
         CARVE(&c, eq->rse, n);
         CARVE(&c, eq->share, n);
-        CARVE(&c, eq->V, n * n);
+        CARVE(&c, eq->V, nl * nl);
         CARVE(&c, eq->R, robust ? p * p : 0);
         CARVE(&c, eq->R_recent, robust ? p * p : 0);
         CARVE(&c, eq->departure, n);
+        eq->line_cap = nl;
+        CARVE(&c, eq->drifting, n);
+        CARVE(&c, eq->line, lines ? nl : 0);
+        CARVE(&c, eq->line_inv, lines ? nl * nl : 0);
+        CARVE(&c, eq->line_recent, lines ? nl : 0);
+        CARVE(&c, eq->line_recent_inv, lines ? nl * nl : 0);
         if (!robust) {
             integrators_t *it = &eq->reg;
             int k;
@@ -883,9 +907,9 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
             }
         }
     }
-    CARVE(&c, est->U, n_max * n_max);
-    CARVE(&c, est->Rinv, n_max * n_max);
-    CARVE(&c, est->scale, n_max);
+    CARVE(&c, est->U, line_max * line_max);
+    CARVE(&c, est->Rinv, line_max * line_max);
+    CARVE(&c, est->scale, line_max);
     if (robust) {
         CARVE(&c, est->ring, (s->capacity + 2) * n_ch);
         CARVE(&c, est->acc, (D + 1) * n_ch);
@@ -896,8 +920,8 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
         CARVE(&c, est->corr_w, MAX_CORR * (D + 1));
         CARVE(&c, est->leave_phi, D + 1);
         CARVE(&c, est->E, s->n_rows * N_ORD * n_ch);
-        CARVE(&c, est->B, rows_max * p_max);
-        CARVE(&c, est->B_copy, rows_max * p_max);
+        CARVE(&c, est->B, rows_max * (line_max + 1));
+        CARVE(&c, est->B_copy, rows_max * (line_max + 1));
         CARVE(&c, est->W, p_max * p_max);
     } else {
         CARVE(&c, est->E, (n_max + 2) * N_ORD * n_ch);
@@ -1187,6 +1211,20 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
         STATE_RANGE(est->eq[i].drifted, 0, est->memory)
         STATE_RANGE(est->eq[i].resume, 0, limit)
         STATE_RANGE(est->eq[i].recent_resume, 0, limit)
+        STATE_SAME(eq[i].line_cap)
+        if (cfg.method == DUFFID_ROBUST) { /* n_line: the block's unknowns and one rate per line */
+            const int *drifting = (const int *)((const char *)est + ALIGN_UP(sizeof *est) +
+                                                ((const char *)fresh->eq[i].drifting - dynamic_base(fresh)));
+            const int n_unknowns = fresh->m.blocks[i].n_unknowns; /* est's pointers are not relocated yet */
+            int u, lines = 0;
+            for (u = 0; u < n_unknowns; u++) {
+                STATE_RANGE(drifting[u], 0, 1)
+                lines += drifting[u];
+            }
+            STATE_RANGE(est->eq[i].n_line, n_unknowns + lines, n_unknowns + lines)
+            STATE_RANGE(est->eq[i].n_line, 0, est->eq[i].line_cap)
+            STATE_RANGE(est->eq[i].origin, 0, limit)
+        }
         if (cfg.method == DUFFID_PAPER) {
             STATE_SAME(eq[i].reg.n_in)
             STATE_SAME(eq[i].reg.depth) STATE_SAME(eq[i].det.n_in) STATE_SAME(eq[i].det.depth)
@@ -1351,6 +1389,27 @@ static void clear_change(equation_t *eq, int n)
     eq->residual = R_NAN;
 }
 
+/* a fresh accumulated and recent least squares of block e (n_line unknowns): OnlineIdentifier's
+ * new _QRLeastSquares and DriftLine objects */
+static void clear_factors(duffid_estimator *est, int e)
+{
+    equation_t *eq = &est->eq[e];
+    const int p = eq->line_cap + 1;
+    int i;
+    memset(eq->R, 0, (size_t)(p * p) * sizeof(duffid_real));
+    memset(eq->R_recent, 0, (size_t)(p * p) * sizeof(duffid_real));
+    eq->rows = eq->rows_recent = eq->times_recent = RC(0.0);
+    if (eq->line_cap > est->m.blocks[e].n_unknowns) {
+        for (i = 0; i < eq->line_cap; i++) {
+            eq->line[i] = eq->line_recent[i] = R_NAN;
+        }
+        for (i = 0; i < eq->line_cap * eq->line_cap; i++) {
+            eq->line_inv[i] = eq->line_recent_inv[i] = R_NAN;
+        }
+    }
+    eq->line_sigma = eq->line_recent_sigma = R_INF;
+}
+
 static void guard_reset(duffid_estimator *est);
 
 void duffid_reset(duffid_estimator *est)
@@ -1408,11 +1467,12 @@ void duffid_reset(duffid_estimator *est)
         est->corr_L = -1;
         est->leave_i = -1;
         for (i = 0; i < est->n_eq; i++) {
-            const int p = est->m.blocks[i].n_unknowns + 1;
-            memset(est->eq[i].R, 0, (size_t)(p * p) * sizeof(duffid_real));
-            memset(est->eq[i].R_recent, 0, (size_t)(p * p) * sizeof(duffid_real));
-            est->eq[i].rows = RC(0.0);
-            est->eq[i].rows_recent = RC(0.0);
+            for (u = 0; u < est->m.blocks[i].n_unknowns; u++) {
+                est->eq[i].drifting[u] = 0;
+            }
+            est->eq[i].n_line = est->m.blocks[i].n_unknowns;
+            est->eq[i].origin = 0;
+            clear_factors(est, i);
         }
     } else {
         for (i = 0; i < est->n_eq; i++) {
@@ -1885,36 +1945,112 @@ static void singular(equation_t *eq, int n)
     eq->warm = 0;
 }
 
+/* the shares of solve_factor: of the n_terms terms |theta_i| ||A_i|| and of ||D|| in the force
+ * balance of the factor Raug (p = n_terms + 1), the first n of them kept */
+static void shares(duffid_estimator *est, equation_t *eq, int n, int n_terms, const duffid_real *Raug,
+                   const duffid_real *theta)
+{
+    const int p = n_terms + 1;
+    duffid_real sq[MAX_AUG], rhs, balance;
+    int i, k;
+    for (k = 0; k < p; k++) {
+        sq[k] = Raug[k * p + n_terms] * Raug[k * p + n_terms];
+    }
+    rhs = R_SQRT(duffid_la_pairwise_sum(sq, p, 1));
+    for (i = 0; i < n_terms; i++) {
+        duffid_real term = R_FABS(theta[i]) * est->scale[i];
+        sq[i] = term * term;
+    }
+    sq[n_terms] = rhs * rhs;
+    balance = R_SQRT(duffid_la_pairwise_sum(sq, p, 1));
+    for (i = 0; i < n; i++) {
+        eq->share[i] = balance > RC(0.0) ? R_FABS(theta[i]) * est->scale[i] / balance : R_NAN;
+    }
+    eq->rhs_share = balance > RC(0.0) ? rhs / balance : R_NAN;
+}
+
 /* identification.solve_factor on the p x p factor Raug (p = n + 1): the condition number of
  * the column-equilibrated factor by a warm-started Jacobi iteration, the unknowns and their
  * standard errors from its triangular inverse */
 static void solve_factor(duffid_estimator *est, equation_t *eq, int n, const duffid_real *Raug, duffid_real rows,
                          duffid_real overlap)
 {
-    const int p = n + 1;
-    int i, k;
+    int i;
     if (duffid_la_solve_factor(n, Raug, rows, overlap, COND_SINGULAR, est->scale, est->U, est->Rinv, eq->V,
                                &eq->warm, eq->theta, eq->rse, &eq->cond) != 0) {
         singular(eq, n);
         return;
     }
-    { /* shares of the terms |theta_i| ||A_i|| and of ||D|| in the force balance */
-        duffid_real sq[MAX_AUG], rhs, balance;
-        for (k = 0; k < p; k++) {
-            sq[k] = Raug[k * p + n] * Raug[k * p + n];
-        }
-        rhs = R_SQRT(duffid_la_pairwise_sum(sq, p, 1));
-        for (i = 0; i < n; i++) {
-            duffid_real term = R_FABS(eq->theta[i]) * est->scale[i];
-            sq[i] = term * term;
-        }
-        sq[n] = rhs * rhs;
-        balance = R_SQRT(duffid_la_pairwise_sum(sq, p, 1));
-        for (i = 0; i < n; i++) {
-            eq->share[i] = balance > RC(0.0) ? R_FABS(eq->theta[i]) * est->scale[i] / balance : R_NAN;
-        }
-        eq->rhs_share = balance > RC(0.0) ? rhs / balance : R_NAN;
+    shares(est, eq, n, n, Raug, eq->theta);
+#if DUFFID_SINGLE
+    for (i = 0; i < n; i++) {
+        eq->rse[i] = duffid_la_hypot(eq->rse[i], ARITHMETIC_FACTOR * eq->rounding * eq->cond);
     }
+#else
+    (void)i;
+#endif
+}
+
+/* engine.DriftLine._inverse: after a solve of the factor Raug of nl unknowns (est->Rinv and
+ * est->scale hold U^-1 and the column norms), C = U^-1 / scale row-wise and the residual
+ * scale sigma (infinite without degrees of freedom) */
+static duffid_real line_inverse(const duffid_estimator *est, int nl, const duffid_real *Raug, duffid_real rows,
+                                duffid_real overlap, duffid_real *inv)
+{
+    const int p = nl + 1;
+    const duffid_real dof = rows - (duffid_real)nl;
+    int i, j;
+    for (i = 0; i < nl; i++) {
+        for (j = 0; j < nl; j++) {
+            inv[i * nl + j] = est->Rinv[i * nl + j] / est->scale[i];
+        }
+    }
+    return dof > RC(0.0) ? R_SQRT(Raug[nl * p + nl] * Raug[nl * p + nl] / dof * overlap) : R_INF;
+}
+
+/* engine.DriftLine.at: the block's n unknowns at time t from the line unknowns theta (values at
+ * 0, then one rate per drifting unknown), C and sigma, with their relative standard errors */
+static void line_at(const equation_t *eq, int n, duffid_real t, const duffid_real *theta, const duffid_real *inv,
+                    duffid_real sigma, duffid_real *value, duffid_real *rse)
+{
+    const int nl = eq->n_line;
+    int i, j, rate = n;
+    for (i = 0; i < n; i++) {
+        duffid_real sum = RC(0.0);
+        value[i] = theta[i];
+        for (j = 0; j < nl; j++) {
+            const duffid_real c = eq->drifting[i] ? inv[i * nl + j] + t * inv[rate * nl + j] : inv[i * nl + j];
+            sum += c * c;
+        }
+        if (eq->drifting[i]) {
+            value[i] += t * theta[rate++];
+        }
+        rse[i] = is_finite(value[i]) && value[i] != RC(0.0) ? sigma * R_SQRT(sum) / R_FABS(value[i]) : R_INF;
+        if (!(rse[i] == rse[i])) { /* NaN: an undetermined line */
+            rse[i] = R_INF;
+        }
+    }
+}
+
+/* engine.DriftLine.solve and .at: the accumulated least squares of a block with lines, its
+ * unknowns at time t */
+static void line_solve(duffid_estimator *est, equation_t *eq, int n, duffid_real t, duffid_real overlap)
+{
+    const int nl = eq->n_line;
+    duffid_real rse[MAX_UNK];
+    int i;
+    if (duffid_la_solve_factor(nl, eq->R, eq->rows, overlap, COND_SINGULAR, est->scale, est->U, est->Rinv, eq->V,
+                               &eq->warm, eq->line, rse, &eq->cond) != 0) {
+        singular(eq, n);
+        for (i = 0; i < nl; i++) {
+            eq->line[i] = R_NAN;
+        }
+        eq->line_sigma = R_INF;
+        return;
+    }
+    shares(est, eq, n, nl, eq->R, eq->line);
+    eq->line_sigma = line_inverse(est, nl, eq->R, eq->rows, overlap, eq->line_inv);
+    line_at(eq, n, t, eq->line, eq->line_inv, eq->line_sigma, eq->theta, eq->rse);
 #if DUFFID_SINGLE
     for (i = 0; i < n; i++) {
         eq->rse[i] = duffid_la_hypot(eq->rse[i], ARITHMETIC_FACTOR * eq->rounding * eq->cond);
@@ -1998,7 +2134,7 @@ static int recent_solution(int n, const duffid_real *R, duffid_real rows, duffid
 static void alone(const duffid_real *R, int n, const duffid_real *theta, duffid_real share, int *confirmed)
 {
     const int p = n + 1;
-    duffid_real r[DUFFID_MAX_UNKNOWNS + 1], gain = RC(0.0);
+    duffid_real r[MAX_AUG], gain = RC(0.0);
     int i, k, finite = 1;
     for (i = 0; i < n; i++) {
         finite = finite && is_finite(theta[i]);
@@ -2026,11 +2162,12 @@ static void alone(const duffid_real *R, int n, const duffid_real *theta, duffid_
 }
 
 /* OnlineIdentifier._restart: equation e's data contradict its estimate; its parameters are
- * marked changed (an unknown in departed, or any for the right-hand side) or uncertain */
+ * marked changed (an unknown in departed, or any for the right-hand side) or uncertain; the
+ * departed unknowns are lines in time from then on (as many as the block's factors hold) */
 static void restart(duffid_estimator *est, int e, const int *departed)
 {
     equation_t *eq = &est->eq[e];
-    const int n = est->m.blocks[e].n_unknowns, p = n + 1;
+    const int n = est->m.blocks[e].n_unknowns;
     int i, k, any = 0;
     for (i = 0; i < n; i++) {
         any |= departed[i];
@@ -2044,44 +2181,67 @@ static void restart(duffid_estimator *est, int e, const int *departed)
             }
         }
     }
-    memset(eq->R, 0, (size_t)(p * p) * sizeof(duffid_real));
-    memset(eq->R_recent, 0, (size_t)(p * p) * sizeof(duffid_real));
-    eq->rows = RC(0.0);
-    eq->rows_recent = RC(0.0);
+    for (i = 0; i < n; i++) {
+        if (departed[i] && !eq->drifting[i] && eq->n_line < eq->line_cap) {
+            eq->drifting[i] = 1;
+            eq->n_line++;
+        }
+    }
+    clear_factors(est, e);
     singular(eq, n);
     clear_change(eq, n);
-    eq->resume = eq->recent_resume = est->n + est->target;
+    eq->resume = eq->recent_resume = eq->origin = est->n + est->target;
 }
 
 /* the change test of _robust_solve after the accumulated solution of equation e was updated
  * with the m rows B_copy: the recent solution, the departures that matter, the triggers */
-static void change_test(duffid_estimator *est, int e, int m, duffid_real fit)
+static void change_test(duffid_estimator *est, int e, int m, duffid_real fit, duffid_real t)
 {
     equation_t *eq = &est->eq[e];
-    const int n = est->m.blocks[e].n_unknowns, p = n + 1;
-    duffid_real theta[DUFFID_MAX_UNKNOWNS], rse[DUFFID_MAX_UNKNOWNS];
-    int departed[DUFFID_MAX_UNKNOWNS], drifted[DUFFID_MAX_UNKNOWNS], confirmed[DUFFID_MAX_UNKNOWNS];
+    const int n = est->m.blocks[e].n_unknowns, nl = eq->n_line, p = nl + 1;
+    duffid_real theta[MAX_UNK], rse[MAX_UNK], then_store[MAX_UNK], then_rse_store[MAX_UNK];
+    const duffid_real *then = eq->theta, *then_rse = eq->rse;
+    int departed[MAX_UNK], drifted[MAX_UNK], confirmed[MAX_UNK];
     int i, any = 0, any_drift = 0;
     if (est->n < eq->recent_resume) { /* the recent estimate restarted after a surprise */
         return;
     }
     duffid_la_qr_accumulate(eq->R_recent, p, est->sqrt_lam_recent, est->B_copy, m);
     eq->rows_recent = est->lam_recent * eq->rows_recent + (duffid_real)m;
-    if (recent_solution(n, eq->R_recent, eq->rows_recent, est->last_L, est->scale, est->U, est->Rinv, theta,
-                        rse) != 0) {
-        for (i = 0; i < n; i++) {
-            theta[i] = R_NAN;
+    eq->times_recent = est->lam_recent * eq->times_recent + (duffid_real)m * t;
+    if (nl == n) {
+        if (recent_solution(n, eq->R_recent, eq->rows_recent, est->last_L, est->scale, est->U, est->Rinv, theta,
+                            rse) != 0) {
+            for (i = 0; i < n; i++) {
+                theta[i] = R_NAN;
+            }
         }
+    } else { /* both lines where the recent rows are (their mean time) */
+        const duffid_real mean = eq->rows_recent > RC(0.0) ? eq->times_recent / eq->rows_recent : RC(0.0);
+        duffid_real unused[MAX_UNK];
+        if (recent_solution(nl, eq->R_recent, eq->rows_recent, est->last_L, est->scale, est->U, est->Rinv,
+                            eq->line_recent, unused) != 0) {
+            for (i = 0; i < nl; i++) {
+                eq->line_recent[i] = R_NAN;
+            }
+            eq->line_recent_sigma = R_INF;
+        } else {
+            eq->line_recent_sigma = line_inverse(est, nl, eq->R_recent, eq->rows_recent, est->last_L,
+                                                 eq->line_recent_inv);
+        }
+        line_at(eq, n, mean, eq->line_recent, eq->line_recent_inv, eq->line_recent_sigma, theta, rse);
+        line_at(eq, n, mean, eq->line, eq->line_inv, eq->line_sigma, then_store, then_rse_store);
+        then = then_store;
+        then_rse = then_rse_store;
     }
-    alone(eq->R_recent, n, eq->theta, RC(DUFFID_CHANGE_ALONE_SHARE), confirmed);
+    alone(eq->R_recent, nl, nl == n ? eq->theta : eq->line, RC(DUFFID_CHANGE_ALONE_SHARE), confirmed);
     for (i = 0; i < n; i++) { /* engine._departure and OnlineIdentifier._departed */
-        const duffid_real combined = duffid_la_hypot(eq->rse[i] * R_FABS(eq->theta[i]), rse[i] * R_FABS(theta[i]));
-        const int ok = is_finite(eq->theta[i]) && is_finite(theta[i]) && is_finite(combined) && combined > RC(0.0);
-        eq->departure[i] = ok ? R_FABS(theta[i] - eq->theta[i]) / combined : RC(0.0);
+        const duffid_real combined = duffid_la_hypot(then_rse[i] * R_FABS(then[i]), rse[i] * R_FABS(theta[i]));
+        const int ok = is_finite(then[i]) && is_finite(theta[i]) && is_finite(combined) && combined > RC(0.0);
+        eq->departure[i] = ok ? R_FABS(theta[i] - then[i]) / combined : RC(0.0);
         /* beyond the band a published value may move: significant (departed) or, lasting the
          * recent memory, a share of that (drifted) */
-        const int wide = R_FABS(theta[i] - eq->theta[i]) >
-                             RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty * R_FABS(eq->theta[i]) &&
+        const int wide = R_FABS(theta[i] - then[i]) > RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty * R_FABS(then[i]) &&
                          confirmed[i]; /* ... and confirmed alone (CHANGE_ALONE_SHARE) */
         departed[i] = wide && eq->departure[i] > est->change_threshold;
         drifted[i] = wide && eq->departure[i] > RC(DUFFID_CHANGE_DRIFT_SHARE) * est->change_threshold;
@@ -2109,7 +2269,7 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit)
         restart(est, e, drifted);
     } else if (eq->surprised >= est->settle_count) { /* the recent estimate starts afresh after it */
         memset(eq->R_recent, 0, (size_t)(p * p) * sizeof(duffid_real));
-        eq->rows_recent = RC(0.0);
+        eq->rows_recent = eq->times_recent = RC(0.0);
         for (i = 0; i < n; i++) {
             eq->departure[i] = RC(0.0);
         }
@@ -2138,7 +2298,7 @@ static long robust_step(duffid_estimator *est)
     for (e = 0; e < est->n_eq; e++) {
         equation_t *eq = &est->eq[e];
         const block_t *b = &est->m.blocks[e];
-        const int n = b->n_unknowns, p = n + 1, m = b->n_parts * est->n_rows;
+        const int n = b->n_unknowns, p = n + 1, m = b->n_parts * est->n_rows, nl = eq->n_line;
         if (full && est->n < eq->resume) { /* a window that holds samples from before the change */
             continue;
         }
@@ -2149,20 +2309,38 @@ static long robust_step(duffid_estimator *est)
                             : est->rounding;
 #endif
         if (full) {
-            duffid_real previous[DUFFID_MAX_UNKNOWNS], fit;
-            for (i = 0; i < n; i++) {
-                previous[i] = eq->theta[i];
+            const duffid_real t = (duffid_real)(est->n - eq->origin) * est->dt; /* the rows' time */
+            duffid_real previous[MAX_UNK], fit;
+            if (nl > n) { /* a block with lines: the rows [A, t A_i (the lines), D] */
+                int k = n;
+                memcpy(est->B + nl * m, est->B + n * m, (size_t)m * sizeof(duffid_real));
+                for (i = 0; i < n; i++) {
+                    if (eq->drifting[i]) {
+                        int r;
+                        for (r = 0; r < m; r++) {
+                            est->B[k * m + r] = t * est->B[i * m + r];
+                        }
+                        k++;
+                    }
+                }
             }
-            fit = relative_fit(eq->R, n, previous);
-            eq->residual = relative_residual(est->B, m, n, previous);
+            for (i = 0; i < nl; i++) {
+                previous[i] = nl > n ? eq->line[i] : eq->theta[i];
+            }
+            fit = relative_fit(eq->R, nl, previous);
+            eq->residual = relative_residual(est->B, m, nl, previous);
             if (est->change_threshold > RC(0.0)) {
-                memcpy(est->B_copy, est->B, (size_t)(m * p) * sizeof(duffid_real));
+                memcpy(est->B_copy, est->B, (size_t)(m * (nl + 1)) * sizeof(duffid_real));
             }
-            duffid_la_qr_accumulate(eq->R, p, est->sqrt_lam, est->B, m);
+            duffid_la_qr_accumulate(eq->R, nl + 1, est->sqrt_lam, est->B, m);
             eq->rows = est->lam * eq->rows + (duffid_real)m;
-            solve_factor(est, eq, n, eq->R, eq->rows, (duffid_real)L);
+            if (nl > n) {
+                line_solve(est, eq, n, t, (duffid_real)L);
+            } else {
+                solve_factor(est, eq, n, eq->R, eq->rows, (duffid_real)L);
+            }
             if (est->change_threshold > RC(0.0)) {
-                change_test(est, e, m, fit);
+                change_test(est, e, m, fit, t);
             }
         } else {
             for (i = 0; i < p * p; i++) {

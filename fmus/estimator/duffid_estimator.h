@@ -87,7 +87,10 @@ extern "C" {
  *                accumulated rows, the recent estimate starts afresh): the least squares
  *                restart with the first window after the change, the value is withdrawn
  *                until it is determined again (the equation's other parameters, and those
- *                that had no value, are UNCERTAIN meanwhile). A published value is also
+ *                that had no value, are UNCERTAIN meanwhile); from then on the departed
+ *                unknowns are lines in time (their rates more unknowns, at most
+ *                DUFFID_MAX_LINE_UNKNOWNS in a block; the value is the line's newest), so
+ *                that a drift is followed rather than restarted again and again. A published value is also
  *                withdrawn (LOST) once the estimate has moved from it by more than
  *                DUFFID_LOSS_FACTOR x max_uncertainty for settle s.
  * A growing window's estimate is published once it has stayed within max_uncertainty / 2

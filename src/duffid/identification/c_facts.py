@@ -78,6 +78,8 @@ PUBLICATION: tuple[Fact, ...] = (
          "change test: a departure of this share of the threshold beyond the band, lasting the recent memory, is a drift"),
     Fact("DUFFID_CHANGE_ALONE_SHARE", engine.CHANGE_ALONE_SHARE,
          "change test: an unknown counts while changing it alone gains this share of the recent fit's prediction gain"),
+    Fact("DUFFID_MAX_LINE_UNKNOWNS", engine.MAX_LINE_UNKNOWNS,
+         "change test: unknowns of a block whose departed unknowns are lines in time, with their rates, at most"),
     Fact("DUFFID_GROWTH_STEADY", engine.GROWTH_STEADY,
          "a growing window's estimate steady while the window grew by this share"),
     Fact("DUFFID_MIN_SAMPLES", engine.MIN_SAMPLES, "samples before any solution is identified"),

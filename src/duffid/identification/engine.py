@@ -38,7 +38,7 @@ from .orthogonal import BASES
 from .regressors import KernelBank, SlidingMoments, row_exponents
 
 __all__ = ["OnlineIdentifier", "check_record", "Identification", "Estimate", "METHODS",
-           "STATUSES", "CHANGE_WINDOWS", "CHANGE_SURPRISE", "CHANGE_ALONE_SHARE", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "prior_sizes", "filtered_cramer", "combine_equations",
+           "STATUSES", "CHANGE_WINDOWS", "CHANGE_SURPRISE", "CHANGE_ALONE_SHARE", "MAX_LINE_UNKNOWNS", "DriftLine", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "status_codes", "prior_sizes", "filtered_cramer", "combine_equations",
            "auto_window", "Integrators", "solve_factor", "recent_solution", "triangular_factor", "equilibrated_condition"]
 
 #: The online methods (OnlineIdentifier, :data:`duffid.identification.options.ONLINE_METHODS`)
@@ -108,6 +108,11 @@ CHANGE_DRIFT_SHARE = 0.5
 #: whose solution then slides along an almost collinear pair such as the mass and the
 #: stiffness, fitting their noise) is fitted better only by moving the unknowns jointly.
 CHANGE_ALONE_SHARE = 0.5
+#: After a change, the unknowns that departed are lines in time (:class:`DriftLine`): a plant
+#: that drifts is followed instead of being restarted again and again. This many unknowns at
+#: most in an equation's accumulated least squares (its own and the lines' rates; a departed
+#: unknown beyond it stays a constant).
+MAX_LINE_UNKNOWNS = 16
 
 
 # ---------------------------------------------------------------------- channels
@@ -286,15 +291,22 @@ class _QRLeastSquares:
         self.lam = float(forgetting_factor)
         self.R = np.zeros((n_unknowns + 1, n_unknowns + 1))
         self.rows = 0.0
+        self.times = 0.0  # the rows' times (since a drifting equation's origin), weighted as the rows
 
     def reset(self) -> None:
         self.R[:] = 0.0
-        self.rows = 0.0
+        self.rows = self.times = 0.0
 
-    def update(self, A: np.ndarray, D: np.ndarray) -> None:
+    def update(self, A: np.ndarray, D: np.ndarray, time: float = 0.0) -> None:
         stacked = np.vstack([np.sqrt(self.lam) * self.R, np.column_stack([A, D])])
         self.R = triangular_factor(stacked, self.n + 1)
         self.rows = self.lam * self.rows + len(A)
+        self.times = self.lam * self.times + len(A) * time
+
+    @property
+    def mean_time(self) -> float:
+        """The weighted mean time of the rows it holds."""
+        return self.times / self.rows if self.rows > 0 else 0.0
 
 
 def triangular_factor(M: np.ndarray, size: int) -> np.ndarray:
@@ -391,6 +403,78 @@ def recent_solution(R_aug: np.ndarray, rows: float, overlap: float) -> tuple[np.
     with np.errstate(divide="ignore", invalid="ignore"):
         rse = np.where(theta != 0, std / np.abs(theta), np.inf)
     return theta, rse
+
+
+class DriftLine:
+    """The accumulated least squares of an equation whose ``drifting`` unknowns are linear in
+    time (``theta_i + rate_i t``; the change test's answer to a plant that drifts).
+
+    A least squares over the samples of a drifting plant is no value the plant had: it lags
+    the drift by half the accumulated span and biases the other unknowns, and the change test
+    would restart it again and again. Once the change test restarts an equation, each
+    departed unknown gets its rate as one more unknown (at most :data:`MAX_LINE_UNKNOWNS` in
+    all), whose rows are ``t A_i`` (``t``: the rows' time since the restart, in s). The
+    published value is the line at the newest rows with the standard error of that
+    combination; the change test fits the same lines to its recent rows and compares both at
+    the recent rows' mean time. An unknown stays a line until :meth:`OnlineIdentifier.reset`:
+    after a step, or a drift that stops, its rate is about zero and costs precision (a line's
+    end is known about half as well as a mean), not trust.
+
+    Parameters
+    ----------
+    drifting : ndarray of bool, shape (n,)
+        The equation's unknowns modelled as lines.
+    """
+
+    def __init__(self, drifting: np.ndarray) -> None:
+        self.drifting = np.asarray(drifting, dtype=bool)
+        self.index = np.flatnonzero(self.drifting)
+        self.theta = np.full(len(self.drifting) + len(self.index), np.nan)  # values at t = 0, then rates
+        self.inverse = np.full((len(self.theta), len(self.theta)), np.nan)  # theta = inverse @ R[:, -1]
+        self.sigma = np.inf
+
+    @property
+    def size(self) -> int:
+        """Unknowns of the accumulated least squares (the equation's and the rates)."""
+        return len(self.theta)
+
+    def rows(self, A: np.ndarray, time: float) -> np.ndarray:
+        """The accumulated rows of the equation's rows ``A`` at ``time``: ``[A, time A_i]``."""
+        return np.column_stack([A, time * A[:, self.index]])
+
+    def solve(self, R_aug: np.ndarray, rows: float, overlap: float) -> tuple[float, np.ndarray, float]:
+        """Solve the accumulated factor (as :func:`solve_factor`); returns its condition number,
+        the shares of the equation's own terms and of the right-hand side."""
+        theta, cond, _, share, rhs_share = solve_factor(R_aug, rows, overlap)
+        self._inverse(R_aug, rows, overlap, theta)
+        return cond, share[: len(self.drifting)], rhs_share
+
+    def solve_recent(self, R_aug: np.ndarray, rows: float, overlap: float) -> None:
+        """Solve the change test's recent factor (as :func:`recent_solution`)."""
+        self._inverse(R_aug, rows, overlap, recent_solution(R_aug, rows, overlap)[0])
+
+    def _inverse(self, R_aug: np.ndarray, rows: float, overlap: float, theta: np.ndarray) -> None:
+        n = R_aug.shape[0] - 1
+        self.theta = theta
+        if not np.all(np.isfinite(theta)):
+            self.sigma = np.inf
+            return
+        scale = np.linalg.norm(R_aug[:n, :n], axis=0)
+        self.inverse = np.linalg.inv(R_aug[:n, :n] / scale) / scale[:, None]
+        dof = rows - n
+        self.sigma = float(np.sqrt(R_aug[n, n] ** 2 / dof * overlap)) if dof > 0 else np.inf
+
+    def at(self, time: float) -> tuple[np.ndarray, np.ndarray]:
+        """The equation's unknowns at ``time`` and their relative standard errors."""
+        n = len(self.drifting)
+        theta = self.theta[:n].copy()
+        theta[self.index] += time * self.theta[n:]
+        C = self.inverse[:n].copy()
+        C[self.index] += time * self.inverse[n:]
+        std = self.sigma * np.linalg.norm(C, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rse = np.where(np.isfinite(theta) & (theta != 0), std / np.abs(theta), np.inf)
+        return theta, rse
 
 
 class Integrators:
@@ -585,6 +669,9 @@ class _EquationState:
         self.rse = np.empty(len(equation.unknowns))
         self.share = np.empty(len(equation.unknowns))
         self.departure = np.zeros(len(equation.unknowns))
+        self.line: DriftLine | None = None  # the drifting unknowns' lines (None: none drifts)
+        self.recent_line: DriftLine | None = None  # ... in the change test's recent estimate
+        self.origin = 0  # ... the sample whose rows have time 0
         self.clear()
 
     def clear(self) -> None:
@@ -705,12 +792,16 @@ class OnlineIdentifier(Identifier):
         if self.method == "robust":
             self._moments.reset()
             self._set_target(self.capacity)
-            for s in (*self._solvers, *self._recent):
-                s.reset()
+            self._solvers = [_QRLeastSquares(len(st.equation.unknowns), s.lam)
+                             for st, s in zip(self._states, self._solvers)]
+            self._recent = [_QRLeastSquares(len(st.equation.unknowns), s.lam)
+                            for st, s in zip(self._states, self._recent)]
         else:
             self._paper_reset()
         for st in self._states:
             st.clear()
+            st.line = st.recent_line = None
+            st.origin = 0
 
     def update(self, x: float | np.ndarray, f: float | np.ndarray) -> Estimate:
         """Consume one sample of displacements ``x`` and forces ``f``; return the estimate."""
@@ -916,21 +1007,34 @@ class OnlineIdentifier(Identifier):
                 continue
             if self.n < st.resume:  # a window that holds samples from before the change
                 continue
-            previous = st.theta.copy()
+            line = st.line
+            time = (self.n - st.origin) * self.dt
+            rows = A if line is None else line.rows(A, time)
+            previous = st.theta.copy() if line is None else line.theta.copy()
             fit = _relative_fit(solver.R, previous)
-            st.residual = _relative_residual(A, D, previous)
-            solver.update(A, D)
-            st.theta, st.cond, st.rse, st.share, st.rhs_share = solve_factor(solver.R, solver.rows, float(L))
+            st.residual = _relative_residual(rows, D, previous)
+            solver.update(rows, D)
+            if line is None:
+                st.theta, st.cond, st.rse, st.share, st.rhs_share = solve_factor(solver.R, solver.rows, float(L))
+            else:
+                st.cond, st.share, st.rhs_share = line.solve(solver.R, solver.rows, float(L))
+                st.theta, st.rse = line.at(time)
             if threshold is None or self.n < st.recent_resume:  # no test, or the recent estimate restarted
                 continue
-            recent.update(A, D)
-            theta, rse = recent_solution(recent.R, recent.rows, float(L))
-            st.departure = _departure(st.theta, st.rse, theta, rse)
+            recent.update(rows, D, time)
+            if line is None:
+                theta, rse = recent_solution(recent.R, recent.rows, float(L))
+                then, then_rse = st.theta, st.rse
+            else:  # both drifting equations' lines where the recent rows are (their mean time)
+                st.recent_line.solve_recent(recent.R, recent.rows, float(L))
+                theta, rse = st.recent_line.at(recent.mean_time)
+                then, then_rse = line.at(recent.mean_time)
+            st.departure = _departure(then, then_rse, theta, rse)
             # a departure matters when significant and larger than a published value may move;
             # a smaller one beyond that band matters once it lasts the recent memory (a drift)
-            wide = np.abs(theta - st.theta) > LOSS_FACTOR * self.options["max_uncertainty"] * np.abs(st.theta)
+            wide = np.abs(theta - then) > LOSS_FACTOR * self.options["max_uncertainty"] * np.abs(then)
             # ... and only while a change of it alone explains the recent rows (CHANGE_ALONE_SHARE)
-            wide &= _alone(recent.R, st.theta, CHANGE_ALONE_SHARE)
+            wide &= _alone(recent.R, st.theta if line is None else line.theta, CHANGE_ALONE_SHARE)[:len(theta)]
             departed = (st.departure > threshold) & wide
             drifted = (st.departure > CHANGE_DRIFT_SHARE * threshold) & wide
             st.departed = st.departed + 1 if departed.any() else 0
@@ -948,7 +1052,8 @@ class OnlineIdentifier(Identifier):
 
     def _restart(self, j: int, departed: np.ndarray) -> None:
         """Equation ``j``'s data contradict its estimate (the unknowns ``departed``): forget
-        them, mark its parameters ``changed`` (the departed) or ``uncertain``."""
+        them, mark its parameters ``changed`` (the departed) or ``uncertain``; the departed
+        unknowns are lines in time from then on (:class:`DriftLine`)."""
         st = self._states[j]
         keys = {key: bool(d) for key, d in zip(st.equation.unknowns, departed)}
         for name, sources in self._sources.items():
@@ -956,10 +1061,16 @@ class OnlineIdentifier(Identifier):
                 if k == j:
                     hit = bool(np.any(departed)) if key is None else keys[key]
                     self._changed_now[name] = self._changed_now.get(name, False) or hit
-        self._solvers[j].reset()
         self._recent[j].reset()
         st.clear()
-        st.resume = st.recent_resume = self.n + self._target
+        st.resume = st.recent_resume = st.origin = self.n + self._target
+        drifting = np.zeros(len(departed), dtype=bool) if st.line is None else st.line.drifting.copy()
+        for i in np.flatnonzero(np.asarray(departed, dtype=bool) & ~drifting):
+            if len(drifting) + np.count_nonzero(drifting) < MAX_LINE_UNKNOWNS:
+                drifting[i] = True
+        st.line, st.recent_line = DriftLine(drifting), DriftLine(drifting)
+        self._solvers[j] = _QRLeastSquares(st.line.size, self._solvers[j].lam)
+        self._recent[j] = _QRLeastSquares(st.line.size, self._recent[j].lam)
 
     def _after_publish(self, L: int) -> None:
         """Fix the auto window once the masses and linear stiffnesses (the natural periods)
