@@ -1969,26 +1969,33 @@ static void shares(duffid_estimator *est, equation_t *eq, int n, int n_terms, co
     eq->rhs_share = balance > RC(0.0) ? rhs / balance : R_NAN;
 }
 
+/* float: each unknown's relative standard error includes the rounding of the rows it rests on */
+static void with_rounding(equation_t *eq, int n)
+{
+#if DUFFID_SINGLE
+    int i;
+    for (i = 0; i < n; i++) {
+        eq->rse[i] = duffid_la_hypot(eq->rse[i], ARITHMETIC_FACTOR * eq->rounding * eq->cond);
+    }
+#else
+    (void)eq;
+    (void)n;
+#endif
+}
+
 /* identification.solve_factor on the p x p factor Raug (p = n + 1): the condition number of
  * the column-equilibrated factor by a warm-started Jacobi iteration, the unknowns and their
  * standard errors from its triangular inverse */
 static void solve_factor(duffid_estimator *est, equation_t *eq, int n, const duffid_real *Raug, duffid_real rows,
                          duffid_real overlap)
 {
-    int i;
     if (duffid_la_solve_factor(n, Raug, rows, overlap, COND_SINGULAR, est->scale, est->U, est->Rinv, eq->V,
                                &eq->warm, eq->theta, eq->rse, &eq->cond) != 0) {
         singular(eq, n);
         return;
     }
     shares(est, eq, n, n, Raug, eq->theta);
-#if DUFFID_SINGLE
-    for (i = 0; i < n; i++) {
-        eq->rse[i] = duffid_la_hypot(eq->rse[i], ARITHMETIC_FACTOR * eq->rounding * eq->cond);
-    }
-#else
-    (void)i;
-#endif
+    with_rounding(eq, n);
 }
 
 /* engine.DriftLine._inverse: after a solve of the factor Raug of nl unknowns (est->Rinv and
@@ -2051,11 +2058,7 @@ static void line_solve(duffid_estimator *est, equation_t *eq, int n, duffid_real
     shares(est, eq, n, nl, eq->R, eq->line);
     eq->line_sigma = line_inverse(est, nl, eq->R, eq->rows, overlap, eq->line_inv);
     line_at(eq, n, t, eq->line, eq->line_inv, eq->line_sigma, eq->theta, eq->rse);
-#if DUFFID_SINGLE
-    for (i = 0; i < n; i++) {
-        eq->rse[i] = duffid_la_hypot(eq->rse[i], ARITHMETIC_FACTOR * eq->rounding * eq->cond);
-    }
-#endif
+    with_rounding(eq, n);
 }
 
 /* engine._relative_residual: ||D - A theta|| over the norm of the force balance of the m

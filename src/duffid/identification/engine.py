@@ -1061,16 +1061,16 @@ class OnlineIdentifier(Identifier):
                 if k == j:
                     hit = bool(np.any(departed)) if key is None else keys[key]
                     self._changed_now[name] = self._changed_now.get(name, False) or hit
-        self._recent[j].reset()
         st.clear()
         st.resume = st.recent_resume = st.origin = self.n + self._target
         drifting = np.zeros(len(departed), dtype=bool) if st.line is None else st.line.drifting.copy()
         for i in np.flatnonzero(np.asarray(departed, dtype=bool) & ~drifting):
             if len(drifting) + np.count_nonzero(drifting) < MAX_LINE_UNKNOWNS:
                 drifting[i] = True
-        st.line, st.recent_line = DriftLine(drifting), DriftLine(drifting)
-        self._solvers[j] = _QRLeastSquares(st.line.size, self._solvers[j].lam)
-        self._recent[j] = _QRLeastSquares(st.line.size, self._recent[j].lam)
+        if drifting.any():
+            st.line, st.recent_line = DriftLine(drifting), DriftLine(drifting)
+        self._solvers[j] = _QRLeastSquares(len(drifting) if st.line is None else st.line.size, self._solvers[j].lam)
+        self._recent[j] = _QRLeastSquares(len(drifting) if st.line is None else st.line.size, self._recent[j].lam)
 
     def _after_publish(self, L: int) -> None:
         """Fix the auto window once the masses and linear stiffnesses (the natural periods)
