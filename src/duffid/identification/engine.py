@@ -1069,8 +1069,9 @@ class OnlineIdentifier(Identifier):
                 drifting[i] = True
         if drifting.any():
             st.line, st.recent_line = DriftLine(drifting), DriftLine(drifting)
-        self._solvers[j] = _QRLeastSquares(len(drifting) if st.line is None else st.line.size, self._solvers[j].lam)
-        self._recent[j] = _QRLeastSquares(len(drifting) if st.line is None else st.line.size, self._recent[j].lam)
+        size = len(drifting) if st.line is None else st.line.size
+        self._solvers[j] = _QRLeastSquares(size, self._solvers[j].lam)
+        self._recent[j] = _QRLeastSquares(size, self._recent[j].lam)
 
     def _after_publish(self, L: int) -> None:
         """Fix the auto window once the masses and linear stiffnesses (the natural periods)
