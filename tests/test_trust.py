@@ -277,3 +277,43 @@ def test_without_the_c_sources_identify_falls_back_to_python(monkeypatch, tmp_pa
     assert run_estimator(lab, Duffing1()).estimates == python.estimates
     with pytest.raises(FileNotFoundError, match="C sources"):
         run_estimator(lab, Duffing1(), engine="c")
+
+
+def _hardening_record(seed: int, snr_db: float = 50.0) -> tuple[Duffing1, Record]:
+    """A hardening plant of 11 Hz (kp x^2 / k = 0.5 at 4 mm) under random force, 2 kHz, 8 s."""
+    plant = Duffing1(m=1.5, b=3.0, k=6000.0, kp=0.5 * 6000.0 / 0.004**2)
+    force = Multisine(0.8 * 6000.0 * 0.004, 1.0, 40.0, 8.0, phases="random", seed=seed)
+    return plant, measure(simulate(plant, force, 8.0, 5e-4), pulses_per_cm=None, snr_db=snr_db, seed=seed + 1)
+
+
+def test_glitches_side_by_side_are_found_and_bridged():
+    """Two glitches next to each other make a good neighbour's difference from the cubic the
+    largest of the run: the run is bridged as a whole, and only the two are replaced."""
+    from duffid.identification.trust import isolated_outliers
+
+    _, rec = _hardening_record(3, snr_db=60)
+    x = rec.x.copy()
+    rng = np.random.default_rng(0)
+    starts = rng.choice(np.arange(20, len(x) - 20, 10), size=len(x) // 200, replace=False)
+    where = np.sort(np.concatenate([starts, starts + 1]))
+    x[where, 0] += rng.choice([-1, 1], size=len(where)) * rng.uniform(0.2, 3, size=len(where)) * np.ptp(rec.x)
+    found = isolated_outliers(x)
+    assert sorted(i for i, _, _ in found) == list(where)
+    replaced = np.array([value for _, _, value in found])
+    np.testing.assert_allclose(replaced, rec.x[where, 0], atol=1e-3 * np.ptp(rec.x))
+
+
+def test_one_percent_of_glitches_some_side_by_side_are_excluded_and_the_values_published():
+    plant, rec = _hardening_record(3)
+    x = rec.x.copy()
+    rng = np.random.default_rng(1)
+    where = rng.choice(np.arange(10, len(x) - 10), size=len(x) // 100, replace=False)
+    assert np.any(np.diff(np.sort(where)) == 1)  # at least one pair side by side
+    x[where, 0] += rng.choice([-1, 1], size=len(where)) * rng.uniform(3, 10, size=len(where)) * np.std(x)
+    result = identify(Record(rec.t, rec.f, x, source="glitches.csv"), Duffing1(), progress=False)
+    a = result.assessment
+    assert sorted(o["t"] for o in a.fit["outliers"]) == pytest.approx(sorted(rec.t[where]))
+    assert a.identified, a.notes
+    for name, value in result.parameters.items():  # within 3 stated errors of the truth
+        truth = plant.parameters[name]
+        assert abs(value - truth) <= 3 * a.uncertainty[name] * abs(truth), name

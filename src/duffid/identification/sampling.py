@@ -203,6 +203,30 @@ def _bridged(c: np.ndarray, where: np.ndarray) -> list[tuple[int, float]]:
         out.extend((int(i), float(np.polyval(coefficients, i - group[0]))) for i in group)
     return out
 
+def _glitches_of_run(c: np.ndarray, first: int, last: int, limit: float) -> tuple[np.ndarray, np.ndarray]:
+    """The glitches among the samples ``first..last`` (a run of samples whose differences from
+    their neighbours' cubic exceed ``limit``) and the values that bridge them.
+
+    A glitch moves the neighbours' cubic of the two samples on each side too, and two glitches
+    side by side can make a good neighbour's difference the largest of the run. So the run is
+    bridged as a whole, by the cubic through the two samples on each side of it, and the
+    samples further than ``limit`` from that bridge are the glitches. A run of glitches spans
+    the two neighbours on each side of them, so at least four of its samples agree with the
+    bridge; where fewer do, the bridge itself is wrong (a signal with few samples per period
+    is no cubic over that span). Empty then, when the run has no two samples on each side, or
+    when the bridge finds none.
+    """
+    support = np.array([first - 2, first - 1, last + 1, last + 2])
+    if support[0] < 0 or support[-1] >= len(c):
+        return np.zeros(0, dtype=int), np.zeros(0)
+    inside = np.arange(first, last + 1)
+    bridge = np.polyval(np.polyfit(support - first, c[support], 3), inside - first)
+    bad = np.abs(c[inside] - bridge) > limit
+    if np.count_nonzero(~bad) < 4:
+        return np.zeros(0, dtype=int), np.zeros(0)
+    return inside[bad], bridge[bad]
+
+
 def isolated_outliers(x: np.ndarray) -> list[tuple[int, int, float]]:
     """Isolated outliers of the displacement columns: (sample, column, value the neighbours give).
 
@@ -235,9 +259,13 @@ def isolated_outliers(x: np.ndarray) -> list[tuple[int, int, float]]:
             if not len(candidates):
                 break
             runs = np.split(candidates, np.flatnonzero(np.diff(candidates) > 1) + 1)
-            new = np.array([int(run[np.argmax(np.abs(r[run]))]) for run in runs])
-            work[new + 2] = prediction[new]
-            where = np.union1d(where, new + 2)
+            for run in runs:
+                bad, bridge = _glitches_of_run(work, run[0] + 2, run[-1] + 2, OUTLIER_SIGMAS * scale)
+                if not len(bad):  # no clean support around the run: its largest difference
+                    bad = np.array([int(run[np.argmax(np.abs(r[run]))]) + 2])
+                    bridge = prediction[bad - 2]
+                work[bad] = bridge
+                where = np.union1d(where, bad)
         found.extend((int(i), j, v) for i, v in _bridged(c, where))
     if len(found) > MAX_OUTLIER_SHARE * x.size:
         return []
