@@ -334,11 +334,13 @@ def test_outliers_are_excluded_as_in_python(case_b_exact):
     clean = measure(case_b_exact, snr_db=40, seed=3)
     x = clean.x.copy()
     x[700, 0], x[1200, 0], x[-1, 0] = 1.0, 0.0, 2.0   # the last one is never confirmed: processed as measured
+    x[1500:1502, 0] = 0.0                              # a glitch of two samples
+    x[-6:-4, 0] = -1.0                                 # ... and one that the sample after it confirms
     record = Record(clean.t, clean.f, x, source="glitched")
     py = estimate(record, Duffing1())
     with CIdentifier(Duffing1(), record.dt) as ident:
         c = ident.identify_record(record)
-    assert c.outliers == py.outliers and [o["value"] for o in py.outliers] == [1.0, 0.0]
+    assert c.outliers == py.outliers and [o["value"] for o in py.outliers] == [1.0, 0.0, 0.0, 0.0, -1.0, -1.0]
     assert np.array_equal(c.identified, py.identified) and c.status == py.status
     spread = identifier_spread(Duffing1(), record)
     spread.assert_final(c.parameters, py.parameters)

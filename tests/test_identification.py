@@ -271,6 +271,41 @@ def test_an_isolated_glitch_online_is_excluded_reported_and_harmless(case_b_exac
     assert estimate(case_b_exact, Duffing1()).outliers == [] and reference.outliers == []
 
 
+def test_a_glitch_of_two_samples_online_is_excluded_and_harmless(case_b_exact):
+    """Two glitches side by side (a dropout of two samples, a spike and its echo): both are
+    held, replaced by the quadratic through the samples around them and counted; a constant
+    plant raises no ``changed`` flag and ends as the clean run does."""
+    clean = measure(case_b_exact, snr_db=40, seed=3)
+    glitches = {700: 0.0, 701: 0.0, 1200: 1.0, 1201: 0.8, 1650: -0.3}
+    ident = OnlineIdentifier(Duffing1(), clean.dt)
+    estimates = [ident.update(x, f) for x, f in zip(_glitched(clean, glitches).x, clean.f)]
+    assert [round(o["t"] / clean.dt) for o in ident.outliers] == sorted(glitches)
+    noise = float(np.std(clean.x - case_b_exact.x))
+    for o in ident.outliers:  # within the noise (the quadratic amplifies it by 1.5 at most)
+        k = round(o["t"] / clean.dt)
+        assert o["replaced_by"] == pytest.approx(case_b_exact.x[k, 0], abs=5 * 1.5 * noise)
+    # both held samples repeat the previous estimate, at their own times
+    assert estimates[701].t == pytest.approx(701 * clean.dt) and estimates[701].parameters == estimates[699].parameters
+    assert estimates[702].outliers == 2 and estimates[699].outliers == 0
+    assert not any(s == "changed" for e in estimates for s in e.status.values())
+    reference = estimate(clean, Duffing1())
+    assert estimates[-1].status == reference.status
+    for name, value in reference.parameters.items():
+        assert estimates[-1].parameters[name] == pytest.approx(value, rel=2e-3)
+
+
+def test_a_jump_of_two_samples_that_stays_is_the_motion(case_b_exact):
+    """Two samples off the quadratic and a third that does not come back: no glitch, nothing
+    replaced (a real jump, such as an encoder re-zeroed, is the data's)."""
+    clean = measure(case_b_exact, snr_db=40, seed=3)
+    x = clean.x.copy()
+    x[700:, 0] += 0.5 * np.ptp(clean.x)
+    ident = OnlineIdentifier(Duffing1(), clean.dt)
+    for xi, fi in zip(x, clean.f):
+        ident.update(xi, fi)
+    assert ident.outliers == []
+
+
 def test_a_step_from_rest_is_no_outlier():
     record = measure(simulate(Duffing1(), Step(10.0, 0.2), 1.0, 1e-3))
     assert estimate(record, Duffing1()).outliers == []

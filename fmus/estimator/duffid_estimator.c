@@ -239,12 +239,14 @@ struct duffid_estimator {
     duffid_real gh[3 * DUFFID_MAX_DOF];    /* accepted x at n-1, n-2, n-3: [level * n_dof + j] */
     int64_t g_count;
     duffid_real g_mean[DUFFID_MAX_DOF], g_lo[DUFFID_MAX_DOF], g_hi[DUFFID_MAX_DOF], g_step[DUFFID_MAX_DOF];
-    int pending;
-    int64_t p_k;
-    duffid_real p_x[DUFFID_MAX_DOF], p_f[DUFFID_MAX_FORCES], p_threshold[DUFFID_MAX_DOF];
-    int p_suspect[DUFFID_MAX_DOF];
+    int pending;                           /* samples held (0-2): the first suspect, then its glitch's second */
+    int64_t p_k;                           /* the first one's index */
+    duffid_real p_x[2 * DUFFID_MAX_DOF], p_f[2 * DUFFID_MAX_FORCES], p_threshold[DUFFID_MAX_DOF];
+    int p_suspect[DUFFID_MAX_DOF];         /* the first one's suspect columns */
+    int p_pair[DUFFID_MAX_DOF];            /* ... whose glitch may last two samples */
     long outliers;
     duffid_real outlier_t, outlier_value, outlier_replaced_by;
+    duffid_real outlier_first_value, outlier_first_replaced_by; /* a glitch of two samples: its first */
     int outlier_column;
     duffid_output last;                    /* output after the latest processed sample */
 
@@ -1237,17 +1239,18 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     STATE_RANGE(n, -1, limit)
     STATE_RANGE(est->window_fixed, 0, 1)
     STATE_RANGE(est->has_last_x, 0, 1)
-    STATE_RANGE(est->pending, 0, 1)
+    STATE_RANGE(est->pending, 0, 2)
     STATE_RANGE(est->received, n + est->pending, n + est->pending) /* a held sample is not processed yet */
     STATE_RANGE(est->g_count, 0, est->received + 1)
     STATE_RANGE(est->p_k, 0, limit)
     if (est->pending) {
-        STATE_RANGE(est->p_k, est->received, est->received)
+        STATE_RANGE(est->p_k, est->received - est->pending + 1, est->received - est->pending + 1)
     }
     STATE_RANGE(est->outliers, 0, est->received + 1)
     STATE_RANGE(est->outlier_column, -1, est->n_dof - 1)
     for (i = 0; i < DUFFID_MAX_DOF; i++) {
         STATE_RANGE(est->p_suspect[i], 0, 1)
+        STATE_RANGE(est->p_pair[i], 0, 1)
     }
     {
         /* the per-parameter state lives in the block: read it through a relocated view */
@@ -1430,6 +1433,8 @@ void duffid_reset(duffid_estimator *est)
     est->outlier_t = R_NAN;
     est->outlier_value = R_NAN;
     est->outlier_replaced_by = R_NAN;
+    est->outlier_first_value = R_NAN;
+    est->outlier_first_replaced_by = R_NAN;
     est->outlier_column = -1;
     memset(&est->last, 0, sizeof est->last);
     est->last.residual = R_NAN;
@@ -2897,6 +2902,34 @@ static void guard_accept(duffid_estimator *est, const duffid_real *x, const duff
     est->g_count++;
 }
 
+/* _OutlierGuard._replace: column j of held sample i is a glitch, replaced by value */
+static void guard_replace(duffid_estimator *est, int i, int j, duffid_real value)
+{
+    duffid_real *held = est->p_x + i * est->n_dof;
+    est->outlier_first_value = i == 1 ? est->outlier_value : R_NAN; /* replaced just before (i = 0) */
+    est->outlier_first_replaced_by = i == 1 ? est->outlier_replaced_by : R_NAN;
+    est->outliers++;
+    est->outlier_t = (duffid_real)(est->p_k + i) * est->cfg.dt;
+    est->outlier_column = j;
+    est->outlier_value = held[j];
+    est->outlier_replaced_by = value;
+    held[j] = value;
+}
+
+static void process(duffid_estimator *est, const duffid_real *x, const duffid_real *f);
+
+/* _OutlierGuard._release: the held samples accepted and processed, in order */
+static void guard_release(duffid_estimator *est)
+{
+    int i;
+    const int held = est->pending;
+    est->pending = 0;
+    for (i = 0; i < held; i++) {
+        guard_accept(est, est->p_x + i * est->n_dof, est->p_threshold);
+        process(est, est->p_x + i * est->n_dof, est->p_f + i * est->n_forces);
+    }
+}
+
 /* ------------------------------------------------------------------ update */
 /* OnlineIdentifier._process: one sample into the estimator, its output into est->last */
 static void process(duffid_estimator *est, const duffid_real *x, const duffid_real *f)
@@ -2977,6 +3010,8 @@ static void report(const duffid_estimator *est, duffid_output *out)
     out->outlier_column = est->outlier_column;
     out->outlier_value = est->outlier_value;
     out->outlier_replaced_by = est->outlier_replaced_by;
+    out->outlier_first_value = est->outlier_first_value;
+    out->outlier_first_replaced_by = est->outlier_first_replaced_by;
 }
 
 int duffid_update(duffid_estimator *est, const duffid_real *x, const duffid_real *f, duffid_output *out)
@@ -2997,23 +3032,37 @@ int duffid_update(duffid_estimator *est, const duffid_real *x, const duffid_real
         }
     }
     est->received++;
-    if (est->pending) { /* _OutlierGuard.admit: was the held sample an isolated glitch? */
+    if (est->pending == 1) { /* _OutlierGuard.admit: was the held sample a glitch? */
         const int n = est->n_dof;
-        est->pending = 0;
+        int pair = 0;
         for (j = 0; j < n; j++) {
-            duffid_real ahead = RC(6.0) * est->gh[j] - RC(8.0) * est->gh[n + j] + RC(3.0) * est->gh[2 * n + j];
-            if (est->p_suspect[j] && R_FABS(x[j] - ahead) <= est->p_threshold[j]) {
-                duffid_real value = (RC(3.0) * est->gh[j] - est->gh[n + j] + x[j]) / RC(3.0);
-                est->outliers++;
-                est->outlier_t = (duffid_real)est->p_k * est->cfg.dt;
-                est->outlier_column = j;
-                est->outlier_value = est->p_x[j];
-                est->outlier_replaced_by = value;
-                est->p_x[j] = value;
+            const duffid_real ahead = RC(6.0) * est->gh[j] - RC(8.0) * est->gh[n + j] + RC(3.0) * est->gh[2 * n + j];
+            const int agree = R_FABS(x[j] - ahead) <= est->p_threshold[j];
+            if (est->p_suspect[j] && agree) { /* the quadratic through n-2, n-1, n+1 */
+                guard_replace(est, 0, j, (RC(3.0) * est->gh[j] - est->gh[n + j] + x[j]) / RC(3.0));
+            }
+            est->p_pair[j] = est->p_suspect[j] && !agree;
+            pair |= est->p_pair[j];
+        }
+        if (pair) { /* a glitch of two samples, or the motion: the next one tells */
+            memcpy(est->p_x + n, x, (size_t)n * sizeof(duffid_real));
+            memcpy(est->p_f + est->n_forces, f, (size_t)est->n_forces * sizeof(duffid_real));
+            est->pending = 2;
+            report(est, out);
+            return DUFFID_OK;
+        }
+        guard_release(est);
+    } else if (est->pending == 2) {
+        const int n = est->n_dof;
+        for (j = 0; j < n; j++) {
+            const duffid_real ahead = RC(10.0) * est->gh[j] - RC(15.0) * est->gh[n + j] + RC(6.0) * est->gh[2 * n + j];
+            if (est->p_pair[j] && R_FABS(x[j] - ahead) <= est->p_threshold[j]) {
+                /* the quadratic through n-3, n-2 and n+1 at n-1 and n */
+                guard_replace(est, 0, j, RC(-0.5) * est->gh[n + j] + RC(4.0) / RC(3.0) * est->gh[j] + x[j] / RC(6.0));
+                guard_replace(est, 1, j, RC(-0.5) * est->gh[n + j] + est->gh[j] + RC(0.5) * x[j]);
             }
         }
-        guard_accept(est, est->p_x, est->p_threshold);
-        process(est, est->p_x, est->p_f);
+        guard_release(est);
     }
     if (est->g_count >= MIN_SAMPLES) {
         guard_threshold(est, threshold);
@@ -3021,7 +3070,7 @@ int duffid_update(duffid_estimator *est, const duffid_real *x, const duffid_real
             est->p_suspect[j] = R_FABS(x[j] - guard_prediction(est, j)) > threshold[j];
             suspect |= est->p_suspect[j];
         }
-        if (suspect) { /* held back one sample */
+        if (suspect) { /* held back (one sample, two for a glitch that may last two) */
             est->pending = 1;
             est->p_k = est->received;
             for (j = 0; j < est->n_dof; j++) {
@@ -3057,9 +3106,7 @@ int duffid_flush(duffid_estimator *est, duffid_output *out)
     if (est == NULL || !est->pending) {
         return 0;
     }
-    est->pending = 0;
-    guard_accept(est, est->p_x, est->p_threshold);
-    process(est, est->p_x, est->p_f);
+    guard_release(est);
     report(est, out);
     return 1;
 }

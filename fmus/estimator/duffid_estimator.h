@@ -103,6 +103,8 @@ extern "C" {
  * step nor DUFFID_OUTLIER_RANGE of the range covered) from the quadratic through the three
  * samples before it is held back one sample; if the next sample agrees with the samples
  * before it, the held one is replaced by the quadratic through its neighbours and counted.
+ * If the next one is off too, both are held; if the third agrees, the two were one glitch
+ * and are replaced by the quadratic through the two samples before and the one after.
  * Meanwhile the previous output is repeated. */
 
 /* Quadrature of the paper method's integrators. */
@@ -150,6 +152,8 @@ typedef struct duffid_output {
     duffid_real outlier_t;                      /* the latest: time [s], displacement index, */
     int outlier_column;                    /* value measured and value used (NaN before any) */
     duffid_real outlier_value, outlier_replaced_by;
+    duffid_real outlier_first_value;            /* the latest glitch lasted two samples: the first's */
+    duffid_real outlier_first_replaced_by;      /* (at outlier_t - dt, same column); NaN otherwise */
     duffid_real std_errors[DUFFID_MAX_PARAMS];  /* public order: standard error of each published
                                             * value (its unit), NaN where none is published */
     duffid_real residual;                       /* the window's one-step prediction error relative to
@@ -207,8 +211,8 @@ long duffid_latest_output(const duffid_estimator *est, duffid_output *out);
  * method's integrals cannot skip samples: it is reset). OnlineIdentifier.hold. */
 int duffid_hold(duffid_estimator *est);
 
-/* Process a sample held back as a suspect outlier (the end of a record). Returns 1 and
- * fills out (if not NULL) when there was one, 0 otherwise. */
+/* Process the samples held back as a suspect outlier (the end of a record). Returns 1 and
+ * fills out (if not NULL) when there were any, 0 otherwise. */
 int duffid_flush(duffid_estimator *est, duffid_output *out);
 
 /* Consume one sample: displacements x[n_dof] and forces f[n_forces]. out may be NULL.

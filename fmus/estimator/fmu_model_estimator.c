@@ -308,6 +308,12 @@ static int do_step(Instance *inst, double t, double h)
         return 1;
     }
     if (out.outliers > (d->have_out ? d->out.outliers : 0)) {
+        if (out.outlier_first_value == out.outlier_first_value) { /* a glitch of two samples: its first */
+            fmu_log(inst, FMU_WARNING, "logStatusWarning",
+                    "x%d = %.17g at t = %.17g excluded as an isolated outlier (replaced by %.17g)",
+                    out.outlier_column + 1, out.outlier_first_value, out.outlier_t - d->dt,
+                    out.outlier_first_replaced_by);
+        }
         fmu_log(inst, FMU_WARNING, "logStatusWarning",
                 "x%d = %.17g at t = %.17g excluded as an isolated outlier (replaced by %.17g)",
                 out.outlier_column + 1, out.outlier_value, out.outlier_t, out.outlier_replaced_by);
@@ -383,7 +389,9 @@ static int same_output(const duffid_output *a, const duffid_output *b)
                   same_bits(a->window, b->window) && a->outliers == b->outliers &&
                   same_bits(a->outlier_t, b->outlier_t) && a->outlier_column == b->outlier_column &&
                   same_bits(a->outlier_value, b->outlier_value) &&
-                  same_bits(a->outlier_replaced_by, b->outlier_replaced_by) && same_bits(a->residual, b->residual);
+                  same_bits(a->outlier_replaced_by, b->outlier_replaced_by) && same_bits(a->residual, b->residual) &&
+                  same_bits(a->outlier_first_value, b->outlier_first_value) &&
+                  same_bits(a->outlier_first_replaced_by, b->outlier_first_replaced_by);
     for (i = 0; i < DUFFID_MAX_PARAMS; i++)
         same = same && same_bits(a->parameters[i], b->parameters[i]) && same_bits(a->current[i], b->current[i]) &&
                a->status[i] == b->status[i] && same_bits(a->std_errors[i], b->std_errors[i]);

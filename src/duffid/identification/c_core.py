@@ -141,6 +141,8 @@ def _output_type(real: Any) -> type[ctypes.Structure]:
             ("outlier_column", ctypes.c_int),
             ("outlier_value", real),
             ("outlier_replaced_by", real),
+            ("outlier_first_value", real),
+            ("outlier_first_replaced_by", real),
             ("std_errors", real * _MAX_PARAMS),
             ("residual", real),
         ]
@@ -152,8 +154,24 @@ def _output_dtype(code: str) -> np.dtype:
                      ("identified", "i4"), ("condition", code), ("uncertainty", code), ("window", code),
                      ("current", code, (_MAX_PARAMS,)), ("status", "i4", (_MAX_PARAMS,)),
                      ("outliers", "i8"), ("outlier_t", code), ("outlier_column", "i4"), ("outlier_value", code),
-                     ("outlier_replaced_by", code), ("std_errors", code, (_MAX_PARAMS,)), ("residual", code)],
+                     ("outlier_replaced_by", code), ("outlier_first_value", code), ("outlier_first_replaced_by", code),
+                     ("std_errors", code, (_MAX_PARAMS,)), ("residual", code)],
                     align=True)
+
+
+def outliers_of(rows: np.ndarray, before: int, dt: float) -> list[dict[str, Any]]:
+    """The outliers the C core's outputs ``rows`` name (``before``: the count before them):
+    at each output whose count rose, the latest, and the first sample of a glitch of two."""
+    out: list[dict[str, Any]] = []
+    for k in np.flatnonzero(np.diff(rows["outliers"], prepend=before) > 0):
+        row = rows[k]
+        column = f"x{int(row['outlier_column']) + 1}"
+        if np.isfinite(row["outlier_first_value"]):
+            out.append({"t": float(row["outlier_t"]) - dt, "column": column, "value": float(row["outlier_first_value"]),
+                        "replaced_by": float(row["outlier_first_replaced_by"])})
+        out.append({"t": float(row["outlier_t"]), "column": column, "value": float(row["outlier_value"]),
+                    "replaced_by": float(row["outlier_replaced_by"])})
+    return out
 
 
 #: The structures of each precision: (real ctype, config, output, output dtype).
@@ -564,7 +582,7 @@ class CIdentifier(Identifier):
         self._lib.duffid_hold(self._live())
 
     def flush(self) -> Estimate | None:
-        """Process a sample held back as a suspect outlier (see ``OnlineIdentifier.flush``)."""
+        """Process the samples held back as a suspect outlier (see ``OnlineIdentifier.flush``)."""
         return self._estimate() if self._lib.duffid_flush(self._live(), ctypes.byref(self._out)) else None
 
     def _estimate(self) -> Estimate:
@@ -646,7 +664,6 @@ class CIdentifier(Identifier):
         if len(rows) and self._lib.duffid_flush(self._live(), ctypes.byref(self._out)):
             rows = rows.copy()
             rows[-1] = np.frombuffer(memoryview(self._out).cast("B"), dtype=self._dtype)[0]
-        found = np.flatnonzero(np.diff(rows["outliers"], prepend=0) > 0)
         history = {name: rows["parameters"][:, i].copy() for i, name in enumerate(self._names)}
         flags = rows["identified"].astype(bool)
         return Identification(
@@ -657,7 +674,5 @@ class CIdentifier(Identifier):
             window=float(rows["window"][-1]), options=dict(self.options), source=record.source,
             estimates={name: float(rows["current"][-1, i]) for i, name in enumerate(self._names)},
             online_status={name: STATUSES[rows["status"][-1, i]] for i, name in enumerate(self._names)},
-            outliers=[{"t": float(rows["outlier_t"][k]), "column": f"x{int(rows['outlier_column'][k]) + 1}",
-                       "value": float(rows["outlier_value"][k]), "replaced_by": float(rows["outlier_replaced_by"][k])}
-                      for k in found],
+            outliers=outliers_of(rows, 0, self.dt),
         )

@@ -18,7 +18,7 @@ from ..errors import BuildError, InputError
 from ..models.chain import Chain, Duffing1, Duffing2
 from ..models.registry import IdentifiableModel
 from .batch import estimate
-from .c_core import CIdentifier
+from .c_core import CIdentifier, outliers_of
 from .engine import STATUSES, Identification, check_record
 from .options import ENGINES, ONLINE_METHODS
 
@@ -237,10 +237,7 @@ def _identified_in_blocks(identifier: CIdentifier, record: Record, cancel: Any) 
         parameters[:, start:stop] = rows["parameters"][:, :len(names)].T
         condition[start:stop] = rows["condition"]
         flags[start:stop] = rows["identified"].astype(bool)
-        found = np.flatnonzero(np.diff(rows["outliers"], prepend=count) > 0)
-        outliers.extend({"t": float(rows["outlier_t"][k]), "column": f"x{int(rows['outlier_column'][k]) + 1}",
-                         "value": float(rows["outlier_value"][k]),
-                         "replaced_by": float(rows["outlier_replaced_by"][k])} for k in found)
+        outliers.extend(outliers_of(rows, count, record.dt))
         count, last = int(rows["outliers"][-1]), rows[-1]
     window = float(last["window"])
     current = {name: float(last["current"][i]) for i, name in enumerate(names)}

@@ -188,7 +188,8 @@ class _Assembly:
 #: A displacement sample further than this many robust standard deviations from the
 #: quadratic through the three samples before it is held back one sample: if the next
 #: sample agrees with the samples before it, the held one was an isolated glitch (a spike,
-#: a dropout to 0, a wrapped encoder count) and is replaced.
+#: a dropout to 0, a wrapped encoder count) and is replaced; a glitch may last two samples
+#: (see :class:`_OutlierGuard`).
 OUTLIER_SIGMAS = 12.0
 #: The outlier test's scale is never below this share of the range the displacement has
 #: covered (a noise-free record's smooth differences are no scale).
@@ -199,8 +200,17 @@ _GAUSS_MEAN_ABS = 1.2533141373155003  # sigma / mean|r| of a normal distribution
 
 
 class _OutlierGuard:
-    """Online exclusion of isolated displacement outliers (one sample of delay, only for
-    a suspect sample). :meth:`admit` returns the samples to process now, in order."""
+    """Online exclusion of isolated displacement outliers: a suspect sample is held (one
+    sample of delay, two for a glitch that may last two samples, only then) until the next
+    samples tell whether it was a glitch. :meth:`admit` returns the samples to process now,
+    in order.
+
+    A sample further than the threshold from the quadratic through the three accepted before
+    it is suspect. It was a glitch when the next sample agrees with that quadratic (two steps
+    on); when the next one is off too, both are held, and they were a glitch of two samples
+    when the third agrees with the quadratic (three steps on). A glitch is replaced by the
+    quadratic through the two accepted samples before it and the one after.
+    """
 
     def __init__(self, n_dof: int) -> None:
         self.n_dof = n_dof
@@ -214,7 +224,10 @@ class _OutlierGuard:
         self.lo = np.full(n, np.inf)
         self.hi = np.full(n, -np.inf)
         self.step = np.full(n, np.inf)  # smallest non-zero change (quantisation step)
-        self.pending: tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+        self.pending: list[tuple[int, np.ndarray, np.ndarray]] = []  # held samples (k, x, f)
+        self.suspect = np.zeros(n, dtype=bool)  # ... the first one's suspect columns
+        self.pair = np.zeros(n, dtype=bool)     # ... the columns whose glitch may last two samples
+        self.threshold = np.zeros(n)
         self.found: list[tuple[int, int, float, float]] = []
 
     def _threshold(self) -> np.ndarray:
@@ -239,28 +252,46 @@ class _OutlierGuard:
         h[0] = x
         self.count += 1
 
+    def _replace(self, index: int, j: int, value: float) -> None:
+        k, x, _ = self.pending[index]
+        self.found.append((k, j, float(x[j]), float(value)))
+        x[j] = value
+
+    def _release(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        out = []
+        for _, x, f in self.pending:
+            self._accept(x, self.threshold)
+            out.append((x, f))
+        self.pending = []
+        return out
+
     def admit(self, k: int, x: np.ndarray, f: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
         """Sample ``k`` (``x``, ``f``): the samples to process now."""
         out: list[tuple[np.ndarray, np.ndarray]] = []
         h = self.h
-        if self.pending is not None:
-            kp, xp, fp, suspect, threshold = self.pending
-            self.pending = None
+        if len(self.pending) == 1:
             ahead = 6.0 * h[0] - 8.0 * h[1] + 3.0 * h[2]  # the samples before, two steps on
-            isolated = suspect & (np.abs(x - ahead) <= threshold)
-            if isolated.any():
-                xp = xp.copy()
-                for j in np.flatnonzero(isolated):
-                    value = (3.0 * h[0, j] - h[1, j] + x[j]) / 3.0  # the quadratic through n-2, n-1, n+1
-                    self.found.append((kp, int(j), float(xp[j]), float(value)))
-                    xp[j] = value
-            self._accept(xp, threshold)
-            out.append((xp, fp))
+            agree = np.abs(x - ahead) <= self.threshold
+            for j in np.flatnonzero(self.suspect & agree):  # the quadratic through n-2, n-1, n+1
+                self._replace(0, j, (3.0 * h[0, j] - h[1, j] + x[j]) / 3.0)
+            self.pair = self.suspect & ~agree
+            if self.pair.any():  # a glitch of two samples, or the motion: the next one tells
+                self.pending.append((k, x.copy(), f.copy()))
+                return out
+            out += self._release()
+        elif len(self.pending) == 2:
+            ahead = 10.0 * h[0] - 15.0 * h[1] + 6.0 * h[2]  # three steps on
+            for j in np.flatnonzero(self.pair & (np.abs(x - ahead) <= self.threshold)):
+                # the quadratic through n-3, n-2 and n+1 at n-1 and n
+                self._replace(0, j, -0.5 * h[1, j] + 4.0 / 3.0 * h[0, j] + x[j] / 6.0)
+                self._replace(1, j, -0.5 * h[1, j] + h[0, j] + 0.5 * x[j])
+            out += self._release()
         if self.count >= MIN_SAMPLES:
             threshold = self._threshold()
             suspect = np.abs(x - (3.0 * h[0] - 3.0 * h[1] + h[2])) > threshold
             if suspect.any():
-                self.pending = (k, x.copy(), f.copy(), suspect, threshold)
+                self.pending = [(k, x.copy(), f.copy())]
+                self.suspect, self.threshold = suspect, threshold
                 return out
             self._accept(x, threshold)
         else:
@@ -269,13 +300,8 @@ class _OutlierGuard:
         return out
 
     def flush(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        """The held sample, if any (the record ended: nothing tells it was a glitch)."""
-        if self.pending is None:
-            return []
-        _, xp, fp, _, threshold = self.pending
-        self.pending = None
-        self._accept(xp, threshold)
-        return [(xp, fp)]
+        """The held samples, if any (the record ended: nothing tells they were a glitch)."""
+        return self._release()
 
 
 # ---------------------------------------------------------------------- solvers
@@ -815,8 +841,8 @@ class OnlineIdentifier(Identifier):
         return self._reported(estimate)
 
     def flush(self) -> Estimate | None:
-        """Process a sample held back as a suspect outlier (at the end of a record: nothing
-        tells it was a glitch); its estimate, or None if no sample was held."""
+        """Process the samples held back as a suspect outlier (at the end of a record: nothing
+        tells they were a glitch); the estimate, or None if no sample was held."""
         estimate = None
         for xi, fi in self._guard.flush():
             estimate = self._process(xi, fi)
