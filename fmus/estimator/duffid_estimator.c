@@ -147,6 +147,12 @@ typedef struct { /* the state of one block of the description */
     duffid_real line_sigma, line_recent_sigma, times_recent; /* residual scales; the recent
                                        * rows' times, weighted as the rows */
     duffid_real *departure;           /* n: recent - accumulated solution in combined errors */
+    /* engine.DRIFT_SIGMAS: the drift probe, a line for each of the first probe_n unknowns */
+    int probe_n;                      /* its lines (0: none); its factor is (n + probe_n + 1)^2 */
+    duffid_real *R_probe;             /* its accumulated factor of [A, t A_0.., D] (one row a sample) */
+    duffid_real rows_probe, probe_start; /* its rows (weighted as the accumulated ones), their first time */
+    int64_t probed;                   /* samples it has found a drift in a row, saturated at settle */
+    int probe_row;                    /* the row of the block's it takes next */
     duffid_real cond, rhs_share, rows, rows_recent, residual;
     int64_t departed;                 /* samples the departure has mattered in a row, saturated
                                        * at settle */
@@ -199,6 +205,7 @@ struct duffid_estimator {
     int64_t *unsettled;                    /* canonical order, saturated at settle_count */
     int *status;                           /* canonical order, DUFFID_STATUS_* */
     int *fresh;                            /* canonical order: restarted since last published */
+    int64_t *credible_from;                /* ... and its rows span a window from this sample */
     duffid_real *value;                    /* canonical order: the latest published value */
     int *changed_now;                      /* canonical order: restarted at this sample: -1 no,
                                             * 0 (uncertain) or 1 (changed) */
@@ -871,6 +878,7 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
     CARVE(&c, est->unsettled, np);
     CARVE(&c, est->status, np);
     CARVE(&c, est->fresh, np);
+    CARVE(&c, est->credible_from, np);
     CARVE(&c, est->value, np);
     CARVE(&c, est->changed_now, np);
     CARVE(&c, est->held, np);
@@ -891,6 +899,8 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
         CARVE(&c, eq->R_recent, robust ? p * p : 0);
         CARVE(&c, eq->departure, n);
         eq->line_cap = nl;
+        eq->probe_n = lines ? nl - n : 0; /* the probe's lines: as many as the factors hold */
+        CARVE(&c, eq->R_probe, lines ? p * p : 0);
         CARVE(&c, eq->drifting, n);
         CARVE(&c, eq->line, lines ? nl : 0);
         CARVE(&c, eq->line_inv, lines ? nl * nl : 0);
@@ -1211,6 +1221,11 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
         STATE_RANGE(est->eq[i].departed, 0, est->settle_count)
         STATE_RANGE(est->eq[i].surprised, 0, est->settle_count)
         STATE_RANGE(est->eq[i].drifted, 0, est->memory)
+        STATE_RANGE(est->eq[i].probed, 0, est->settle_count)
+        if (cfg.method == DUFFID_ROBUST) { /* a row of the block (est's pointers are not relocated yet) */
+            STATE_RANGE(est->eq[i].probe_row, 0, fresh->m.blocks[i].n_parts * fresh->n_rows - 1)
+        }
+        STATE_SAME(eq[i].probe_n)
         STATE_RANGE(est->eq[i].resume, 0, limit)
         STATE_RANGE(est->eq[i].recent_resume, 0, limit)
         STATE_SAME(eq[i].line_cap)
@@ -1262,6 +1277,7 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
         const int *status = (const int *)(dyn + ((const char *)fresh->status - dynamic_base(fresh)));
         const int *restarted = (const int *)(dyn + ((const char *)fresh->fresh - dynamic_base(fresh)));
         const int *changed_now = (const int *)(dyn + ((const char *)fresh->changed_now - dynamic_base(fresh)));
+        const int64_t *credible_from = (const int64_t *)(dyn + ((const char *)fresh->credible_from - dynamic_base(fresh)));
         for (i = 0; i < est->n_params; i++) {
             STATE_RANGE(status[i], DUFFID_STATUS_UNCERTAIN, DUFFID_STATUS_CHANGED)
             STATE_RANGE(restarted[i], 0, 1)
@@ -1270,6 +1286,7 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
             STATE_RANGE(anchored[i], -1, limit)
             STATE_RANGE(settled[i], 0, limit)
             STATE_RANGE(unsettled[i], 0, limit)
+            STATE_RANGE(credible_from[i], 0, n + 1 + 2 * (int64_t)est->capacity)
         }
     }
     for (i = 0; i < DUFFID_MAX_PARAMS; i++) {
@@ -1387,6 +1404,9 @@ static void clear_change(equation_t *eq, int n)
     eq->departed = 0;
     eq->surprised = 0;
     eq->drifted = 0;
+    eq->probed = 0;
+    eq->probe_start = R_NAN;
+    eq->probe_row = 0;
     eq->resume = 0;
     eq->recent_resume = 0;
     eq->residual = R_NAN;
@@ -1401,7 +1421,10 @@ static void clear_factors(duffid_estimator *est, int e)
     int i;
     memset(eq->R, 0, (size_t)(p * p) * sizeof(duffid_real));
     memset(eq->R_recent, 0, (size_t)(p * p) * sizeof(duffid_real));
-    eq->rows = eq->rows_recent = eq->times_recent = RC(0.0);
+    if (eq->probe_n > 0) {
+        memset(eq->R_probe, 0, (size_t)(p * p) * sizeof(duffid_real));
+    }
+    eq->rows = eq->rows_recent = eq->times_recent = eq->rows_probe = RC(0.0);
     if (eq->line_cap > est->m.blocks[e].n_unknowns) {
         for (i = 0; i < eq->line_cap; i++) {
             eq->line[i] = eq->line_recent[i] = R_NAN;
@@ -1452,6 +1475,7 @@ void duffid_reset(duffid_estimator *est)
         est->unsettled[i] = 0;
         est->status[i] = DUFFID_STATUS_UNCERTAIN;
         est->fresh[i] = 0;
+        est->credible_from[i] = 0;
         est->value[i] = R_NAN;
         est->changed_now[i] = -1;
         est->held[i] = R_NAN;
@@ -2201,6 +2225,84 @@ static void restart(duffid_estimator *est, int e, const int *departed)
     eq->resume = eq->recent_resume = eq->origin = est->n + est->target;
 }
 
+/* OnlineIdentifier._drift_probe: row probe_row of the m rows B_copy ([A, the lines, D] at time
+ * t, column after column) into the drift probe of equation e, its rates tested; returns 1 when
+ * it restarted the equation. The rates need no full inverse: in the factor [[R11, R12], [0,
+ * R22]] of the columns [A, t A_i], the inverse's rows of the rates are [0, R22^-1]. */
+static int drift_probe(duffid_estimator *est, int e, int m, duffid_real t, duffid_real overlap)
+{
+    equation_t *eq = &est->eq[e];
+    const int n = est->m.blocks[e].n_unknowns, P = eq->probe_n, np_ = n + P, p = np_ + 1, nl = eq->n_line;
+    const int r = eq->probe_row;
+    const duffid_real band = RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty;
+    const duffid_real *R = eq->R_probe;
+    duffid_real row[MAX_AUG], theta[MAX_AUG], inv[(MAX_LINE / 2) * (MAX_LINE / 2)], dof, gain = RC(0.0);
+    int departed[MAX_UNK], i, k, any = 0, singular_ = 0;
+    if (P == 0) {
+        return 0;
+    }
+    eq->probe_row = r + 1 < m ? r + 1 : 0; /* one row a sample, in turn */
+    for (i = 0; i < n; i++) {
+        row[i] = est->B_copy[i * m + r];
+    }
+    for (i = 0; i < P; i++) {
+        row[n + i] = t * row[i];
+    }
+    row[np_] = est->B_copy[nl * m + r];
+    duffid_la_qr_accumulate(eq->R_probe, p, est->sqrt_lam, row, 1);
+    eq->rows_probe = est->lam * eq->rows_probe + RC(1.0);
+    if (!(eq->probe_start == eq->probe_start)) {
+        eq->probe_start = t;
+    }
+    for (i = 0; i < n; i++) {
+        departed[i] = 0;
+    }
+    dof = eq->rows_probe - (duffid_real)np_;
+    for (i = 0; i < np_; i++) {
+        singular_ |= R[i * p + i] == RC(0.0);
+    }
+    if (dof > RC(0.0) && !singular_ && duffid_la_upper_inverse(P, R + n * p + n, p, inv) == 0) {
+        const duffid_real sigma = R_FABS(R[np_ * p + np_]) * R_SQRT(overlap / dof);
+        for (i = np_ - 1; i >= 0; i--) { /* back substitution */
+            duffid_real sum = R[i * p + np_];
+            for (k = i + 1; k < np_; k++) {
+                sum -= R[i * p + k] * theta[k];
+            }
+            theta[i] = sum / R[i * p + i];
+        }
+        for (k = n; k < np_; k++) { /* the lines' gain over constants: the right-hand side's rows n.. */
+            gain += R[k * p + np_] * R[k * p + np_];
+        }
+        for (i = 0; i < P; i++) {
+            const int c = n + i;
+            const duffid_real rate = theta[c], end = theta[i] + rate * t;
+            duffid_real norm2 = RC(0.0), dot = RC(0.0), col2 = RC(0.0);
+            for (k = i; k < P; k++) { /* the rate's standard error: row i of R22^-1 */
+                norm2 += inv[i * P + k] * inv[i * P + k];
+            }
+            for (k = n; k <= c; k++) { /* alone: its column orthogonal to the constants (_alone) */
+                dot += R[k * p + c] * R[k * p + np_];
+                col2 += R[k * p + c] * R[k * p + c];
+            }
+            departed[i] = R_FABS(rate) > RC(DUFFID_DRIFT_SIGMAS) * sigma * R_SQRT(norm2) &&
+                          R_FABS(rate) * (t - eq->probe_start) > band * R_FABS(end) &&
+                          dot * dot >= RC(DUFFID_CHANGE_ALONE_SHARE) * col2 * gain &&
+                          eq->rse[i] <= est->max_uncertainty && !eq->drifting[i];
+            any |= departed[i];
+        }
+    }
+    if (any) {
+        count_up(&eq->probed, est->settle_count);
+    } else {
+        eq->probed = 0;
+    }
+    if (eq->probed >= est->settle_count) {
+        restart(est, e, departed);
+        return 1;
+    }
+    return 0;
+}
+
 /* the change test of _robust_solve after the accumulated solution of equation e was updated
  * with the m rows B_copy: the recent solution, the departures that matter, the triggers */
 static void change_test(duffid_estimator *est, int e, int m, duffid_real fit, duffid_real t)
@@ -2347,7 +2449,7 @@ static long robust_step(duffid_estimator *est)
             } else {
                 solve_factor(est, eq, n, eq->R, eq->rows, (duffid_real)L);
             }
-            if (est->change_threshold > RC(0.0)) {
+            if (est->change_threshold > RC(0.0) && !drift_probe(est, e, m, t, (duffid_real)L)) {
                 change_test(est, e, m, fit, t);
             }
         } else {
@@ -2753,6 +2855,9 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
                 est->settled[i] = est->unsettled[i] = est->steady[i] = 0;
                 est->anchor[i] = est->value[i] = R_NAN;
                 est->fresh[i] = 1;
+                /* the rows after a change start a window later and rest on one window's samples
+                 * until they span another: their standard errors are not credible before */
+                est->credible_from[i] = est->n + 2 * (int64_t)est->target;
                 est->changed_now[i] = -1;
             }
         }
@@ -2784,7 +2889,8 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
                 est->anchored[i] = est->n;
             }
             /* n - anchored >= GROWTH_STEADY (1/4) x window, in integers */
-            if (small && ((full && !est->fresh[i]) || 4 * (est->n - est->anchored[i]) >= (int64_t)window)) {
+            if (small && ((full && !est->fresh[i]) ||
+                          (4 * (est->n - est->anchored[i]) >= (int64_t)window && est->n >= est->credible_from[i]))) {
                 count_up(&est->settled[i], est->settle_count);
             } else {
                 est->settled[i] = 0;

@@ -84,9 +84,13 @@ extern "C" {
  *                DUFFID_CHANGE_ALONE_SHARE of what the recent estimate reduces it by (a bias
  *                that moves with the excitation moves the unknowns jointly); after a
  *                window whose prediction error was DUFFID_CHANGE_SURPRISE times that of the
- *                accumulated rows, the recent estimate starts afresh): the least squares
+ *                accumulated rows, the recent estimate starts afresh; or the drift probe,
+ *                a line in time for every unknown over the accumulated rows, one row of
+ *                each sample in turn, finds a determined unknown's rate beyond
+ *                DUFFID_DRIFT_SIGMAS standard errors, its change over the rows beyond that
+ *                band and explaining the lines' gain alone, for settle s): the least squares
  *                restart with the first window after the change, the value is withdrawn
- *                until it is determined again (the equation's other parameters, and those
+ *                until it is determined again from rows that span a window (the equation's other parameters, and those
  *                that had no value, are UNCERTAIN meanwhile); from then on the departed
  *                unknowns are lines in time (their rates more unknowns, at most
  *                DUFFID_MAX_LINE_UNKNOWNS in a block; the value is the line's newest), so

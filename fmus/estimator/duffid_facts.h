@@ -45,6 +45,7 @@
 #define DUFFID_CHANGE_DRIFT_SHARE 0.5 /* change test: a departure of this share of the threshold beyond the band, lasting the recent memory, is a drift */
 #define DUFFID_CHANGE_ALONE_SHARE 0.5 /* change test: an unknown counts while changing it alone gains this share of the recent fit's prediction gain */
 #define DUFFID_MAX_LINE_UNKNOWNS 16 /* change test: unknowns of a block whose departed unknowns are lines in time, with their rates, at most */
+#define DUFFID_DRIFT_SIGMAS 4.0 /* change test: the drift probe's rate beyond this many standard errors is a drift */
 #define DUFFID_GROWTH_STEADY 0.25 /* a growing window's estimate steady while the window grew by this share */
 #define DUFFID_MIN_SAMPLES 8 /* samples before any solution is identified */
 #define DUFFID_OUTLIER_SIGMAS 12.0 /* outlier: robust standard deviations from the quadratic */

@@ -80,6 +80,8 @@ PUBLICATION: tuple[Fact, ...] = (
          "change test: an unknown counts while changing it alone gains this share of the recent fit's prediction gain"),
     Fact("DUFFID_MAX_LINE_UNKNOWNS", engine.MAX_LINE_UNKNOWNS,
          "change test: unknowns of a block whose departed unknowns are lines in time, with their rates, at most"),
+    Fact("DUFFID_DRIFT_SIGMAS", engine.DRIFT_SIGMAS,
+         "change test: the drift probe's rate beyond this many standard errors is a drift"),
     Fact("DUFFID_GROWTH_STEADY", engine.GROWTH_STEADY,
          "a growing window's estimate steady while the window grew by this share"),
     Fact("DUFFID_MIN_SAMPLES", engine.MIN_SAMPLES, "samples before any solution is identified"),
