@@ -150,7 +150,7 @@ typedef struct { /* the state of one block of the description */
     /* engine.DRIFT_SIGMAS: the drift probe, a line for each of the first probe_n unknowns */
     int probe_n;                      /* its lines (0: none); its factor is (n + probe_n + 1)^2 */
     duffid_real *R_probe;             /* its accumulated factor of [A, t A_0.., D] (one row a sample) */
-    duffid_real rows_probe, probe_start; /* its rows (weighted as the accumulated ones), their first time */
+    duffid_real rows_probe;           /* its rows (weighted as the accumulated ones) */
     int64_t probed;                   /* samples it has found a drift in a row, saturated at settle */
     int probe_row;                    /* the row of the block's it takes next */
     duffid_real cond, rhs_share, rows, rows_recent, residual;
@@ -1405,7 +1405,6 @@ static void clear_change(equation_t *eq, int n)
     eq->surprised = 0;
     eq->drifted = 0;
     eq->probed = 0;
-    eq->probe_start = R_NAN;
     eq->probe_row = 0;
     eq->resume = 0;
     eq->recent_resume = 0;
@@ -2251,9 +2250,6 @@ static int drift_probe(duffid_estimator *est, int e, int m, duffid_real t, duffi
     row[np_] = est->B_copy[nl * m + r];
     duffid_la_qr_accumulate(eq->R_probe, p, est->sqrt_lam, row, 1);
     eq->rows_probe = est->lam * eq->rows_probe + RC(1.0);
-    if (!(eq->probe_start == eq->probe_start)) {
-        eq->probe_start = t;
-    }
     for (i = 0; i < n; i++) {
         departed[i] = 0;
     }
@@ -2284,8 +2280,9 @@ static int drift_probe(duffid_estimator *est, int e, int m, duffid_real t, duffi
                 dot += R[k * p + c] * R[k * p + np_];
                 col2 += R[k * p + c] * R[k * p + c];
             }
+            /* ... and the line's end further from the accumulated value than that may move */
             departed[i] = R_FABS(rate) > RC(DUFFID_DRIFT_SIGMAS) * sigma * R_SQRT(norm2) &&
-                          R_FABS(rate) * (t - eq->probe_start) > band * R_FABS(end) &&
+                          R_FABS(end - eq->theta[i]) > band * R_FABS(end) &&
                           dot * dot >= RC(DUFFID_CHANGE_ALONE_SHARE) * col2 * gain &&
                           eq->rse[i] <= est->max_uncertainty && !eq->drifting[i];
             any |= departed[i];

@@ -87,8 +87,9 @@ extern "C" {
  *                accumulated rows, the recent estimate starts afresh; or the drift probe,
  *                a line in time for every unknown over the accumulated rows, one row of
  *                each sample in turn, finds a determined unknown's rate beyond
- *                DUFFID_DRIFT_SIGMAS standard errors, its change over the rows beyond that
- *                band and explaining the lines' gain alone, for settle s): the least squares
+ *                DUFFID_DRIFT_SIGMAS standard errors, the line's end beyond that band from
+ *                the accumulated value and the rate explaining the lines' gain alone, for
+ *                settle s): the least squares
  *                restart with the first window after the change, the value is withdrawn
  *                until it is determined again from rows that span a window (the equation's other parameters, and those
  *                that had no value, are UNCERTAIN meanwhile); from then on the departed

@@ -119,8 +119,8 @@ MAX_LINE_UNKNOWNS = 16
 #: one of each sample's rows in turn (fixed work: the rows of neighbouring samples share
 #: their window). An unknown whose value is determined (relative standard error at most
 #: ``max_uncertainty``) drifts once its rate is more than this many standard errors from zero,
-#: has moved it over the probe's rows by more than a published value may move
-#: (:data:`LOSS_FACTOR` times ``max_uncertainty``), and alone explains the lines' gain over
+#: its line's end is further from the accumulated value than a published value may move
+#: (:data:`LOSS_FACTOR` times ``max_uncertainty``), and it alone explains the lines' gain over
 #: constants (:data:`CHANGE_ALONE_SHARE`), for ``settle`` s: the equation restarts with it as a
 #: line (:class:`DriftLine`). A drift is a long departure: the rates over the accumulated
 #: rows see it sooner than the recent estimate's lag. Measured while choosing it: on the 29
@@ -731,7 +731,6 @@ class _EquationState:
         self.recent_resume = 0  # ... after a surprise: the same for the recent estimate
         self.residual = np.nan  # the window's prediction error (Estimate.residual)
         self.probed = 0          # samples the drift probe has found a drift in a row
-        self.probe_start = np.nan  # ... the time of its first rows
         self.probe_fed = 0       # ... the rows it has had (it takes row probe_fed % rows next)
 
 
@@ -1123,8 +1122,6 @@ class OnlineIdentifier(Identifier):
         r = st.probe_fed % len(A)  # one row per sample, in turn
         st.probe_fed += 1
         probe.update(line.rows(A[r:r + 1], time), D[r:r + 1])
-        if not np.isfinite(st.probe_start):
-            st.probe_start = time
         n, index, p = len(line.drifting), line.index, line.size
         R, dof = probe.R, probe.rows - p
         hit = np.zeros(len(index), dtype=bool)
@@ -1138,8 +1135,10 @@ class OnlineIdentifier(Identifier):
                 # alone: the rate's column orthogonal to the constants explains the lines' gain (_alone)
                 columns, gain = R[n:p, n:p], R[n:p, p]
                 alone = (columns.T @ gain) ** 2 >= CHANGE_ALONE_SHARE * np.sum(columns**2, axis=0) * (gain @ gain)
-                hit = ((np.abs(rates) > DRIFT_SIGMAS * errors) & (np.abs(rates) * (time - st.probe_start) > band * np.abs(ends))
-                       & alone & (st.rse[index] <= self.options["max_uncertainty"]))
+                # the line's end is further from the accumulated value than that may move
+                stale = np.abs(ends - st.theta[index]) > band * np.abs(ends)
+                hit = ((np.abs(rates) > DRIFT_SIGMAS * errors) & stale & alone
+                       & (st.rse[index] <= self.options["max_uncertainty"]))
         if st.line is not None:  # already lines
             hit &= ~st.line.drifting[index]
         st.probed = st.probed + 1 if hit.any() else 0
