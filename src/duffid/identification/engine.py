@@ -28,7 +28,6 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Mapping
 
 import numpy as np
-from scipy.linalg import solve_triangular
 
 from ..data.record import Record
 from ..errors import InputError, RecordError
@@ -1127,10 +1126,11 @@ class OnlineIdentifier(Identifier):
         hit = np.zeros(len(index), dtype=bool)
         if dof > 0 and np.all(np.diag(R)[:p] != 0):
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-                theta = solve_triangular(R[:p, :p], R[:p, p])
+                theta = np.zeros(p)
+                for i in range(p - 1, -1, -1):  # back substitution (p is small: no LAPACK call)
+                    theta[i] = (R[i, p] - R[i, i + 1:p] @ theta[i + 1:]) / R[i, i]
                 rates, ends = theta[n:], theta[index] + theta[n:] * time
-                errors = abs(R[p, p]) * np.sqrt(float(L) / dof) * np.linalg.norm(
-                    solve_triangular(R[n:p, n:p], np.eye(p - n)), axis=1)
+                errors = abs(R[p, p]) * np.sqrt(float(L) / dof) * np.linalg.norm(np.linalg.inv(R[n:p, n:p]), axis=1)
                 band = LOSS_FACTOR * self.options["max_uncertainty"]
                 # alone: the rate's column orthogonal to the constants explains the lines' gain (_alone)
                 columns, gain = R[n:p, n:p], R[n:p, p]
