@@ -51,8 +51,12 @@ def main() -> None:
 
     system = loop(fmus, params)
     jacobi = system.run(2.0, 1e-3)
-    order, delayed = system.gauss_seidel_order()
-    seidel = system.run(2.0, 1e-3, ordering="gauss-seidel")
+    # Gauss-Seidel: the estimator steps after the controller, so that its x and f are samples
+    # of one instant (the order derived from the connections puts it before the controller:
+    # x at t_k+1 with f at t_k, a one-step skew the estimator would read as physics)
+    order = ["plant", "controller", "estimator"]
+    seidel = system.run(2.0, 1e-3, ordering="gauss-seidel", order=order)
+    delayed = seidel.delayed
     print(f"Gauss-Seidel order {order}; delayed connections: {', '.join(map(str, delayed))}")
     for name, result in (("jacobi", jacobi), ("gauss-seidel", seidel)):
         switch = result["controller.switch_time"][-1]

@@ -57,8 +57,12 @@ def test_compiled_loop_equals_python_loop_bit_for_bit(fmus, versions, ordering):
     """Real, Integer and Boolean values, FMI 2 and 3 mixed (FMI 3 Booleans are bytes: converted both
     ways), every output recorded."""
     system = _loop(fmus, versions)
-    compiled = system.run(3.0, 1e-3, ordering=ordering)
-    python = system.run(3.0, 1e-3, ordering=ordering, loop="python")
+    # Gauss-Seidel: the estimator steps last, so that its x and f are samples of one instant
+    # (the derived order, plant-est-ctrl, gives it x at t_k+1 with f at t_k: a one-step skew,
+    # m and kp 2.5 % off, which the change test flags as a drifting mass)
+    order = ["plant", "ctrl", "est"] if ordering == "gauss-seidel" else None
+    compiled = system.run(3.0, 1e-3, ordering=ordering, order=order)
+    python = system.run(3.0, 1e-3, ordering=ordering, order=order, loop="python")
     assert (compiled.loop, python.loop) == ("compiled", "python")
     _same(compiled, python)
     assert compiled["est.identified"].dtype == bool and compiled["est.identified"][-1]
