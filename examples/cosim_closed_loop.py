@@ -51,12 +51,10 @@ def main() -> None:
 
     system = loop(fmus, params)
     jacobi = system.run(2.0, 1e-3)
-    # Gauss-Seidel: the estimator steps after the controller, so that its x and f are samples
-    # of one instant (the order derived from the connections puts it before the controller:
-    # x at t_k+1 with f at t_k, a one-step skew the estimator would read as physics)
-    order = ["plant", "controller", "estimator"]
-    seidel = system.run(2.0, 1e-3, ordering="gauss-seidel", order=order)
-    delayed = seidel.delayed
+    # Gauss-Seidel: the estimator FMU declares that it reads x and f as samples of one instant,
+    # so it gets both from t_k (estimator, plant, controller)
+    order, delayed = system.gauss_seidel_order()
+    seidel = system.run(2.0, 1e-3, ordering="gauss-seidel")
     print(f"Gauss-Seidel order {order}; delayed connections: {', '.join(map(str, delayed))}")
     for name, result in (("jacobi", jacobi), ("gauss-seidel", seidel)):
         switch = result["controller.switch_time"][-1]

@@ -38,6 +38,7 @@ from duffid.cosim.system import (  # noqa: E402  # noqa: E402
     WiringError,
     _exact_order,
     _greedy_order,
+    _one_instant,
     _order_cost,
 )
 from duffid.data.record import Record  # noqa: E402
@@ -195,6 +196,48 @@ def test_derived_order_is_the_best_permutation():
     assert sorted(order) == list(range(20)) and _order_cost(order, chain) == 0
     ring = chain + [(19, 0)]
     assert _order_cost(_greedy_order(20, ring), ring) == 1
+
+
+def _brute_force_one_instant(n, edges, together):
+    def fits(p):
+        prefix = 0
+        for v in p:
+            if not _one_instant(v, prefix, together):
+                return False
+            prefix |= 1 << v
+        return True
+    fitting = [list(p) for p in itertools.permutations(range(n)) if fits(p)]
+    if not fitting:
+        return None
+    best = min(_order_cost(p, edges) for p in fitting)
+    return next(p for p in fitting if _order_cost(p, edges) == best)
+
+
+def test_derived_order_feeds_a_sampled_component_from_one_instant():
+    """A component that reads its inputs as samples of one instant (an estimator) steps before
+    all its sources or after all of them; the best such permutation, None when there is none."""
+    # the closed loop: plant 0, estimator 1, controller 2; est -> ctrl carries 5 connections
+    edges = [(0, 1), (0, 2)] + [(1, 2)] * 5 + [(2, 0), (2, 1)]
+    assert _exact_order(3, edges) == [0, 1, 2]  # fewest delays: x at t_k+1 with f at t_k
+    assert _exact_order(3, edges, {1: (0b101, False)}) == [1, 0, 2]  # both at t_k (3 delays, not 2)
+    # the estimator after both its sources when that costs fewer delays
+    edges = [(0, 1), (2, 1), (0, 2)]
+    assert _exact_order(3, edges, {1: (0b101, False)}) == [0, 2, 1]
+    # a time-varying external input (or a connection from itself) arrives at t_k: before its sources
+    assert _exact_order(3, edges, {1: (0b101, True)}) == [1, 0, 2]
+    # two such components feeding each other: no order
+    assert _exact_order(2, [(0, 1), (1, 0)], {0: (0b10, True), 1: (0b01, True)}) is None
+    rng = random.Random(11)
+    for _ in range(60):
+        n = rng.randint(1, 6)
+        edges = [(rng.randrange(n), rng.randrange(n)) for _ in range(rng.randint(0, 10))]
+        together = {}
+        for v in rng.sample(range(n), rng.randint(0, n)):
+            sources = 0
+            for s, d in edges:
+                sources |= 1 << s if d == v and s != v else 0
+            together[v] = (sources, any(s == d == v for s, d in edges) or rng.random() < 0.2)
+        assert _exact_order(n, edges, together) == _brute_force_one_instant(n, edges, together), (edges, together)
 
 
 # ------------------------------------------------------------------------------ 3. container

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import shutil
 import subprocess
+import xml.etree.ElementTree as ET
 import zipfile
 
 import numpy as np
@@ -23,6 +24,7 @@ from rounding import identifier_spread  # noqa: E402
 
 from duffid import Duffing1, Duffing2, DuffingCircuit, Multisine, Record, measure, simulate  # noqa: E402
 from duffid.fmu.estimator import build_estimator_fmu, build_estimator_fmus  # noqa: E402
+from duffid.fmu.fmi_xml import declares_sampled_inputs  # noqa: E402
 from duffid.fmu.estimator_table import TYPES  # noqa: E402
 from duffid.identification.batch import estimate  # noqa: E402
 from duffid.identification.engine import (
@@ -53,6 +55,8 @@ def test_files_and_validation(fmus):
     assert set(C_FILES.values()) <= set(fmus)
     for path in fmus.values():
         assert validate_fmu(str(path)) == [], path.name
+        with zipfile.ZipFile(path) as z:  # x and f are samples of one instant (Gauss-Seidel orders)
+            assert declares_sampled_inputs(ET.fromstring(z.read("modelDescription.xml"))), path.name
     for (model_name, version), name in C_FILES.items():
         with zipfile.ZipFile(fmus[name]) as z:
             names = z.namelist()

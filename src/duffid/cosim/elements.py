@@ -8,6 +8,8 @@ import difflib
 import numbers
 import os
 import re
+import xml.etree.ElementTree as ET
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Protocol, Sequence, Union, runtime_checkable
@@ -15,6 +17,7 @@ from typing import Any, Callable, Iterable, Mapping, Protocol, Sequence, Union, 
 import numpy as np
 
 from ..errors import CosimError, InputError, WiringError
+from ..fmu.fmi_xml import declares_sampled_inputs
 from .value_types import DTYPES, VARIABLE_KINDS, check_value, csv_text, element_names, flat_index, split_element
 
 __all__ = ["InputSource", "VARIABLE_KINDS", "STATUS_NAMES", "NAME_RE", "N_MESSAGES", "N_REPORTED", "DTYPES",
@@ -212,8 +215,18 @@ def unit_of(variable: Any) -> str | None:
     return unit or None
 
 
+def _reads_sampled_inputs(path: Path) -> bool:
+    """Whether the FMU at ``path`` declares that it reads its inputs as samples of one instant
+    (duffid's annotation :data:`~duffid.fmu.fmi_xml.SAMPLED_INPUTS`: its estimators)."""
+    with zipfile.ZipFile(path) as archive:  # fmpy has read it: a valid archive and XML
+        return declares_sampled_inputs(ET.fromstring(archive.read("modelDescription.xml")))
+
+
 class Component:
     """A component of a system: FMU file, model description, parameter values.
+
+    ``sampled_inputs``: the FMU reads its inputs as samples of one instant (duffid's
+    estimators declare it); Gauss-Seidel delivers them all from one instant.
 
     Refused when it is read (:class:`WiringError` naming the component, its FMU, the variable
     and the reason): what the master cannot honour, so that nothing of the FMU is silently
@@ -242,6 +255,7 @@ class Component:
             raise WiringError(f"component {name!r}: {path.name} is FMI {self.md.fmiVersion}; "
                               "only FMI 2.0 and 3.0 are supported")
         self.variables = {v.name: v for v in self.md.modelVariables}
+        self.sampled_inputs = _reads_sampled_inputs(path)
         self.parameters: dict[str, Any] = {}
         for v in self.md.modelVariables:
             if v.type == "Clock" or v.clocks:

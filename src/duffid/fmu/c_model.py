@@ -98,7 +98,7 @@ def build_c_model_fmu(out_dir: str | Path, identifier: str, fmi_version: int, ta
                       types: Mapping[str, str], defines: Mapping[str, int | str],
                       generated_files: Mapping[str, str] | None = None,
                       sample_period: float, non_finite: Collection[str] = (), compiler: str | None = None,
-                      platforms: Sequence[Platform] | None = None) -> Path:
+                      platforms: Sequence[Platform] | None = None, sampled_inputs: bool = False) -> Path:
     """Build ``<identifier>.fmu`` (FMI 2) or ``<identifier>_fmi3.fmu`` (FMI 3) in ``out_dir``.
 
     ``model_files`` (in ``model_dir``) are the model's sources, packed with the glue and
@@ -111,6 +111,8 @@ def build_c_model_fmu(out_dir: str | Path, identifier: str, fmi_version: int, ta
     ``sample_period`` is the default experiment's step size (and
     ``canHandleVariableCommunicationStepSize`` is false). ``platforms``: the binaries'
     targets (default: this machine; see :func:`duffid.cbuild.resolve_platforms`).
+    ``sampled_inputs``: the model reads its inputs as samples of one instant (an estimator),
+    annotated as :data:`~duffid.fmu.fmi_xml.SAMPLED_INPUTS`.
     """
     if fmi_version not in (2, 3):
         raise InputError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
@@ -126,7 +128,7 @@ def build_c_model_fmu(out_dir: str | Path, identifier: str, fmi_version: int, ta
     info = FmuInfo(model_name=identifier, model_identifier=identifier, token=token, description=description,
                    sources=c_sources, model_exchange=False, co_simulation=True,
                    experiment={"StartTime": 0.0, "StopTime": 1.0, "Interval": sample_period},
-                   variable_step=False, generation_tool=C_MODEL_GENERATION_TOOL)
+                   variable_step=False, generation_tool=C_MODEL_GENERATION_TOOL, sampled_inputs=sampled_inputs)
     if fmi_version == 2:
         xml = retype(model_description_fmi2(info, table), 2, types)
         extra = dict(core)

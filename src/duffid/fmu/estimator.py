@@ -128,7 +128,8 @@ def build_estimator_fmu(model: str | EstimatorInterface, out_dir: str | Path, fm
                              defines={"MODEL": interface.model_code, "N_DOF": len(interface.x),
                                       "N_FORCES": len(interface.f), "N_PARAMS": len(names),
                                       "RECIPROCAL_MASK": mask},
-                             sample_period=DEFAULT_SAMPLE_PERIOD, compiler=compiler, platforms=platforms)
+                             sample_period=DEFAULT_SAMPLE_PERIOD, compiler=compiler, platforms=platforms,
+                             sampled_inputs=True)
 
 
 def _use_c(backend: str, fmi_version: int, what: str) -> bool:

@@ -9,7 +9,8 @@ from ..models.units import SI_BASE, si_exponents
 from .variables import FmuVariable
 
 __all__ = ["FmuInfo", "model_description_fmi2", "model_description_fmi3", "build_description",
-           "unit_exponents", "unit_definitions", "GENERATION_TOOL", "C_MODEL_GENERATION_TOOL"]
+           "unit_exponents", "unit_definitions", "GENERATION_TOOL", "C_MODEL_GENERATION_TOOL",
+           "ANNOTATION_TOOL", "SAMPLED_INPUTS", "add_sampled_inputs", "declares_sampled_inputs"]
 
 #: generationTool of the plant FMUs exported from Modelica.
 GENERATION_TOOL = "duffid.modelica (pymoca front end, CasADi code generation)"
@@ -21,6 +22,14 @@ LOG_CATEGORIES = {
     "logStatusWarning": "Warnings",
     "logAll": "All messages",
 }
+#: The tool name of duffid's annotations in a modelDescription (FMI 2 ``<VendorAnnotations><Tool
+#: name=...>``, FMI 3 ``<Annotations><Annotation type=...>``).
+ANNOTATION_TOOL = "io.github.duffid"
+#: duffid's annotation of an FMU that reads its inputs as samples of one instant (an estimator:
+#: a force and a displacement from two instants read as physics). duffid's Gauss-Seidel master
+#: delivers all of such a component's inputs from the same instant
+#: (:meth:`duffid.cosim.system.System.gauss_seidel_order`).
+SAMPLED_INPUTS = "SampledInputs"
 #: SI base-unit exponents of a unit string (``N.s/m``; None: unknown), see :mod:`duffid.models.units`.
 unit_exponents = si_exponents
 
@@ -45,6 +54,7 @@ class FmuInfo:
     experiment: dict
     variable_step: bool = True
     generation_tool: str = GENERATION_TOOL
+    sampled_inputs: bool = False  # annotated with SAMPLED_INPUTS
 
 
 def _bool(value: bool) -> str:
@@ -89,6 +99,27 @@ def _experiment(parent: ET.Element, info: FmuInfo) -> None:
     ET.SubElement(parent, "DefaultExperiment", attrs)
 
 
+def add_sampled_inputs(root: ET.Element) -> None:
+    """Annotate the modelDescription ``root`` (FMI 2 or 3) with :data:`SAMPLED_INPUTS`, in the
+    place each schema gives annotations (FMI 2: before ``ModelVariables``; FMI 3: last)."""
+    if root.get("fmiVersion", "").startswith("2"):
+        element = ET.Element("VendorAnnotations")
+        ET.SubElement(ET.SubElement(element, "Tool", name=ANNOTATION_TOOL), SAMPLED_INPUTS)
+        root.insert(list(root).index(root.find("ModelVariables")), element)
+    else:
+        annotations = root.find("Annotations")
+        if annotations is None:
+            annotations = ET.SubElement(root, "Annotations")
+        ET.SubElement(ET.SubElement(annotations, "Annotation", type=ANNOTATION_TOOL), SAMPLED_INPUTS)
+
+
+def declares_sampled_inputs(root: ET.Element) -> bool:
+    """Whether the modelDescription ``root`` (FMI 2 or 3) carries :data:`SAMPLED_INPUTS`."""
+    paths = (f"VendorAnnotations/Tool[@name='{ANNOTATION_TOOL}']/{SAMPLED_INPUTS}",
+             f"Annotations/Annotation[@type='{ANNOTATION_TOOL}']/{SAMPLED_INPUTS}")
+    return any(root.find(path) is not None for path in paths)
+
+
 def _serialize(root: ET.Element) -> bytes:
     ET.indent(root, space="  ")
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
@@ -131,6 +162,8 @@ def model_description_fmi2(info: FmuInfo, table: list[FmuVariable]) -> bytes:
         if v.derivative_of is not None:
             real["derivative"] = str(v.derivative_of + 1)
         ET.SubElement(sv, "Real", real)
+    if info.sampled_inputs:
+        add_sampled_inputs(root)
     structure = ET.SubElement(root, "ModelStructure")
     outputs = [v for v in table if v.causality == "output"]
     if outputs:
@@ -210,6 +243,8 @@ def model_description_fmi3(info: FmuInfo, table: list[FmuVariable]) -> bytes:
     for v in table:
         if _initial_unknown(v):
             ET.SubElement(structure, "InitialUnknown", valueReference=str(v.vr))
+    if info.sampled_inputs:
+        add_sampled_inputs(root)
     return _serialize(root)
 
 

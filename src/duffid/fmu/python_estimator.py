@@ -81,7 +81,7 @@ from .estimator_table import (
     interface_from_spec,
     variable_units,
 )
-from .fmi_xml import unit_definitions
+from .fmi_xml import add_sampled_inputs, unit_definitions
 
 __all__ = ["build_python_fmu", "build_equation_fmu", "build_chain_fmu", "chain_parameter_unit", "FMU_NAMES",
            "EstimatorSlave"]
@@ -273,7 +273,8 @@ class EstimatorSlave:
         """Complete pythonfmu's modelDescription ``root``: the units of the C FMUs' table
         (:func:`~duffid.fmu.estimator_table.estimator_variables`; for equations, their
         signals' and parameters' units) on the variables of the same name, and their
-        ``UnitDefinitions``."""
+        ``UnitDefinitions``; the annotation that its inputs are samples of one instant
+        (:data:`~duffid.fmu.fmi_xml.SAMPLED_INPUTS`)."""
         units = self._units()
         used = []
         for sv in root.iter("ScalarVariable"):
@@ -286,6 +287,7 @@ class EstimatorSlave:
         after = list(root).index(root.find("CoSimulation")) + 1
         for k, element in enumerate(holder):
             root.insert(after + k, element)
+        add_sampled_inputs(root)
         return root
 
     # ------------------------------------------------------------------ FMI
