@@ -346,6 +346,59 @@ def test_outliers_are_excluded_as_in_python(case_b_exact):
     spread.assert_final(c.parameters, py.parameters)
 
 
+@pytest.mark.parametrize("window", [0.05, 0.6, 30.0])  # 30 s: the record ends in a growing window
+def test_deferred_solutions_give_the_last_samples_solution_bit_for_bit(case_b_exact, window):
+    """duffid_defer_solutions (identify's re-runs): full windows only accumulate their rows,
+    and flush solves once; the final solution is the one every sample's solve reaches, bit
+    for bit, with glitches held at the end and a hold in the middle; refused where every
+    sample's solution is needed."""
+    clean = measure(case_b_exact, snr_db=40, seed=3)
+    x = clean.x.copy()
+    x[1500:1502, 0] = 0.0  # a glitch of two samples
+    x[-1, 0] = 2.0         # a suspect sample held at the end
+    options = {"window": window, "change_threshold": None}
+
+    def final(defer: bool) -> dict:
+        with CIdentifier(Duffing1(), clean.dt, **options) as ident:
+            assert ident.defer_solutions(defer) or not defer
+            half = len(x) // 2
+            ident.consume(x[:half], clean.f[:half])
+            ident.hold()
+            ident.consume(x[half:], clean.f[half:])
+            out = ident.flush()
+            assert out is not None  # the held sample (and the postponed solve)
+            return out.current
+
+    deferred, every = final(True), final(False)
+    assert deferred == every  # the solution (the statuses rest on one publication: not compared)
+    assert np.isfinite(list(deferred.values())).all()
+    with CIdentifier(Duffing1(), clean.dt) as ident:  # the change test is on by default
+        assert not ident.defer_solutions()
+    with CIdentifier(Duffing1(), clean.dt, window="auto", change_threshold=None) as ident:
+        assert not ident.defer_solutions()  # the automatic window is fixed by the statuses
+    with CIdentifier(Duffing1(), clean.dt, method="paper") as ident:
+        assert not ident.defer_solutions()
+
+
+def test_identify_is_the_same_with_deferred_solutions(case_b_exact, monkeypatch):
+    """identify's re-runs (noisy copies, half rate, offsets) solve once per run: the same
+    assessment, bit for bit, as with a solve at every sample."""
+    from duffid import identify
+
+    record = measure(case_b_exact, snr_db=40, seed=5)
+    granted = []
+    original = CIdentifier.defer_solutions
+    monkeypatch.setattr(CIdentifier, "defer_solutions", lambda self, defer=True: granted.append(original(self, defer))
+                        or granted[-1])
+    deferred = identify(record, Duffing1(), jobs=1)
+    assert sum(granted) >= 10  # 8 noisy copies, half the rate, the force offset at least
+    monkeypatch.setattr(CIdentifier, "defer_solutions", lambda self, defer=True: False)
+    every = identify(record, Duffing1(), jobs=1)
+    assert deferred.parameters == every.parameters
+    assert deferred.assessment.values == every.assessment.values
+    assert deferred.assessment.uncertainty == every.assessment.uncertainty
+
+
 def test_the_c_constants_are_pythons():
     """Status codes and the trust and outlier constants: one fact, two languages (the C side
     generated from Python into duffid_facts.h, included by every header of the core)."""

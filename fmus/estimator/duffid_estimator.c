@@ -216,6 +216,8 @@ struct duffid_estimator {
     /* robust */
     long target;
     int regrow;                             /* after duffid_hold: the window grows again */
+    int defer;                              /* duffid_defer_solutions: full windows only accumulate */
+    long deferred;                          /* ... the window length whose solve is owed (0: none) */
     duffid_real lam_recent, sqrt_lam_recent; /* the change test's forgetting (follows target) */
     int64_t memory;                         /* ... its memory in samples (a drift lasts it) */
     duffid_real last_L;                     /* the window length of this sample's rows */
@@ -1300,6 +1302,8 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
         const long N = est->capacity;
         STATE_RANGE(est->target, 1, N)
         STATE_RANGE(est->regrow, 0, 1)
+        STATE_RANGE(est->defer, 0, 1)
+        STATE_RANGE(est->deferred, 0, N)
         STATE_RANGE(est->head, 0, N + 1)
         STATE_RANGE(est->start, 0, n + 1)
         STATE_RANGE(n - est->start, -1, (int64_t)N)
@@ -1445,6 +1449,7 @@ void duffid_reset(duffid_estimator *est)
     }
     est->n = -1;
     est->window_fixed = 0;
+    est->deferred = 0;
     est->has_last_x = 0;
     memset(est->last_x, 0, sizeof est->last_x);
     memset(est->sgn, 0, sizeof est->sgn);
@@ -2431,6 +2436,11 @@ static long robust_step(duffid_estimator *est)
                     }
                 }
             }
+            if (est->defer) { /* duffid_defer_solutions: the rows only (no lines: no change test) */
+                duffid_la_qr_accumulate(eq->R, n + 1, est->sqrt_lam, est->B, m);
+                eq->rows = est->lam * eq->rows + (duffid_real)m;
+                continue;
+            }
             for (i = 0; i < nl; i++) {
                 previous[i] = nl > n ? eq->line[i] : eq->theta[i];
             }
@@ -3045,9 +3055,47 @@ static void process(duffid_estimator *est, const duffid_real *x, const duffid_re
 #else
     window = est->cfg.method == DUFFID_ROBUST ? robust_step(est) : paper_step(est);
 #endif
-    if (window >= 0) { /* else held (duffid_hold): est->last stays */
+    if (window >= 0 && est->defer && window >= est->target) { /* solved once asked (resolve) */
+        est->deferred = window;
+    } else if (window >= 0) { /* else held (duffid_hold): est->last stays */
+        est->deferred = 0;
         publish(est, window, &est->last);
     }
+}
+
+/* The solve and publication that duffid_defer_solutions postponed, for the rows accumulated so
+ * far (what the last sample would have given); 1 when there was one. */
+static int resolve(duffid_estimator *est)
+{
+    int e;
+    if (!est->deferred) {
+        return 0;
+    }
+    for (e = 0; e < est->n_eq; e++) {
+        equation_t *eq = &est->eq[e];
+        if (eq->rows > RC(0.0)) {
+            solve_factor(est, eq, est->m.blocks[e].n_unknowns, eq->R, eq->rows, (duffid_real)est->deferred);
+        }
+    }
+    publish(est, est->deferred, &est->last);
+    est->deferred = 0;
+    return 1;
+}
+
+int duffid_defer_solutions(duffid_estimator *est, int defer)
+{
+    if (est == NULL) {
+        return DUFFID_ERR_ARGUMENT;
+    }
+    if (defer && (est->cfg.method != DUFFID_ROBUST || est->change_threshold > RC(0.0) ||
+                  (est->auto_window && !est->window_fixed))) {
+        return DUFFID_ERR_CONFIG;
+    }
+    if (!defer) {
+        resolve(est);
+    }
+    est->defer = defer != 0;
+    return DUFFID_OK;
 }
 
 /* the outlier guard's history (identification._OutlierGuard.reset, its findings kept) */
@@ -3206,12 +3254,19 @@ long duffid_latest_output(const duffid_estimator *est, duffid_output *out)
 
 int duffid_flush(duffid_estimator *est, duffid_output *out)
 {
-    if (est == NULL || !est->pending) {
+    int any;
+    if (est == NULL) {
         return 0;
     }
-    guard_release(est);
-    report(est, out);
-    return 1;
+    any = est->pending != 0;
+    if (any) {
+        guard_release(est);
+    }
+    any |= resolve(est);
+    if (any) {
+        report(est, out);
+    }
+    return any;
 }
 
 int duffid_run(duffid_estimator *est, long n, const duffid_real *x, const duffid_real *f, duffid_output *out,

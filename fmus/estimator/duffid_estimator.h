@@ -216,9 +216,20 @@ long duffid_latest_output(const duffid_estimator *est, duffid_output *out);
  * method's integrals cannot skip samples: it is reset). OnlineIdentifier.hold. */
 int duffid_hold(duffid_estimator *est);
 
-/* Process the samples held back as a suspect outlier (the end of a record). Returns 1 and
- * fills out (if not NULL) when there were any, 0 otherwise. */
+/* Process the samples held back as a suspect outlier (the end of a record), and the solve that
+ * duffid_defer_solutions postponed. Returns 1 and fills out (if not NULL) when there was
+ * either, 0 otherwise. */
 int duffid_flush(duffid_estimator *est, duffid_output *out);
+
+/* A batch that wants the final solution only (the checks of identify re-run the estimator on
+ * noisy copies, at half the rate, with offsets): with defer = 1, a sample whose window is full
+ * only adds its rows to the least squares; the solve and the publication wait for
+ * duffid_flush (or defer = 0), which gives the solution of all the rows accumulated, equal to
+ * what the last sample would have given. The statuses and published values then rest on that
+ * one publication: for final solutions only, never for a sample-by-sample output. Robust
+ * method without the change test (change_threshold = 0) and with a fixed window only (else
+ * DUFFID_ERR_CONFIG: both need every sample's solution). Not for a real-time loop. */
+int duffid_defer_solutions(duffid_estimator *est, int defer);
 
 /* Consume one sample: displacements x[n_dof] and forces f[n_forces]. out may be NULL.
  * A non-finite sample returns DUFFID_ERR_SAMPLE and leaves the state unchanged. */

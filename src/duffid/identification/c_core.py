@@ -270,6 +270,7 @@ def load_library(path: str | os.PathLike[str] | None = None, precision: str = "d
         "duffid_reset": (None, [est_p]),
         "duffid_flush": (ctypes.c_int, [est_p, out_p]),
         "duffid_hold": (ctypes.c_int, [est_p]),
+        "duffid_defer_solutions": (ctypes.c_int, [est_p, ctypes.c_int]),
         "duffid_update": (ctypes.c_int, [est_p, dbl_p, dbl_p, out_p]),
         "duffid_run": (ctypes.c_int, [est_p, ctypes.c_long, dbl_p, dbl_p, out_p, ctypes.POINTER(ctypes.c_long)]),
         "duffid_latest_output": (ctypes.c_long, [est_p, out_p]),
@@ -581,8 +582,17 @@ class CIdentifier(Identifier):
         """The next sample does not follow the previous one (see ``OnlineIdentifier.hold``)."""
         self._lib.duffid_hold(self._live())
 
+    def defer_solutions(self, defer: bool = True) -> bool:
+        """For a final solution only (``duffid_defer_solutions``): samples of full windows only
+        add their rows; :meth:`flush` solves once, as the last sample would have. The
+        per-sample outputs and statuses are then not those of :meth:`update`. Returns False
+        (nothing changed) where every sample's solution is needed: the paper method, the
+        change test on, an automatic window not yet fixed."""
+        return self._lib.duffid_defer_solutions(self._live(), int(bool(defer))) == 0
+
     def flush(self) -> Estimate | None:
-        """Process the samples held back as a suspect outlier (see ``OnlineIdentifier.flush``)."""
+        """Process the samples held back as a suspect outlier (see ``OnlineIdentifier.flush``)
+        and the solve that :meth:`defer_solutions` postponed."""
         return self._estimate() if self._lib.duffid_flush(self._live(), ctypes.byref(self._out)) else None
 
     def _estimate(self) -> Estimate:

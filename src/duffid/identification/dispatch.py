@@ -162,7 +162,8 @@ def final_estimates(record: Record, model: Chain, method: str = "robust", *, eng
                     cancel: Any = None, **options: Any) -> dict[str, float]:
     """The estimator's final solution over ``record`` (public names), as
     ``run_estimator(...).estimates``, without the history: on the C core block by block,
-    no per-sample output written (``cancel`` as in :func:`run_estimator`)."""
+    no per-sample output written, and with a fixed window and no change test one solve at
+    the end instead of one per sample (``cancel`` as in :func:`run_estimator`)."""
     record.require_displacement("the algebraic estimator")
     identifier = _c_identifier(record, model, method, engine, options)
     if identifier is None:
@@ -170,6 +171,7 @@ def final_estimates(record: Record, model: Chain, method: str = "robust", *, eng
     with identifier:
         check_record(record, identifier.model, identifier.dt)
         identifier.reset()
+        identifier.defer_solutions()  # one solve at the end where the options allow it (flush)
         for start, stop in _blocks(record.n_samples, cancel):
             identifier.consume(record.x[start:stop], record.f[start:stop])
         flushed = identifier.flush()
