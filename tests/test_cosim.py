@@ -39,6 +39,7 @@ from duffid.cosim.system import (  # noqa: E402  # noqa: E402
     _exact_order,
     _greedy_order,
     _one_instant,
+    _skewed,
     _order_cost,
 )
 from duffid.data.record import Record  # noqa: E402
@@ -207,6 +208,8 @@ def _brute_force_one_instant(n, edges, together):
             prefix |= 1 << v
         return True
     fitting = [list(p) for p in itertools.permutations(range(n)) if fits(p)]
+    assert all(_skewed(p, together) is None for p in fitting)
+    assert all(_skewed(p, together) is not None for p in itertools.permutations(range(n)) if not fits(p))
     if not fitting:
         return None
     best = min(_order_cost(p, edges) for p in fitting)

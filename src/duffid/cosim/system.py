@@ -154,6 +154,17 @@ def _one_instant(v: int, prefix: int, together: Mapping[int, tuple[int, bool]]) 
     return earlier == 0 or (earlier == sources and not at_tk)
 
 
+def _skewed(order: Sequence[int], together: Mapping[int, tuple[int, bool]]) -> int | None:
+    """The first component of ``order`` that gets its inputs from two instants
+    (:func:`_one_instant`), None when none does."""
+    prefix = 0
+    for v in order:
+        if not _one_instant(v, prefix, together):
+            return v
+        prefix |= 1 << v
+    return None
+
+
 def _exact_order(n: int, edges: Sequence[tuple[int, int]],
                  together: Mapping[int, tuple[int, bool]] | None = None) -> list[int] | None:
     """The permutation with the fewest delayed edges, lexicographically smallest among
@@ -697,12 +708,7 @@ class System:
             perm = _exact_order(n, edges, together)
         else:
             perm = _greedy_order(n, edges)
-            prefix = 0
-            for v in perm:
-                if not _one_instant(v, prefix, together):
-                    perm = None
-                    break
-                prefix |= 1 << v
+            perm = None if _skewed(perm, together) is not None else perm
         if perm is None:
             sampled = [names[v] for v in together]
             raise WiringError(f"no Gauss-Seidel order gives {', '.join(map(repr, sampled))} all inputs from one "
@@ -733,21 +739,20 @@ class System:
     def _check_one_instant(self, order: Sequence[str]) -> None:
         """WiringError when a given Gauss-Seidel ``order`` feeds a component that reads its
         inputs as samples of one instant from two instants."""
-        index = {name: i for i, name in enumerate(self._components)}
-        together, prefix = self._together(), 0
-        for name in order:
-            v = index[name]
-            if not _one_instant(v, prefix, together):
-                earlier = [c.target for c in self._connections if c.target.split(".", 1)[0] == name
-                           and prefix >> index[c.source.split(".", 1)[0]] & 1]
-                later = [c.target for c in self._connections if c.target not in earlier
-                         and c.target.split(".", 1)[0] == name] + [
-                    key for key, ext in self._externals.items() if ext.mode != "constant" and key.split(".", 1)[0] == name]
-                raise WiringError(f"order {list(order)}: {self._components[name].where()} reads its inputs as samples "
-                                  f"of one instant, but {', '.join(earlier)} would get values at t_k+1 and "
-                                  f"{', '.join(later)} at t_k (a skew it would read as physics); step it before "
-                                  "all its sources or after all of them, or use ordering='jacobi'")
-            prefix |= 1 << v
+        names = list(self._components)
+        v = _skewed([names.index(name) for name in order], self._together())
+        if v is None:
+            return
+        name = names[v]
+        before = set(order[:list(order).index(name)])
+        inputs = [c for c in self._connections if c.target.split(".", 1)[0] == name]
+        earlier = [c.target for c in inputs if c.source.split(".", 1)[0] in before]
+        later = [c.target for c in inputs if c.target not in earlier] + [
+            key for key, ext in self._externals.items() if ext.mode != "constant" and key.split(".", 1)[0] == name]
+        raise WiringError(f"order {list(order)}: {self._components[name].where()} reads its inputs as samples "
+                          f"of one instant, but {', '.join(earlier)} would get values at t_k+1 and "
+                          f"{', '.join(later)} at t_k (a skew it would read as physics); step it before "
+                          "all its sources or after all of them, or use ordering='jacobi'")
 
     def _delayed(self, order: Sequence[str]) -> list[Connection]:
         pos = {c: i for i, c in enumerate(order)}
