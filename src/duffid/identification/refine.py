@@ -442,8 +442,9 @@ def fit_initial_state(simulator: OdeSimulator, parameters: Mapping[str, float], 
     stop = min(max(window, 3), record.n_samples)
     # the input is interpolated over a margin past the window so that its end is not an edge
     stages = simulator.stage_inputs(record.f[:stop + _FILTER_HALF + 1])
-    return _fit_state(simulator, parameters, stages[:, :simulator.substeps * (stop - 1)], record.x[:stop],
-                      record.dt, float(np.std(record.x)))
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        return _fit_state(simulator, parameters, stages[:, :simulator.substeps * (stop - 1)], record.x[:stop],
+                          record.dt, float(np.std(record.x)))
 
 
 def _fit_state(simulator: OdeSimulator, parameters: Mapping[str, float], stages: np.ndarray, x: np.ndarray,
@@ -455,7 +456,8 @@ def _fit_state(simulator: OdeSimulator, parameters: Mapping[str, float], stages:
     (displacements), the first velocity and no displacement (velocities) or rest
     (accelerations), or from ``guess``; the start is kept when it escapes. ``run(x0, v0,
     sensitivities)`` simulates those samples instead of :meth:`OdeSimulator.simulate_stages`
-    (the same outputs, in C)."""
+    (the same outputs, in C). The caller limits the BLAS threads (:data:`BLAS_THREADS`: setting
+    the limit costs about 2 ms, more than many a fit)."""
     from scipy.optimize import least_squares
 
     n = x.shape[1]
@@ -488,8 +490,7 @@ def _fit_state(simulator: OdeSimulator, parameters: Mapping[str, float], stages:
     start = np.concatenate([x0, v0]) / scales
     if not np.all(np.isfinite(residual(start))):
         return x0, v0
-    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
-        sol = least_squares(residual, start, jac=jacobian, method="lm", max_nfev=50, xtol=1e-12, ftol=1e-12)
+    sol = least_squares(residual, start, jac=jacobian, method="lm", max_nfev=50, xtol=1e-12, ftol=1e-12)
     s = sol.x * scales
     return s[:n], s[n:]
 
@@ -689,7 +690,7 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
         When the record does not fit the model.
     """
     from scipy.optimize import least_squares
-    from scipy.sparse import block_diag, csr_matrix, hstack
+    from scipy.sparse import csr_matrix
 
     bad = [k for k, v in start.items() if not np.isfinite(v)]
     canonical = canonical_from_public(model, start) if not bad else {}
@@ -719,8 +720,7 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
     p_scale = np.array([abs(canonical[k]) or abs(model.canonical_parameters()[k]) or 1.0 for k in names])
     x_scale = max(float(np.std(record.x)), 1e-300)
     state_scale = _state_scales(sim, canonical, stages, record, output, x_scale)
-    s_scale = np.tile(state_scale, len(bounds))
-    scales = np.concatenate([p_scale, np.full(n_bias, x_scale), s_scale])
+    scales = np.concatenate([p_scale, np.full(n_bias, x_scale), np.tile(state_scale, len(bounds))])
     window = 50 if segment is None else max(3, int(segment) // 4)
     guesses = [None if state_guess is None else (np.asarray(state_guess[0]).reshape(record.n_samples, n)[a],
                                                  np.asarray(state_guess[1]).reshape(record.n_samples, n)[a])
@@ -738,10 +738,12 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
             return (y, dy) if sensitivities else y
         return run
 
-    states = [np.concatenate(_fit_state(sim, canonical, U[:, :q * (min(window, b - a) - 1)],
-                                        record.x[a:a + min(window, b - a)], record.dt, x_scale, output=output,
-                                        state_scales=state_scale, guess=guess, run=c_window(a, min(window, b - a))))
-              for U, (a, b), guess in zip(drive, bounds, guesses)]
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        states = [np.concatenate(_fit_state(sim, canonical, U[:, :q * (min(window, b - a) - 1)],
+                                            record.x[a:a + min(window, b - a)], record.dt, x_scale, output=output,
+                                            state_scales=state_scale, guess=guess,
+                                            run=c_window(a, min(window, b - a))))
+                  for U, (a, b), guess in zip(drive, bounds, guesses)]
     start_vec = np.concatenate([[canonical[k] for k in names], np.zeros(n_bias), *states]) / scales
     target = np.concatenate([record.x[a:b][m] for (a, b), m in zip(bounds, kept)])
     bar = _progress_bar(progress, max_nfev, f"refine {model.name}")
@@ -754,25 +756,29 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
         params.update(zip(names, values[:len(names)]))
         return params, values[len(names):n_p], values[n_p:].reshape(len(bounds), 2 * n)
 
-    ends = np.cumsum([b - a for a, b in bounds])
     kept_all = np.concatenate(kept)
+    kept_counts = np.array([int(m.sum()) for m in kept])
+    # the stretch of each row of the residual (a row per kept sample and DOF) and the first
+    # column of its own initial state among the unknowns
+    own_column = n_p + 2 * n * np.repeat(np.arange(len(bounds)), kept_counts * n)
 
-    def evaluate(z: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
+    def evaluate(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The simulated output at the kept samples and its derivatives, the stretches one
+        after another: (kept samples, n) and (kept samples, n, free + 2 n)."""
         key = z.tobytes()
         if cache.get("key") != key:
             params, offset, initial = unpack(z)
             if fast is not None:
                 y, dy = fast.run(params, stage_rows, bounds, initial, output)
-                dxs = [d[m] for d, m in zip(np.split(dy, ends[:-1]), kept)]
-                x = y[kept_all] + offset if n_bias else y[kept_all]
+                y, dx = y[kept_all], dy[kept_all]
             else:
-                xs, dxs = [], []
+                ys, dxs = [], []
                 for U, state, m in zip(drive, initial, kept):
-                    y, dy = sim.simulate_stages(params, U, state[:n], state[n:], sensitivities=True, output=output)
-                    xs.append(y[m] + offset if n_bias else y[m])
-                    dxs.append(dy[m])
-                x = np.concatenate(xs)
-            cache.update(key=key, x=x, dx=dxs)
+                    out, d = sim.simulate_stages(params, U, state[:n], state[n:], sensitivities=True, output=output)
+                    ys.append(out[m])
+                    dxs.append(d[m])
+                y, dx = np.concatenate(ys), np.concatenate(dxs)
+            cache.update(key=key, x=y + offset if n_bias else y, dx=dx)
             bar.update(1)
         return cache["x"], cache["dx"]
 
@@ -780,34 +786,40 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
         x, _ = evaluate(z)
         return ((x - target) / x_scale).ravel()
 
+    def columns_of(z: np.ndarray) -> np.ndarray:
+        """The Jacobian's columns of the shared unknowns and of each row's own stretch state,
+        side by side: (rows, n_p + 2 n)."""
+        _, dx = evaluate(z)
+        J = dx.reshape(-1, dx.shape[2]) / x_scale
+        J[~np.isfinite(J)] = 0.0
+        out = np.empty((J.shape[0], n_p + 2 * n))
+        np.multiply(J[:, :len(names)], p_scale, out=out[:, :len(names)])
+        if n_bias:  # d(residual)/d(bias of DOF j) = 1 on DOF j's rows (scaled by x_scale)
+            out[:, len(names):n_p] = np.tile(np.eye(n), (dx.shape[0], 1))
+        np.multiply(J[:, len(names):], state_scale, out=out[:, n_p:])
+        return out
+
     def blocks(z: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
         """Per stretch: the Jacobian's columns of the shared unknowns and of its own state."""
-        _, dxs = evaluate(z)
-        out = []
-        for i, dx in enumerate(dxs):
-            J = dx.reshape(-1, dx.shape[2]) / x_scale
-            J = np.where(np.isfinite(J), J, 0.0)
-            shared = J[:, :len(names)] * p_scale
-            if n_bias:  # d(residual)/d(bias of DOF j) = 1 on DOF j's rows (scaled by x_scale)
-                shared = np.hstack([shared, np.tile(np.eye(n), (dx.shape[0], 1))])
-            out.append((shared, J[:, len(names):] * s_scale[2 * n * i:2 * n * (i + 1)]))
-        return out
+        both = columns_of(z)
+        cuts = np.cumsum(kept_counts * n)[:-1]
+        return list(zip(np.split(both[:, :n_p], cuts), np.split(both[:, n_p:], cuts)))
 
     rows, columns = target.size, len(scales)
     dense = len(bounds) == 1 or rows * columns <= DENSE_JACOBIAN
+    state_columns = own_column[:, None] + np.arange(2 * n)
+    if not dense:  # the nonzeros of every row: the shared unknowns, then its stretch's state
+        indices = np.hstack([np.broadcast_to(np.arange(n_p), (rows, n_p)), state_columns]).ravel()
+        indptr = np.arange(rows + 1) * (n_p + 2 * n)
 
     def jacobian(z: np.ndarray) -> np.ndarray | Any:
-        parts = blocks(z)
+        both = columns_of(z)
         if dense:
             out = np.zeros((rows, columns))
-            row = 0
-            for i, (p, s) in enumerate(parts):
-                out[row:row + len(p), :n_p] = p
-                out[row:row + len(p), n_p + 2 * n * i:n_p + 2 * n * (i + 1)] = s
-                row += len(p)
+            out[:, :n_p] = both[:, :n_p]
+            out[np.arange(rows)[:, None], state_columns] = both[:, n_p:]
             return out
-        return hstack([csr_matrix(np.vstack([p for p, _ in parts])), block_diag([s for _, s in parts])],
-                      format="csr")
+        return csr_matrix((both.ravel(), indices, indptr), shape=(rows, columns))
 
     r0 = residual(start_vec)
     if not np.all(np.isfinite(r0)):
