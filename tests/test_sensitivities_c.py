@@ -30,18 +30,29 @@ def test_the_c_stretches_are_the_python_simulation(name, output):
     f = 3.0 * rng.standard_normal((900, plant.n_forces))
     stages = simulator.stage_inputs(f)
     p = {k: float(v) for k, v in plant.canonical_parameters().items()}
-    # a stretch of one sample: Python's has no stage inputs, so no force for its acceleration
-    bounds = [(0, 250), (250, 251), (251, 600), (600, 900)] if output != "a" else [(0, 250), (250, 600), (600, 900)]
-    n, q = plant.n_dof, simulator.substeps
+    bounds = [(0, 250), (250, 251), (251, 600), (600, 899), (899, 900)]
+    n, q, nf = plant.n_dof, simulator.substeps, plant.n_forces
     states = 1e-3 * rng.standard_normal((len(bounds), 2 * n))
     y, dy = SensitivitySimulator(simulator).run(p, np.ascontiguousarray(stages.T), bounds, states, output)
     for (a, b), z0 in zip(bounds, states):
+        if b - a == 1:  # the state itself, or the accelerations at it (the force: the previous step's end)
+            acc, d_state, d_free = (np.asarray(v) for v in simulator.acceleration(
+                z0, stages[2 * nf:, q * a - 1], simulator.parameter_vector(p)))
+            start = np.hstack([np.zeros((2 * n, len(simulator.free))), np.eye(2 * n)])  # d(state)/d(free, state)
+            expected, expected_d = {"x": (z0[:n], start[:n]), "v": (z0[n:], start[n:]),
+                                    "a": (acc.ravel(), np.hstack([d_free, d_state]))}[output]
+            assert np.allclose(y[a], expected, rtol=0, atol=8 * EPS * np.max(np.abs(expected)))
+            assert np.allclose(dy[a], expected_d, rtol=0, atol=8 * EPS * np.max(np.abs(expected_d)))
+            continue
         ys, dys = simulator.simulate_stages(p, stages[:, q * a:q * (b - 1)], z0[:n], z0[n:], sensitivities=True,
                                             output=output)
         # the same generated expressions; the accelerations' chain rule sums 2 n_dof products
         # in another order: a few roundings of the largest term of each column
         scale = np.max(np.abs(dys), axis=(0, 1), keepdims=True) + np.max(np.abs(dy[a:b]), axis=(0, 1), keepdims=True)
-        assert np.array_equal(y[a:b], ys) if output != "a" else np.allclose(y[a:b], ys, rtol=0, atol=8 * EPS * np.max(np.abs(ys)))
+        if output == "a":
+            assert np.allclose(y[a:b], ys, rtol=0, atol=8 * EPS * np.max(np.abs(ys)))
+        else:
+            assert np.array_equal(y[a:b], ys)
         assert np.all(np.abs(dy[a:b] - dys) <= 4 * n * EPS * scale)
 
 

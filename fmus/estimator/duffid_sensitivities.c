@@ -66,8 +66,10 @@ int duffid_simulate_sensitivities(int n_dof, int n_forces, int n_free, int subst
         for (int c = 0; c < m; c++)
             z[m + (n_free + c) * m + c] = 1.0;
         for (long i = 0; i < count; i++) {
-            /* the force at sample i: the start of its step, or the end of the stretch's last */
-            const double *f = i + 1 < count || count == 1 ? u + i * substeps * row : u + (i * substeps - 1) * row + 2 * n_forces;
+            /* the force at sample s = start + i: the end of the step before it (the same value
+             * as the start of its own step, which the record's last sample does not have) */
+            long s = start[j] + i;
+            const double *f = s > 0 ? stages + (s * substeps - 1) * row + 2 * n_forces : stages;
             if (i > 0)
                 for (int k = 0; k < substeps; k++) {
                     double *swap;

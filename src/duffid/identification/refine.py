@@ -757,6 +757,7 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
         return params, values[len(names):n_p], values[n_p:].reshape(len(bounds), 2 * n)
 
     kept_all = np.concatenate(kept)
+    every_sample = bool(np.all(kept_all))
     kept_counts = np.array([int(m.sum()) for m in kept])
     # the stretch of each row of the residual (a row per kept sample and DOF) and the first
     # column of its own initial state among the unknowns
@@ -769,8 +770,9 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
         if cache.get("key") != key:
             params, offset, initial = unpack(z)
             if fast is not None:
-                y, dy = fast.run(params, stage_rows, bounds, initial, output)
-                y, dx = y[kept_all], dy[kept_all]
+                y, dx = fast.run(params, stage_rows, bounds, initial, output)
+                if not every_sample:
+                    y, dx = y[kept_all], dx[kept_all]
             else:
                 ys, dxs = [], []
                 for U, state, m in zip(drive, initial, kept):
@@ -790,13 +792,15 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
         """The Jacobian's columns of the shared unknowns and of each row's own stretch state,
         side by side: (rows, n_p + 2 n)."""
         _, dx = evaluate(z)
-        J = dx.reshape(-1, dx.shape[2]) / x_scale
-        J[~np.isfinite(J)] = 0.0
+        J = dx.reshape(-1, dx.shape[2])
         out = np.empty((J.shape[0], n_p + 2 * n))
-        np.multiply(J[:, :len(names)], p_scale, out=out[:, :len(names)])
+        np.divide(J[:, :len(names)], x_scale, out=out[:, :len(names)])
+        np.divide(J[:, len(names):], x_scale, out=out[:, n_p:])
+        out[~np.isfinite(out)] = 0.0
+        out[:, :len(names)] *= p_scale
+        out[:, n_p:] *= state_scale
         if n_bias:  # d(residual)/d(bias of DOF j) = 1 on DOF j's rows (scaled by x_scale)
             out[:, len(names):n_p] = np.tile(np.eye(n), (dx.shape[0], 1))
-        np.multiply(J[:, len(names):], state_scale, out=out[:, n_p:])
         return out
 
     def blocks(z: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -809,8 +813,10 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
     dense = len(bounds) == 1 or rows * columns <= DENSE_JACOBIAN
     state_columns = own_column[:, None] + np.arange(2 * n)
     if not dense:  # the nonzeros of every row: the shared unknowns, then its stretch's state
-        indices = np.hstack([np.broadcast_to(np.arange(n_p), (rows, n_p)), state_columns]).ravel()
-        indptr = np.arange(rows + 1) * (n_p + 2 * n)
+        index = np.int32 if rows * (n_p + 2 * n) < 2**31 else np.int64
+        indices = np.hstack([np.broadcast_to(np.arange(n_p, dtype=index), (rows, n_p)),
+                             state_columns.astype(index)]).ravel()
+        indptr = np.arange(rows + 1, dtype=index) * (n_p + 2 * n)
 
     def jacobian(z: np.ndarray) -> np.ndarray | Any:
         both = columns_of(z)
