@@ -337,3 +337,20 @@ def test_the_cross_check_converges_when_terms_are_not_excited():
         if a.status[k] == "published":
             assert abs(a.values[k] / v - 1) <= max(0.01, 3 * a.uncertainty[k]), k
     assert sum(s == "published" for s in a.status.values()) == 6
+
+
+def test_the_output_error_fit_reports_each_simulation_as_progress():
+    """A long fit moves the caller's progress bar: one step per simulation, named."""
+    from duffid.identification.assessment import _refinement
+    from duffid.identification.sampling import natural_frequency
+
+    plant = Duffing1()
+    record = measure(simulate(plant, Multisine(8.0, 0.5, 10.0, 2.0, phases="random", seed=1), 2.0, 1e-3),
+                     pulses_per_cm=None, snr_db=50, seed=2)
+    values = {k: 1.02 * v for k, v in plant.parameters.items()}
+    calls: list[str] = []
+    info = _refinement(record, plant, values, {k: 0.01 for k in values},
+                       natural_frequency(plant, plant.canonical_parameters()), 100.0, [], [], check=True,
+                       progress=calls.append)
+    assert info is not None and set(calls) == {"output-error fit"}
+    assert len(calls) >= info["evaluations"] + 1  # the full-rate fit's simulations and the half-rate fit's

@@ -388,7 +388,8 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
     progress : bool, None or callable
         Progress bar on stderr while the replicates run (None: for long records on a terminal,
         :data:`PROGRESS_SAMPLES`); a callable is called with the stage's name after the
-        simulation check, each replicate and the half-rate run instead (the caller's bar).
+        simulation check, each replicate, the half-rate run and each simulation of an output-error
+        fit (``"output-error fit"``) instead (the caller's bar).
     at_half_rate : callable, optional
         Identifies the record (as ``estimates`` were found) from every second sample. The
         difference to ``estimates`` bounds the quadrature's bias, which is of first order in
@@ -521,14 +522,16 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
         # against 5, the other values the same within 0.01 %)
         never = {k for k in names if not determined(k) and share[k] < MIN_SHARE}
         check = _refinement(record, model, values, uncertainty, natural, spp / upsampled, notes, [], check=True,
-                            free=[model.canonical_name(k) for k in model.parameters if k not in never])
+                            free=[model.canonical_name(k) for k in model.parameters if k not in never],
+                            progress=progress if callable(progress) else None)
         if check is not None:
             fit["consistency"] = check
             _disagreement_as_uncertainty(check, uncertainty)
     if refine and pending and not offset_moved and not displacement_offset:
         # the equation error left excited values undetermined: the output error, an
         # efficient estimator for displacement noise, from the algebraic values
-        refinement = _refinement(record, model, values, uncertainty, natural, spp / upsampled, notes, pending)
+        refinement = _refinement(record, model, values, uncertainty, natural, spp / upsampled, notes, pending,
+                                 progress=progress if callable(progress) else None)
         if refinement is not None:
             fit["refinement"] = refinement
             if refinement["accepted"]:
@@ -583,7 +586,8 @@ def _disagreement_as_uncertainty(refinement: Mapping[str, Any], uncertainty: dic
 
 def _refinement(record: Record, model: Chain, values: Mapping[str, float], uncertainty: Mapping[str, float],
                 natural: float, spp: float, notes: list[str], pending: list[str],
-                check: bool = False, free: Sequence[str] | None = None) -> dict[str, Any] | None:
+                check: bool = False, free: Sequence[str] | None = None,
+                progress: Callable[[str], Any] | None = None) -> dict[str, Any] | None:
     """Output-error refinement of ``values`` (:func:`duffid.identification.refine.refine`, multiple
     shooting over stretches of :data:`SEGMENT_PERIODS` natural periods), with the
     stated errors of the Gauss-Newton covariance (inflated for correlated residuals) and the
@@ -592,7 +596,8 @@ def _refinement(record: Record, model: Chain, values: Mapping[str, float], uncer
     note) when it disagrees with the algebraic values by more than 3 combined standard errors;
     None (with a note) when it fails. ``check``: a cross-check of determined values (the
     caller takes the disagreement as their uncertainty; the notes say so). ``free``: the canonical
-    parameters refined (default: all); the others keep their values, with no stated error."""
+    parameters refined (default: all); the others keep their values, with no stated error.
+    ``progress("output-error fit")`` is called once per simulation of the fit."""
     what = "output-error cross-check" if check else f"output-error refinement of {', '.join(pending)}"
 
     if not spp / 2 >= REFINE_SAMPLES_PER_PERIOD:
@@ -603,7 +608,8 @@ def _refinement(record: Record, model: Chain, values: Mapping[str, float], uncer
     def run(rec: Record, segment: int, samples_per_period: float) -> Any:
         substeps = max(4, math.ceil(2 * math.pi / (samples_per_period * REFINE_STEP)))
         return refine(rec, model, {k: values[k] for k in model.parameters}, segment=max(segment, 8),
-                      substeps=substeps, progress=False, free=free)
+                      substeps=substeps, free=free,
+                      progress=(lambda: progress("output-error fit")) if progress is not None else False)
 
     try:
         with np.errstate(all="ignore"):

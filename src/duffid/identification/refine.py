@@ -609,14 +609,30 @@ class Refinement:
         }
 
 
-def _progress_bar(enabled: bool | None, total: int, desc: str) -> tqdm:
+class _CallerProgress:
+    """The caller's progress as a bar: ``step()`` once per update (the caller's own bar shows it)."""
+
+    def __init__(self, step: Callable[[], Any]) -> None:
+        self.step = step
+
+    def update(self, n: int = 1) -> None:
+        for _ in range(n):
+            self.step()
+
+    def close(self) -> None:
+        pass
+
+
+def _progress_bar(enabled: bool | None | Callable[[], Any], total: int, desc: str) -> tqdm | _CallerProgress:
+    if callable(enabled):
+        return _CallerProgress(enabled)
     disable = not sys.stderr.isatty() if enabled is None else not enabled
     return tqdm(total=total, desc=desc, disable=disable, leave=False, unit="sim")
 
 
 def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Sequence[str] | None = None,
            skip: int = 0, substeps: int = 4, interpolation: str = "bandlimited", max_nfev: int = 50,
-           progress: bool | None = None, segment: int | None = None, output: str = "x",
+           progress: bool | None | Callable[[], Any] = None, segment: int | None = None, output: str = "x",
            bias: bool | None = None, state_guess: tuple[np.ndarray, np.ndarray] | None = None,
            **lsq_options: Any) -> Refinement:
     """Refine parameters by output-error least squares (offline).
@@ -658,8 +674,9 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
         See :class:`OdeSimulator`.
     max_nfev : int
         Largest number of simulations.
-    progress : bool or None
-        tqdm progress bar; None: only when stderr is a terminal.
+    progress : bool, None or callable
+        tqdm progress bar; None: only when stderr is a terminal; a callable is called once
+        per simulation instead (the caller's own progress).
     segment : int, optional
         Samples per stretch (at least 4) for multiple shooting; None: one simulation over
         the whole record. The last stretch takes the remainder when it is shorter than half.

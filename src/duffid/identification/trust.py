@@ -234,11 +234,19 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
         progress = sys.stderr.isatty() and record.n_samples >= PROGRESS_SAMPLES
     bar = tqdm(total=REPLICATES + 4, desc="identify", unit="run", disable=not progress, file=sys.stderr, leave=False)
     started = time.perf_counter()
+
+    def step(stage: str) -> None:
+        """One run done; the output-error fit's simulations, when it runs, count as runs too."""
+        if stage == "output-error fit" and bar.n >= bar.total:
+            bar.total += 1
+        bar.set_postfix_str(stage, refresh=False)
+        bar.update(1)
+
     try:
         with Pool(jobs) as pool:
             estimation.cancel = pool.cancel
             return _checked(record, method, kind, physical, estimation, options, pool,
-                            lambda stage: bar.update(1), refine)
+                            step, refine)
     except KeyboardInterrupt:
         bar.close()
         print(f"\nduffid identify: interrupted (Ctrl-C) after {time.perf_counter() - started:.1f} s; the runs under "
