@@ -156,13 +156,22 @@ def test_the_progress_bar_counts_every_run(record, monkeypatch):
             self.total, self.disable, self.n = total, disable, 0
             bars.append(self)
 
+            self.stages = []
+
         def update(self, n):
             self.n += n
+
+        def set_postfix_str(self, stage, refresh=True):
+            self.stages.append(stage)
 
         def close(self):
             pass
 
     monkeypatch.setattr("duffid.identification.trust.tqdm", Bar)
     identify(record, Duffing1(), jobs=1, progress=True)
-    # two estimator runs, the simulation, 8 replicates, the half rate
-    assert len(bars) == 1 and not bars[0].disable and bars[0].n == bars[0].total == 12
+    # two estimator runs, the simulation, 8 replicates, the half rate; then the simulations of
+    # the output-error fit when it runs (it does on this record), each one more run
+    bar = bars[0]
+    assert len(bars) == 1 and not bar.disable and bar.n == bar.total
+    assert bar.stages[:12] == ["estimator"] * 2 + ["simulation"] + ["uncertainty"] * 8 + ["half rate"]
+    assert bar.total > 12 and bar.stages[12:] == ["output-error fit"] * (bar.total - 12)
