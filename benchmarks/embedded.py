@@ -82,6 +82,9 @@ CORE_FILES = ("duffid_estimator.c", "duffid_linalg.c")
 #: The buffered identifier's module (method "buffered"); its tables are generated per record.
 BUFFERED_FILES = ("duffid_buffered.c", "duffid_linalg.c")
 BUFFERED_TABLES = "duffid_buffered_tables.c"
+#: Samples per record of --quick (and of tests/test_embedded.py): past the first full window
+#: of both models and the span of another, so that the double builds publish values.
+QUICK_SAMPLES = 400
 
 
 def core_sources(core: Path, method: str = "robust") -> tuple[Path, ...]:
@@ -1164,7 +1167,7 @@ def accuracy_section(cache: Path | None) -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="short records (300 samples, 1-DOF and 2-DOF)")
+    parser.add_argument("--quick", action="store_true", help=f"short records ({QUICK_SAMPLES} samples, 1-DOF and 2-DOF)")
     parser.add_argument("--samples", type=int, default=None, help="samples per record (default 3 s = 3001)")
     parser.add_argument("--models", default="duffing1,duffing2", help="duffing1,duffing2")
     parser.add_argument("--method", default="robust", choices=sorted(METHODS))
@@ -1185,7 +1188,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="directory of the core's sources (default fmus/estimator, or $DUFFID_EMBEDDED_CORE)")
     parser.add_argument("--build", type=Path, default=None, help="build directory (default: a temporary one)")
     args = parser.parse_args(argv)
-    samples = args.samples if args.samples is not None else (300 if args.quick else None)
+    samples = args.samples if args.samples is not None else (QUICK_SAMPLES if args.quick else None)
     models = [m.strip() for m in args.models.split(",") if m.strip()]
     for m in models:
         if m not in MODELS:

@@ -25,8 +25,7 @@ embedded = load_benchmark("embedded")
 MISSING = embedded.missing_tools()
 pytestmark = pytest.mark.skipif(bool(MISSING), reason="needs " + "; ".join(MISSING))
 
-#: Samples per record (the benchmark's --quick): past the first full window of both models.
-SAMPLES = 300
+SAMPLES = embedded.QUICK_SAMPLES
 MODELS = ["duffing1", "duffing2"]
 
 

@@ -198,6 +198,8 @@ struct duffid_estimator {
     /* common state */
     int64_t n;                             /* index of the newest sample, -1 before any */
     int window_fixed;
+    int64_t spanned_from;                  /* the rows of full windows span a window from this
+                                            * sample (-1 before the first full window) */
     int64_t *steady;                       /* canonical order, saturated at settle_count */
     duffid_real *anchor;                   /* canonical order: value the estimate stays near */
     int64_t *anchored;                     /* ... since this sample */
@@ -1255,6 +1257,7 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     n = est->n;
     STATE_RANGE(n, -1, limit)
     STATE_RANGE(est->window_fixed, 0, 1)
+    STATE_RANGE(est->spanned_from, -1, n + 1 + (int64_t)est->capacity)
     STATE_RANGE(est->has_last_x, 0, 1)
     STATE_RANGE(est->pending, 0, 2)
     STATE_RANGE(est->received, n + est->pending, n + est->pending) /* a held sample is not processed yet */
@@ -1449,6 +1452,7 @@ void duffid_reset(duffid_estimator *est)
     }
     est->n = -1;
     est->window_fixed = 0;
+    est->spanned_from = -1;
     est->deferred = 0;
     est->has_last_x = 0;
     memset(est->last_x, 0, sizeof est->last_x);
@@ -2854,6 +2858,13 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
         duffid_real trusted[DUFFID_MAX_PARAMS];
         const int full = window >= est->target;
         const duffid_real tol = RC(0.5) * est->max_uncertainty;
+        int spanned;
+        /* the first full windows' rows rest on one window's samples until they span another:
+         * their standard errors are not credible before (as after a change) */
+        if (full && est->spanned_from < 0) {
+            est->spanned_from = est->n + (int64_t)est->target;
+        }
+        spanned = est->spanned_from >= 0 && est->n >= est->spanned_from; /* a value not yet published waits */
         for (i = 0; i < np; i++) { /* restarted by the change test */
             if (est->changed_now[i] >= 0) { /* a value it had is changed */
                 const int had_value = est->status[i] == DUFFID_STATUS_PUBLISHED || est->status[i] == DUFFID_STATUS_LOST ||
@@ -2896,7 +2907,7 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
                 est->anchored[i] = est->n;
             }
             /* n - anchored >= GROWTH_STEADY (1/4) x window, in integers */
-            if (small && ((full && !est->fresh[i]) ||
+            if (small && ((full && !est->fresh[i] && (spanned || est->status[i] == DUFFID_STATUS_PUBLISHED)) ||
                           (4 * (est->n - est->anchored[i]) >= (int64_t)window && est->n >= est->credible_from[i]))) {
                 count_up(&est->settled[i], est->settle_count);
             } else {

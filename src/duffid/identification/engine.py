@@ -831,6 +831,7 @@ class OnlineIdentifier(Identifier):
         self._status = {k: STATUSES[0] for k in canonical}
         self._fresh = {k: False for k in canonical}  # restarted since last published
         self._credible_from = {k: 0 for k in canonical}  # ... and its rows span a window from this sample
+        self._spanned_from = -1  # the rows of full windows span a window from this sample (-1: none yet)
         self._value = {k: np.nan for k in canonical}  # the latest published value
         self._held = {name: np.nan for name in self.parameter_names}
         self._changed_now: dict[str, bool] = {}
@@ -937,8 +938,14 @@ class OnlineIdentifier(Identifier):
         # a growing window's solution rests on its own few rows, whose standard errors are not
         # credible: it is published only once it has stayed within max_uncertainty / 2 of
         # one value while the window grew by a quarter (GROWTH_STEADY); the least-squares
-        # solution over full windows is (its errors account for the overlap of the windows)
+        # solution over full windows is once their rows span a window (its errors account
+        # for the overlap of the windows)
         full = window_samples >= self._target
+        if full and self._spanned_from < 0:
+            # the first full windows' rows rest on one window's samples until they span
+            # another: their standard errors are not credible before (as after a change)
+            self._spanned_from = self.n + self._target
+        spanned = self.n >= self._spanned_from >= 0  # a value not yet published waits for it
         tol = 0.5 * self.options["max_uncertainty"]
         settle = self._settle
         worst = 0.0
@@ -973,7 +980,7 @@ class OnlineIdentifier(Identifier):
             if not (np.isfinite(v) and abs(v - self._anchor[k]) <= tol * abs(self._anchor[k])):
                 self._anchor[k], self._anchored[k] = v, self.n
             grown = self.n - self._anchored[k] >= GROWTH_STEADY * window_samples
-            credible = (full and not self._fresh[k]) or (grown and self.n >= self._credible_from[k])
+            credible = (full and not self._fresh[k] and (spanned or self._status[k] == STATUSES[1])) or (grown and self.n >= self._credible_from[k])
             self._settled[k] = self._settled[k] + 1 if small and credible else 0
             self._unsettled[k] = self._unsettled[k] + 1 if large else 0
             self._status[k] = _next_status(self._status[k], self._settled[k], self._unsettled[k], settle,
