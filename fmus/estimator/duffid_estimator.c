@@ -218,6 +218,10 @@ struct duffid_estimator {
     /* robust */
     long target;
     int regrow;                             /* after duffid_hold: the window grows again */
+    int has_f_prev, has_f_change;           /* force jumps (OnlineIdentifier._force_jumps): */
+    duffid_real f_prev[DUFFID_MAX_FORCES];  /* the force of the previous sample processed, */
+    duffid_real f_change[DUFFID_MAX_FORCES]; /* the running mean |change| of each force, */
+    duffid_real f_peak[DUFFID_MAX_FORCES];  /* the largest |force| seen */
     int defer;                              /* duffid_defer_solutions: full windows only accumulate */
     long deferred;                          /* ... the window length whose solve is owed (0: none) */
     duffid_real lam_recent, sqrt_lam_recent; /* the change test's forgetting (follows target) */
@@ -1305,6 +1309,8 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
         const long N = est->capacity;
         STATE_RANGE(est->target, 1, N)
         STATE_RANGE(est->regrow, 0, 1)
+        STATE_RANGE(est->has_f_prev, 0, 1)
+        STATE_RANGE(est->has_f_change, 0, 1)
         STATE_RANGE(est->defer, 0, 1)
         STATE_RANGE(est->deferred, 0, N)
         STATE_RANGE(est->head, 0, N + 1)
@@ -1453,6 +1459,10 @@ void duffid_reset(duffid_estimator *est)
     est->n = -1;
     est->window_fixed = 0;
     est->spanned_from = -1;
+    est->has_f_prev = est->has_f_change = 0;
+    memset(est->f_prev, 0, sizeof est->f_prev);
+    memset(est->f_change, 0, sizeof est->f_change);
+    memset(est->f_peak, 0, sizeof est->f_peak);
     est->deferred = 0;
     est->has_last_x = 0;
     memset(est->last_x, 0, sizeof est->last_x);
@@ -3055,10 +3065,64 @@ static void guard_release(duffid_estimator *est)
 }
 
 /* ------------------------------------------------------------------ update */
+/* OnlineIdentifier._restart_window: the window restarts with the next sample; with regrow the
+ * previous output is reported until it is full again */
+static void restart_window(duffid_estimator *est, int regrow)
+{
+    int i;
+    const size_t moments = (size_t)(est->degree + 1) * (size_t)est->n_ch * sizeof(duffid_real);
+    est->has_last_x = 0;
+    memset(est->last_x, 0, sizeof est->last_x);
+    memset(est->sgn, 0, sizeof est->sgn);
+    memset(est->acc, 0, moments); /* SlidingMoments.reset */
+    memset(est->shadow, 0, SHADOWS * moments);
+    est->start = est->n + 1;
+    for (i = 0; i < SHADOWS; i++) {
+        est->shadow_from[i] = i == 0 ? est->n + 1 : -1;
+    }
+    est->poly_L = -1;
+    est->corr_L = -1;
+    est->leave_i = -1;
+    est->regrow = regrow;
+}
+
+/* OnlineIdentifier._force_jumps: whether a force jumped between the previous sample processed
+ * and f (DUFFID_JUMP_FACTOR); updates the running scales */
+static int force_jumps(duffid_estimator *est, const duffid_real *f)
+{
+    int j, jumped = 0;
+    const int had_prev = est->has_f_prev, had_change = est->has_f_change;
+    for (j = 0; j < est->n_forces; j++) {
+        const duffid_real change = R_FABS(f[j] - est->f_prev[j]);
+        est->f_peak[j] = max_builtin(est->f_peak[j], R_FABS(f[j]));
+        if (had_prev && !had_change) { /* the first change sets the scale */
+            est->f_change[j] = change;
+        } else if (had_prev) {
+            if (change > RC(DUFFID_JUMP_FACTOR) * est->f_change[j] && change > RC(DUFFID_JUMP_RANGE) * est->f_peak[j]) {
+                jumped = 1;
+            }
+            est->f_change[j] = est->f_change[j] + (change - est->f_change[j]) / RC(DUFFID_OUTLIER_MEMORY);
+        }
+        est->f_prev[j] = f[j];
+    }
+    est->has_f_change = had_prev;
+    est->has_f_prev = 1;
+    return jumped;
+}
+
 /* OnlineIdentifier._process: one sample into the estimator, its output into est->last */
 static void process(duffid_estimator *est, const duffid_real *x, const duffid_real *f)
 {
     long window;
+    if (est->cfg.method == DUFFID_ROBUST && force_jumps(est, f)) {
+        /* once full windows have been accumulated, the previous output until the window is
+         * full again; before, a growing window's solutions are its own: it grows anew */
+        int e, accumulated = 0;
+        for (e = 0; e < est->n_eq; e++) {
+            accumulated |= est->eq[e].rows > RC(0.0);
+        }
+        restart_window(est, accumulated);
+    }
     est->n++;
     evaluate_channels(est, x, f);
 #if DUFFID_SINGLE
@@ -3125,7 +3189,6 @@ static void guard_reset(duffid_estimator *est)
 
 int duffid_hold(duffid_estimator *est)
 {
-    int i;
     if (est == NULL) {
         return DUFFID_ERR_ARGUMENT;
     }
@@ -3140,22 +3203,8 @@ int duffid_hold(duffid_estimator *est)
         duffid_flush(est, NULL);
     }
     guard_reset(est);
-    est->has_last_x = 0;
-    memset(est->last_x, 0, sizeof est->last_x);
-    memset(est->sgn, 0, sizeof est->sgn);
-    { /* SlidingMoments.reset: the window starts with the next sample */
-        const size_t moments = (size_t)(est->degree + 1) * (size_t)est->n_ch * sizeof(duffid_real);
-        memset(est->acc, 0, moments);
-        memset(est->shadow, 0, SHADOWS * moments);
-        est->start = est->n + 1;
-        for (i = 0; i < SHADOWS; i++) {
-            est->shadow_from[i] = i == 0 ? est->n + 1 : -1;
-        }
-        est->poly_L = -1;
-        est->corr_L = -1;
-        est->leave_i = -1;
-    }
-    est->regrow = 1;
+    restart_window(est, 1);
+    est->has_f_prev = 0; /* the next sample does not follow the previous one */
     return DUFFID_OK;
 }
 

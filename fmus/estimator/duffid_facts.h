@@ -51,5 +51,7 @@
 #define DUFFID_OUTLIER_SIGMAS 12.0 /* outlier: robust standard deviations from the quadratic */
 #define DUFFID_OUTLIER_RANGE 0.0001 /* outlier: never less than this share of the range covered */
 #define DUFFID_OUTLIER_MEMORY 64.0 /* outlier: samples of the robust deviation's memory */
+#define DUFFID_JUMP_FACTOR 20.0 /* force jump: a change this many times the running mean change */
+#define DUFFID_JUMP_RANGE 0.01 /* force jump: never less than this share of the largest force seen */
 
 #endif /* DUFFID_FACTS_H */

@@ -88,6 +88,8 @@ PUBLICATION: tuple[Fact, ...] = (
     Fact("DUFFID_OUTLIER_SIGMAS", engine.OUTLIER_SIGMAS, "outlier: robust standard deviations from the quadratic"),
     Fact("DUFFID_OUTLIER_RANGE", engine.OUTLIER_RANGE, "outlier: never less than this share of the range covered"),
     Fact("DUFFID_OUTLIER_MEMORY", engine.OUTLIER_MEMORY, "outlier: samples of the robust deviation's memory"),
+    Fact("DUFFID_JUMP_FACTOR", engine.JUMP_FACTOR, "force jump: a change this many times the running mean change"),
+    Fact("DUFFID_JUMP_RANGE", engine.JUMP_RANGE, "force jump: never less than this share of the largest force seen"),
 )
 
 
