@@ -3114,7 +3114,7 @@ static int force_jumps(duffid_estimator *est, const duffid_real *f)
 static void process(duffid_estimator *est, const duffid_real *x, const duffid_real *f)
 {
     long window;
-    if (est->cfg.method == DUFFID_ROBUST && force_jumps(est, f)) {
+    if (est->cfg.method == DUFFID_ROBUST && est->cfg.jump_restart && force_jumps(est, f)) {
         /* once full windows have been accumulated, the previous output until the window is
          * full again; before, a growing window's solutions are its own: it grows anew */
         int e, accumulated = 0;

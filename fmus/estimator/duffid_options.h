@@ -51,9 +51,11 @@
 
 /* Options of the core that are not FMU parameters.
  *   deadband: |dx| <= deadband (displacement units) keeps the previous sign of velocity
+ *   jump_restart: robust: a force that jumps between two samples restarts the window (engine.JUMP_FACTOR)
  */
 #define DUFFID_OTHER_OPTIONS(X) \
-    X(REAL, deadband, 0.0, 0.0, -1, DUFFID_FOR_ROBUST | DUFFID_FOR_PAPER, "a finite number >= 0")
+    X(REAL, deadband, 0.0, 0.0, -1, DUFFID_FOR_ROBUST | DUFFID_FOR_PAPER, "a finite number >= 0") \
+    X(CODE, jump_restart, 1, 0.0, 1, DUFFID_FOR_ROBUST, "0 or 1")
 
 #define DUFFID_OPTIONS(X) DUFFID_FMU_OPTIONS(X) DUFFID_OTHER_OPTIONS(X)
 

@@ -52,7 +52,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                          METHODS)
     g = p.add_argument_group("robust method options")
     add_arguments(g, "robust", ("window_periods", "max_window", "forgetting", "rows", "n_rows", "settle",
-                                "change_threshold", "change_memory"))
+                                "change_threshold", "change_memory", "jump_restart"))
     g.add_argument("--no-refine", action="store_true",
                    help="do not refine by output-error least squares when the algebraic estimate leaves "
                         "excited parameters undetermined (faster; fewer values published)")

@@ -774,7 +774,8 @@ class OnlineIdentifier(Identifier):
         (time constant in s or None), ``rows`` ("integrals", "bernstein" or "paper"),
         ``n_rows`` (max(unknowns + 1, 8)), ``max_condition`` (1e6), ``max_uncertainty``
         (0.01), ``settle`` (s, 0.01), ``min_time`` (s, 0.01), ``deadband`` (m),
-        ``nominal`` (None, or prior sizes by public name).
+        ``nominal`` (None, or prior sizes by public name), ``jump_restart`` (True: a force
+        jump between two samples restarts the window, see :data:`JUMP_FACTOR`).
         ``paper``: ``gamma`` (20), ``quadrature`` ("adams3" or "trapezoid"),
         ``sign_in_numerator`` (False), ``max_condition``, ``min_time``, ``deadband``.
 
@@ -948,7 +949,7 @@ class OnlineIdentifier(Identifier):
         return jumped
 
     def _process(self, x: np.ndarray, f: np.ndarray) -> Estimate:
-        if self.method == "robust" and self._force_jumps(f):
+        if self.method == "robust" and self.options["jump_restart"] and self._force_jumps(f):
             # once full windows have been accumulated, the previous estimate until the window
             # is full again; before, a growing window's solutions are its own: it grows anew
             self._restart_window(regrow=any(s.rows > 0 for s in self._solvers))

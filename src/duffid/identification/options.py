@@ -174,6 +174,9 @@ OPTIONS: tuple[Option, ...] = (
            "paper: the sign convention of the numerator (sign_in_numerator)"),
     Option("deadband", _BOTH, "real", 0.0,
            "|dx| <= deadband (displacement units) keeps the previous sign of velocity", fmu=False),
+    Option("jump_restart", ("robust",), "bool", True,
+           "robust: a force that jumps between two samples restarts the window (engine.JUMP_FACTOR)", fmu=False,
+           default_text="True online; False in identify, whose checks use the windows across a step"),
     Option("nominal", ("robust",), "prior", None,
            "optional prior sizes {parameter: size}: the trust test's scale (None: from the data)", fmu=False),
     Option("change_threshold", ("robust",), "real", 4.0,
@@ -454,7 +457,7 @@ def _add_flag(parser: Any, variants: list[Option]) -> None:
     shown = "; ".join(dict.fromkeys(_shown(v) for v in variants))
     kinds = {v.kind for v in variants}
     if kinds == {"bool"}:
-        parser.add_argument(*names, dest=o.name, action="store_true", default=None, help=shown)
+        parser.add_argument(*names, dest=o.name, action=argparse.BooleanOptionalAction, default=None, help=shown)
     elif kinds == {"choice"}:
         choices = tuple(dict.fromkeys(c for v in variants for c in v.choices))
         parser.add_argument(*names, dest=o.name, choices=choices, default=None, help=shown)
