@@ -55,7 +55,7 @@
  */
 #define DUFFID_OTHER_OPTIONS(X) \
     X(REAL, deadband, 0.0, 0.0, -1, DUFFID_FOR_ROBUST | DUFFID_FOR_PAPER, "a finite number >= 0") \
-    X(CODE, jump_restart, 1, 0.0, 1, DUFFID_FOR_ROBUST, "0 or 1")
+    X(CODE, jump_restart, 0, 0.0, 1, DUFFID_FOR_ROBUST, "0 or 1")
 
 #define DUFFID_OPTIONS(X) DUFFID_FMU_OPTIONS(X) DUFFID_OTHER_OPTIONS(X)
 

@@ -774,8 +774,8 @@ class OnlineIdentifier(Identifier):
         (time constant in s or None), ``rows`` ("integrals", "bernstein" or "paper"),
         ``n_rows`` (max(unknowns + 1, 8)), ``max_condition`` (1e6), ``max_uncertainty``
         (0.01), ``settle`` (s, 0.01), ``min_time`` (s, 0.01), ``deadband`` (m),
-        ``nominal`` (None, or prior sizes by public name), ``jump_restart`` (True: a force
-        jump between two samples restarts the window, see :data:`JUMP_FACTOR`).
+        ``nominal`` (None, or prior sizes by public name), ``jump_restart`` (False; True: a
+        force jump between two samples restarts the window, see :data:`JUMP_FACTOR`).
         ``paper``: ``gamma`` (20), ``quadrature`` ("adams3" or "trapezoid"),
         ``sign_in_numerator`` (False), ``max_condition``, ``min_time``, ``deadband``.
 

@@ -271,9 +271,6 @@ def _checked(record: Record, method: str, kind: str | None, physical: Chain, est
     opts = estimation.options = dict(options)
     if method == "robust":  # the whole record is one plant here (where it changed: changes.find_changes)
         opts.setdefault("change_threshold", None)
-        # ... and its checks see what the windows across a force step show (the offset check
-        # needs the rest before it; a step's quadrature bias is theirs to find)
-        opts.setdefault("jump_restart", False)
     # the robust method's window from the data, in natural periods (never the default
     # seconds, which belong to the paper's 3.6 Hz plant): first from the displacement's
     # main frequency, then from the identified natural frequency
