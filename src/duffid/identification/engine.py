@@ -217,8 +217,9 @@ _GAUSS_MEAN_ABS = 1.2533141373155003  # sigma / mean|r| of a normal distribution
 #: largest force seen jumped between them (a step, an impact's onset): no quadrature
 #: through samples integrates that interval, and the rows of every window holding it are
 #: biased to first order in the sampling step (a 2-DOF step at 1 kHz: damping 6-8 % off,
-#: stated within 1 %). The robust method's window restarts with the sample after the jump,
-#: as after :meth:`OnlineIdentifier.hold`.
+#: stated within 1 %). With the option ``jump_restart`` (off by default: a closed loop's
+#: switching controller jumps too, and the restarts starve the change test) the robust
+#: method's window restarts with the sample after the jump, as after :meth:`OnlineIdentifier.hold`.
 JUMP_FACTOR = 20.0
 #: A jump is never smaller than this share of the largest force magnitude seen (the steps of
 #: a quantised or slowly varying force are no jumps).
