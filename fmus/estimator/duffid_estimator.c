@@ -153,6 +153,13 @@ typedef struct { /* the state of one block of the description */
     duffid_real rows_probe;           /* its rows (weighted as the accumulated ones) */
     int64_t probed;                   /* samples it has found a drift in a row, saturated at settle */
     int probe_row;                    /* the row of the block's it takes next */
+    /* engine.OFFSET_SIGMAS: the offset probe, the rows with an unknown constant force */
+    int off_on;                       /* 1: it runs (a block of one part without a constant) */
+    duffid_real *R_off;               /* its accumulated factor of [A, 1, D], (n + 2)^2 (one row a sample) */
+    duffid_real rows_off;             /* its rows (weighted as the accumulated ones) */
+    int off_row;                      /* the row of the block's it takes next */
+    int *off_moved;                   /* n: 1 while a constant force moves unknown i beyond max_uncertainty */
+    duffid_real R_var[4];             /* its rows' factor of [1, D]: does D vary (DUFFID_FORCE_VARIATION)? */
     duffid_real cond, rhs_share, rows, rows_recent, residual;
     int64_t departed;                 /* samples the departure has mattered in a row, saturated
                                        * at settle */
@@ -242,6 +249,8 @@ struct duffid_estimator {
     long leave_i;                           /* cache key of leave_phi (-1: empty) */
     duffid_real *leave_phi;                 /* the basis at the offset where samples leave */
     duffid_real *E;                         /* [r][order][channel] */
+    long one_L;                             /* cache key of one_E (-1: empty) */
+    duffid_real *one_E;                     /* [r]: a constant channel's entries (the offset probe) */
     duffid_real rounding;                   /* float: the rows' relative rounding error at this sample */
 
     /* workspace of one update (no allocation, no large stack frames) */
@@ -670,6 +679,7 @@ typedef struct {
     int method, n_rows, degree, n_coef;
     long capacity;
     int unknowns[MAX_EQ], parts[MAX_EQ], lines[MAX_EQ]; /* lines: most unknowns with the lines' rates */
+    int offset_probe[MAX_EQ];  /* the offset probe runs: robust, one part, no constant (offset) parameter */
     block_t blocks[BUILTIN_BLOCKS > MAX_EQ ? BUILTIN_BLOCKS : MAX_EQ];
     term_t terms[BUILTIN_TERMS];
     duffid_rule rules[BUILTIN_RULES];
@@ -731,6 +741,20 @@ static void shape_of(const duffid_config *cfg, shape_t *s)
         s->lines[e] = cfg->method == DUFFID_ROBUST && cfg->change_threshold > 0 ? (2 * n < MAX_LINE ? 2 * n : MAX_LINE)
                                                                                    : n;
         s->lines[e] = s->lines[e] > n ? s->lines[e] : n;
+        s->offset_probe[e] = cfg->method == DUFFID_ROBUST && s->parts[e] == 1;
+    }
+    if (cfg->model == DUFFID_GENERATED) { /* a block with a constant (offset) parameter has no probe */
+        const duffid_model *g = generated_model();
+        int q, k;
+        for (q = 0; q < g->n_params; q++) {
+            for (k = 0; g->params[q].offset && k < g->params[q].n_shares; k++) {
+                s->offset_probe[g->params[q].shares[k].block] = 0;
+            }
+        }
+    } else if (cfg->offset) {
+        for (e = 0; e < s->m.c.n_blocks; e++) {
+            s->offset_probe[e] = 0;
+        }
     }
     s->method = cfg->method;
     s->n_rows = cfg->n_rows ? cfg->n_rows : (n_max + 1 > 8 ? n_max + 1 : 8);
@@ -909,6 +933,9 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
         eq->line_cap = nl;
         eq->probe_n = lines ? nl - n : 0; /* the probe's lines: as many as the factors hold */
         CARVE(&c, eq->R_probe, lines ? p * p : 0);
+        eq->off_on = s->offset_probe[e];
+        CARVE(&c, eq->R_off, eq->off_on ? (n + 2) * (n + 2) : 0);
+        CARVE(&c, eq->off_moved, n);
         CARVE(&c, eq->drifting, n);
         CARVE(&c, eq->line, lines ? nl : 0);
         CARVE(&c, eq->line_inv, lines ? nl * nl : 0);
@@ -940,6 +967,7 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
         CARVE(&c, est->corr_w, MAX_CORR * (D + 1));
         CARVE(&c, est->leave_phi, D + 1);
         CARVE(&c, est->E, s->n_rows * N_ORD * n_ch);
+        CARVE(&c, est->one_E, s->n_rows);
         CARVE(&c, est->B, rows_max * (line_max + 1));
         CARVE(&c, est->B_copy, rows_max * (line_max + 1));
         CARVE(&c, est->W, p_max * p_max);
@@ -1234,6 +1262,10 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
             STATE_RANGE(est->eq[i].probe_row, 0, fresh->m.blocks[i].n_parts * fresh->n_rows - 1)
         }
         STATE_SAME(eq[i].probe_n)
+        STATE_SAME(eq[i].off_on)
+        if (cfg.method == DUFFID_ROBUST) {
+            STATE_RANGE(est->eq[i].off_row, 0, fresh->m.blocks[i].n_parts * fresh->n_rows - 1)
+        }
         STATE_RANGE(est->eq[i].resume, 0, limit)
         STATE_RANGE(est->eq[i].recent_resume, 0, limit)
         STATE_SAME(eq[i].line_cap)
@@ -1322,6 +1354,7 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
             }
         }
         STATE_RANGE(est->poly_L, -1, N)
+        STATE_RANGE(est->one_L, -1, N)
         STATE_RANGE(est->corr_L, -1, N)
         STATE_RANGE(est->leave_i, -1, N + 1)
         STATE_RANGE(est->corr_n, 0, MAX_CORR)
@@ -1419,6 +1452,10 @@ static void clear_change(equation_t *eq, int n)
     eq->drifted = 0;
     eq->probed = 0;
     eq->probe_row = 0;
+    eq->off_row = 0;
+    for (u = 0; u < n; u++) {
+        eq->off_moved[u] = 0;
+    }
     eq->resume = 0;
     eq->recent_resume = 0;
     eq->residual = R_NAN;
@@ -1436,7 +1473,12 @@ static void clear_factors(duffid_estimator *est, int e)
     if (eq->probe_n > 0) {
         memset(eq->R_probe, 0, (size_t)(p * p) * sizeof(duffid_real));
     }
-    eq->rows = eq->rows_recent = eq->times_recent = eq->rows_probe = RC(0.0);
+    if (eq->off_on) {
+        const int q = est->m.blocks[e].n_unknowns + 2;
+        memset(eq->R_off, 0, (size_t)(q * q) * sizeof(duffid_real));
+        memset(eq->R_var, 0, sizeof eq->R_var);
+    }
+    eq->rows = eq->rows_recent = eq->times_recent = eq->rows_probe = eq->rows_off = RC(0.0);
     if (eq->line_cap > est->m.blocks[e].n_unknowns) {
         for (i = 0; i < eq->line_cap; i++) {
             eq->line[i] = eq->line_recent[i] = R_NAN;
@@ -1511,6 +1553,7 @@ void duffid_reset(duffid_estimator *est)
         set_target(est, est->capacity);
         est->regrow = 0;
         est->poly_L = -1;
+        est->one_L = -1;
         est->corr_L = -1;
         est->leave_i = -1;
         for (i = 0; i < est->n_eq; i++) {
@@ -2319,6 +2362,105 @@ static int drift_probe(duffid_estimator *est, int e, int m, duffid_real t, duffi
     return 0;
 }
 
+/* OnlineIdentifier._constant_entries: the entries of a constant channel (1) in the rows of a
+ * window of L intervals (after kernel_entries for L): its moments are the quadrature's power
+ * sums, sum_i phi_j(i) = (L + 1) (L) ... (L + 1 - j) / ((j + 1) N^j) plus the end corrections */
+static const duffid_real *constant_entries(duffid_estimator *est, long L)
+{
+    if (est->one_L != L) {
+        const int D1 = est->degree + 1;
+        duffid_real fact[MAX_POW], mom[MAX_POW], falling = (duffid_real)(L + 1);
+        int j, k, m, r;
+        corrections(est, L);
+        for (j = 0; j < D1; j++) {
+            if (j > 0) {
+                falling *= (duffid_real)(L + 1 - j) * est->inv_cap;
+            }
+            fact[j] = falling / (duffid_real)(j + 1);
+            for (m = 0; m < est->corr_n; m++) {
+                fact[j] += est->corr_w[m * D1 + j];
+            }
+        }
+        for (k = 0; k < D1; k++) { /* the power moments, as moments_push */
+            const duffid_real *st = est->stirling + k * D1;
+            duffid_real sum = k == 0 ? st[0] * fact[0] : RC(0.0);
+            for (j = 1; j <= k; j++) {
+                sum += st[j] * fact[j];
+            }
+            mom[k] = sum;
+        }
+        for (r = 0; r < est->n_rows; r++) { /* order 0 (no raw term) */
+            const int at = est->k_at[r * N_ORD], first = est->k_first[r * N_ORD];
+            duffid_real sum = RC(0.0);
+            for (k = 0; k < est->k_count[r * N_ORD]; k++) {
+                sum += est->poly[at + k] * mom[first + k];
+            }
+            est->one_E[r] = sum * est->entry_scale[r * N_ORD];
+        }
+        est->one_L = L;
+    }
+    return est->one_E;
+}
+
+/* OnlineIdentifier._offset_probe: row off_row of the m rows B ([A, the lines, D], column after
+ * column) with a constant's entry into the offset probe of equation e (window of L intervals);
+ * marks the unknowns that the constant moves. In the factor [[R11, R12], [0, r]] of [A, 1] the
+ * constant is c = R[n][n+1] / R[n][n] and it moves the unknowns by -R11^-1 R12 c. */
+static void offset_probe(duffid_estimator *est, int e, int m, long L)
+{
+    equation_t *eq = &est->eq[e];
+    const int n = est->m.blocks[e].n_unknowns, nl = eq->n_line, p = n + 2, r = eq->off_row;
+    const duffid_real *R = eq->R_off;
+    duffid_real row[MAX_UNK + 2], plain[MAX_UNK], shift[MAX_UNK], dof, constant, error;
+    int i, k, varies, singular_ = 0;
+    if (!eq->off_on) {
+        return;
+    }
+    eq->off_row = r + 1 < m ? r + 1 : 0; /* one row a sample, in turn */
+    for (i = 0; i < n; i++) {
+        row[i] = est->B[i * m + r];
+    }
+    row[n] = constant_entries(est, L)[r];
+    row[n + 1] = est->B[nl * m + r];
+    {
+        duffid_real pair[2]; /* the accumulation overwrites its rows */
+        pair[0] = row[n];
+        pair[1] = row[n + 1];
+        duffid_la_qr_accumulate(eq->R_var, 2, est->sqrt_lam, pair, 1);
+    }
+    duffid_la_qr_accumulate(eq->R_off, p, est->sqrt_lam, row, 1);
+    eq->rows_off = est->lam * eq->rows_off + RC(1.0);
+    for (i = 0; i < n; i++) {
+        eq->off_moved[i] = 0;
+    }
+    dof = eq->rows_off - (duffid_real)(n + 1);
+    for (i = 0; i <= n; i++) {
+        singular_ |= R[i * p + i] == RC(0.0);
+    }
+    /* the rows' right-hand side beyond a constant, relative to its constant part */
+    varies = R_FABS(eq->R_var[3]) > RC(DUFFID_FORCE_VARIATION) * R_FABS(eq->R_var[1]);
+    if (!(dof > RC(0.0)) || !varies || singular_) {
+        return;
+    }
+    constant = R[n * p + n + 1] / R[n * p + n];
+    error = R_FABS(R[(n + 1) * p + n + 1]) * R_SQRT((duffid_real)L / dof) / R_FABS(R[n * p + n]);
+    if (!(R_FABS(constant) > RC(DUFFID_OFFSET_SIGMAS) * error)) {
+        return;
+    }
+    for (i = n - 1; i >= 0; i--) { /* back substitutions: the plain solution and R11^-1 R12 */
+        duffid_real sum = R[i * p + n + 1], sum2 = R[i * p + n];
+        for (k = i + 1; k < n; k++) {
+            sum -= R[i * p + k] * plain[k];
+            sum2 -= R[i * p + k] * shift[k];
+        }
+        plain[i] = sum / R[i * p + i];
+        shift[i] = sum2 / R[i * p + i];
+    }
+    for (i = 0; i < n; i++) {
+        eq->off_moved[i] = R_FABS(shift[i] * constant) > est->max_uncertainty * R_FABS(plain[i]);
+    }
+}
+
 /* the change test of _robust_solve after the accumulated solution of equation e was updated
  * with the m rows B_copy: the recent solution, the departures that matter, the triggers */
 static void change_test(duffid_estimator *est, int e, int m, duffid_real fit, duffid_real t)
@@ -2463,6 +2605,7 @@ static long robust_step(duffid_estimator *est)
             if (est->change_threshold > RC(0.0)) {
                 memcpy(est->B_copy, est->B, (size_t)(m * (nl + 1)) * sizeof(duffid_real));
             }
+            offset_probe(est, e, m, L); /* before the rows B are factored away */
             duffid_la_qr_accumulate(eq->R, nl + 1, est->sqrt_lam, est->B, m);
             eq->rows = est->lam * eq->rows + (duffid_real)m;
             if (nl > n) {
@@ -2904,8 +3047,14 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
                 const int moved = est->status[i] == DUFFID_STATUS_PUBLISHED &&
                                   !(R_FABS(v - est->value[i]) <=
                                     RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty * R_FABS(est->value[i]));
-                small = good && excited && physical && relative <= est->max_uncertainty;
-                large = moved || !(good && physical && relative <= RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty);
+                /* a value that an unknown constant force would move is not publishable */
+                int offset = 0, k;
+                for (k = 0; k < est->m.params[i].n_shares; k++) {
+                    const duffid_source *src = &est->m.params[i].shares[k];
+                    offset |= src->unknown >= 0 && est->eq[src->block].off_moved[src->unknown];
+                }
+                small = good && excited && physical && relative <= est->max_uncertainty && !offset;
+                large = moved || offset || !(good && physical && relative <= RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty);
             }
             if (small) {
                 count_up(&est->steady[i], est->settle_count);
@@ -3081,6 +3230,7 @@ static void restart_window(duffid_estimator *est, int regrow)
         est->shadow_from[i] = i == 0 ? est->n + 1 : -1;
     }
     est->poly_L = -1;
+    est->one_L = -1;
     est->corr_L = -1;
     est->leave_i = -1;
     est->regrow = regrow;

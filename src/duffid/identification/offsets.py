@@ -11,7 +11,7 @@ import numpy as np
 from ..data.record import Record
 from ..errors import InputError
 from ..models.chain import Chain
-from .engine import Identification, MIN_SHARE
+from .engine import MIN_SHARE, OFFSET_SIGMAS, Identification
 from .refine import canonical_from_public
 
 __all__ = [
@@ -60,8 +60,8 @@ def offset_check(values: Mapping[str, float], uncertainty: Mapping[str, float],
                      "parameters: it cannot rule out a sensor offset, so the values assume there is none")
         return set()
     # the alternative has one more unknown per DOF, so its own scatter is larger: a change is a
-    # finding when it exceeds both 3 standard errors and the publication tolerance
-    moved = {k for k, c in changes.items() if abs(c) > max(3.0 * uncertainty[k], max_uncertainty)}
+    # finding when it exceeds both OFFSET_SIGMAS standard errors and the publication tolerance
+    moved = {k for k, c in changes.items() if abs(c) > max(OFFSET_SIGMAS * uncertainty[k], max_uncertainty)}
     if moved:
         shown = ", ".join(f"{k} {100 * changes[k]:+.3g} %" for k in sorted(moved, key=list(values).index))
         found = ", ".join(f"{k} = {v:.4g}" for k, v in offsets.items())

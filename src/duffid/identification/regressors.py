@@ -222,6 +222,12 @@ class SlidingMoments:
         self.start = 0       # index of the oldest sample in the window
         self._shadow_from = 0  # first sample held by the shadow accumulator
 
+    def corrections(self, L: int) -> np.ndarray:
+        """The quadrature's end corrections for a window of ``L`` intervals: shape
+        (samples corrected, degree+1), the weight of each corrected sample in each moment
+        (before the moments' ``1/n_ref``)."""
+        return self._corrections(L)[2]
+
     def _corrections(self, L: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         cached = self._corr_cache.get(L)
         if cached is None:

@@ -11,7 +11,7 @@ import numpy as np
 from ..data.record import Record
 from ..errors import InputError
 from ..models.chain import Chain
-from .engine import OUTLIER_RANGE, OUTLIER_SIGMAS
+from .engine import FORCE_VARIATION, OUTLIER_RANGE, OUTLIER_SIGMAS
 from .offsets import canonical_of
 from .refine import upsample
 
@@ -270,9 +270,6 @@ def isolated_outliers(x: np.ndarray) -> list[tuple[int, int, float]]:
     if len(found) > MAX_OUTLIER_SHARE * x.size:
         return []
     return found
-
-#: A force whose standard deviation is below this fraction of its mean magnitude "hardly varies".
-FORCE_VARIATION = 0.05
 
 def force_varies(record: Record) -> bool:
     """Whether the force varies enough to separate a constant offset from the stiffness."""
