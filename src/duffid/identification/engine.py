@@ -48,12 +48,13 @@ METHODS = ONLINE_METHODS + BASES
 
 #: Status of a parameter; its index is the status code of the C core (DUFFID_STATUS_*) and of
 #: the estimator FMUs' ``<name>_status`` outputs. ``uncertain``: not (yet) determined well
-#: enough; ``published``: its relative standard error stayed within ``max_uncertainty`` for
+#: enough, or a sensor offset the record cannot rule out would move it (:data:`OFFSET_SIGMAS`);
+#: ``published``: its relative standard error stayed within ``max_uncertainty`` for
 #: ``settle`` s, the value is shown; ``not excited``: its term carries less than
 #: :data:`MIN_SHARE` of the force balance; ``lost``: it was published and has not been
 #: trustworthy for ``settle`` s since (its error above :data:`LOSS_FACTOR` times
 #: ``max_uncertainty``, or its value non-physical, or the estimate moved from the value by more
-#: than that: the value is withdrawn); ``changed``: the recent data contradict the value it had
+#: than that, or an offset would move it: the value is withdrawn); ``changed``: the recent data contradict the value it had
 #: (see :data:`CHANGE_WINDOWS`): the value is withdrawn and the parameter is identified again
 #: from the samples after the change.
 STATUSES = ("uncertain", "published", "not excited", "lost", "changed")
