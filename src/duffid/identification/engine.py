@@ -777,9 +777,9 @@ class _EquationState:
         self.recent_resume = 0  # ... after a surprise: the same for the recent estimate
         self.residual = np.nan  # the window's prediction error (Estimate.residual)
         self.probed = 0          # samples the drift probe has found a drift in a row
+        self.probe_fed = 0       # ... the rows it has had (it takes row probe_fed % rows next)
         self.offset_fed = 0      # the offset probe's rows (it takes row offset_fed % rows next)
         self.offset_moved = np.zeros(len(self.theta), dtype=bool)  # unknowns a constant moves
-        self.probe_fed = 0       # ... the rows it has had (it takes row probe_fed % rows next)
 
 
 class OnlineIdentifier(Identifier):
@@ -1272,9 +1272,7 @@ class OnlineIdentifier(Identifier):
         hit = np.zeros(len(index), dtype=bool)
         if dof > 0 and np.all(np.diag(R)[:p] != 0):
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-                theta = np.zeros(p)
-                for i in range(p - 1, -1, -1):  # back substitution (p is small: no LAPACK call)
-                    theta[i] = (R[i, p] - R[i, i + 1:p] @ theta[i + 1:]) / R[i, i]
+                theta = _back_substitution(R[:p, :p], R[:p, p])
                 rates, ends = theta[n:], theta[index] + theta[n:] * time
                 errors = abs(R[p, p]) * np.sqrt(float(L) / dof) * np.linalg.norm(np.linalg.inv(R[n:p, n:p]), axis=1)
                 band = LOSS_FACTOR * self.options["max_uncertainty"]
