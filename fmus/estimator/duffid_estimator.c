@@ -160,6 +160,9 @@ typedef struct { /* the state of one block of the description */
     int off_row;                      /* the row of the block's it takes next */
     int *off_moved;                   /* n: 1 while a constant force moves unknown i beyond max_uncertainty */
     duffid_real R_var[4];             /* its rows' factor of [1, D]: does D vary (DUFFID_FORCE_VARIATION)? */
+    /* engine.JUMP_ERROR: the rows' error column J on the force jumps inside their windows */
+    duffid_real *jump_v;              /* n_line: A^T J of the accumulated rows (with their forgetting) */
+    duffid_real *jump_shift;          /* n: how J moves the unknowns, (A^T A)^-1 A^T J (at the newest rows) */
     duffid_real cond, rhs_share, rows, rows_recent, residual;
     int64_t departed;                 /* samples the departure has mattered in a row, saturated
                                        * at settle */
@@ -198,6 +201,7 @@ struct duffid_estimator {
     int n_used, used_order[N_ORD * MAX_CH], used_channel[N_ORD * MAX_CH]; /* what the terms read */
     int n_jobs;                            /* the kernel entries to compute: n_used x n_rows */
     int *job;                              /* [5 per entry]: poly at, moment at, count, entry, row */
+    int *force_channel;                    /* n_forces: the channel that is force j, -1: none */
     duffid_real *stirling;                 /* [k][j] = S2(k, j) N^(j - k) / N: power moments */
     duffid_real *step;                     /* [j] = j / N: the shift in the factorial basis */
     size_t structure_bytes;                /* the block's bytes before the first mutable array */
@@ -229,6 +233,14 @@ struct duffid_estimator {
     duffid_real f_prev[DUFFID_MAX_FORCES];  /* the force of the previous sample processed, */
     duffid_real f_change[DUFFID_MAX_FORCES]; /* the running mean |change| of each force, */
     duffid_real f_peak[DUFFID_MAX_FORCES];  /* the largest |force| seen */
+    int has_jump_candidate, has_jump;       /* the previous sample's change when it jumped; the */
+    duffid_real jump_candidate[DUFFID_MAX_FORCES]; /* isolated jump before the previous sample */
+    duffid_real jump[DUFFID_MAX_FORCES];    /* (DUFFID_JUMP_ISOLATION), 0 for the other forces */
+    int64_t n_jumps;                        /* jumps whose interval is inside the window */
+    unsigned char *jump_flag;               /* capacity + 2, by ring position: bit j, force j
+                                             * jumped in the interval that ends at the sample */
+    duffid_real *jump_sum;                  /* (degree + 1) x n_forces: sum df ((n - k + 1/2) / N)^q */
+    duffid_real *jump_J;                    /* the rows' error column of a block (workspace) */
     int defer;                              /* duffid_defer_solutions: full windows only accumulate */
     long deferred;                          /* ... the window length whose solve is owed (0: none) */
     duffid_real lam_recent, sqrt_lam_recent; /* the change test's forgetting (follows target) */
@@ -901,6 +913,7 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
     CARVE(&c, est->stirling, robust ? (D + 1) * (D + 1) : 0);
     CARVE(&c, est->job, robust ? 5 * N_ORD * n_ch * s->n_rows : 0);
     CARVE(&c, est->step, robust ? D + 1 : 0);
+    CARVE(&c, est->force_channel, s->m.c.n_forces);
     est->structure_bytes = c.used;
     /* state */
     CARVE(&c, est->steady, np);
@@ -936,6 +949,8 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
         eq->off_on = s->offset_probe[e];
         CARVE(&c, eq->R_off, eq->off_on ? (n + 2) * (n + 2) : 0);
         CARVE(&c, eq->off_moved, n);
+        CARVE(&c, eq->jump_v, robust ? nl : 0);
+        CARVE(&c, eq->jump_shift, n);
         CARVE(&c, eq->drifting, n);
         CARVE(&c, eq->line, lines ? nl : 0);
         CARVE(&c, eq->line_inv, lines ? nl * nl : 0);
@@ -968,6 +983,9 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
         CARVE(&c, est->leave_phi, D + 1);
         CARVE(&c, est->E, s->n_rows * N_ORD * n_ch);
         CARVE(&c, est->one_E, s->n_rows);
+        CARVE(&c, est->jump_flag, s->capacity + 2);
+        CARVE(&c, est->jump_sum, (D + 1) * s->m.c.n_forces);
+        CARVE(&c, est->jump_J, rows_max);
         CARVE(&c, est->B, rows_max * (line_max + 1));
         CARVE(&c, est->B_copy, rows_max * (line_max + 1));
         CARVE(&c, est->W, p_max * p_max);
@@ -1098,6 +1116,16 @@ static void build_structure(duffid_estimator *est, const shape_t *s)
     est->n_eq = est->m.c.n_blocks;
     for (i = 0; i < est->n_params; i++) {
         est->nominal[est->m.publics[i].canonical] = R_FABS(est->cfg.nominal[i]);
+    }
+    for (i = 0; i < est->n_forces; i++) { /* the channel that is each force (JUMP_ERROR) */
+        est->force_channel[i] = -1;
+    }
+    for (i = 0; i < est->n_ch; i++) {
+        const int force = est->cfg.model == DUFFID_GENERATED ? generated_model()->channel_force[i]
+                          : est->m.ch[i].kind == CH_FORCE ? est->m.ch[i].index : -1;
+        if (force >= 0 && force < est->n_forces && est->force_channel[force] < 0) {
+            est->force_channel[force] = i;
+        }
     }
     est->n_used = 0;
     for (i = 0; i < N_ORD * est->n_ch; i++) { /* the (order, channel) pairs the terms read */
@@ -1293,6 +1321,11 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     n = est->n;
     STATE_RANGE(n, -1, limit)
     STATE_RANGE(est->window_fixed, 0, 1)
+    if (cfg.method == DUFFID_ROBUST) {
+        STATE_RANGE(est->n_jumps, 0, (int64_t)est->capacity + 2)
+        STATE_RANGE(est->has_jump, 0, 1)
+        STATE_RANGE(est->has_jump_candidate, 0, 1)
+    }
     STATE_RANGE(est->spanned_from, -1, n + 1 + (int64_t)est->capacity)
     STATE_RANGE(est->has_last_x, 0, 1)
     STATE_RANGE(est->pending, 0, 2)
@@ -1459,6 +1492,9 @@ static void clear_change(equation_t *eq, int n)
     eq->resume = 0;
     eq->recent_resume = 0;
     eq->residual = R_NAN;
+    for (u = 0; u < n; u++) {
+        eq->jump_shift[u] = RC(0.0);
+    }
 }
 
 /* a fresh accumulated and recent least squares of block e (n_line unknowns): OnlineIdentifier's
@@ -1479,6 +1515,9 @@ static void clear_factors(duffid_estimator *est, int e)
         memset(eq->R_var, 0, sizeof eq->R_var);
     }
     eq->rows = eq->rows_recent = eq->times_recent = eq->rows_probe = eq->rows_off = RC(0.0);
+    for (i = 0; i < eq->line_cap; i++) {
+        eq->jump_v[i] = RC(0.0);
+    }
     if (eq->line_cap > est->m.blocks[e].n_unknowns) {
         for (i = 0; i < eq->line_cap; i++) {
             eq->line[i] = eq->line_recent[i] = R_NAN;
@@ -1492,6 +1531,14 @@ static void clear_factors(duffid_estimator *est, int e)
 
 static void guard_reset(duffid_estimator *est);
 
+/* _JumpMoments.reset: no jump inside the window */
+static void jumps_reset(duffid_estimator *est)
+{
+    memset(est->jump_flag, 0, (size_t)(est->capacity + 2));
+    memset(est->jump_sum, 0, (size_t)((est->degree + 1) * est->n_forces) * sizeof(duffid_real));
+    est->n_jumps = 0;
+}
+
 void duffid_reset(duffid_estimator *est)
 {
     int i, u;
@@ -1502,6 +1549,9 @@ void duffid_reset(duffid_estimator *est)
     est->window_fixed = 0;
     est->spanned_from = -1;
     est->has_f_prev = est->has_f_change = 0;
+    est->has_jump_candidate = est->has_jump = 0;
+    memset(est->jump_candidate, 0, sizeof est->jump_candidate);
+    memset(est->jump, 0, sizeof est->jump);
     memset(est->f_prev, 0, sizeof est->f_prev);
     memset(est->f_change, 0, sizeof est->f_change);
     memset(est->f_peak, 0, sizeof est->f_peak);
@@ -1547,6 +1597,7 @@ void duffid_reset(duffid_estimator *est)
         memset(est->shadow, 0, SHADOWS * moments);
         est->head = est->capacity + 1; /* the first sample goes to position 0 */
         est->start = 0;
+        jumps_reset(est);
         for (i = 0; i < SHADOWS; i++) {
             est->shadow_from[i] = i == 0 ? 0 : -1;
         }
@@ -1933,6 +1984,168 @@ static long moments_push(duffid_estimator *est, long window)
         }
     }
     return L;
+}
+
+
+/* ------------------------------------------------------------------ force jumps (JUMP_ERROR) */
+/* x^0 .. x^D by multiplication (_JumpMoments._powers) */
+static void jump_powers(int D, duffid_real x, duffid_real *out)
+{
+    int q;
+    out[0] = RC(1.0);
+    for (q = 1; q <= D; q++) {
+        out[q] = out[q - 1] * x;
+    }
+}
+
+/* the forces' jumps in the interval that ends at sample k (its ring position back from the
+ * newest sample n), from the ring: df_j, 0 where force j did not jump */
+static void jump_at(const duffid_estimator *est, long back, duffid_real *df)
+{
+    const unsigned char flags = est->jump_flag[ring_at(est, back)];
+    const duffid_real *now = est->ring + (size_t)ring_at(est, back) * (size_t)est->n_ch;
+    const duffid_real *before = est->ring + (size_t)ring_at(est, back + 1) * (size_t)est->n_ch;
+    int j;
+    for (j = 0; j < est->n_forces; j++) {
+        const int c = est->force_channel[j];
+        df[j] = (flags >> j) & 1u && c >= 0 ? now[c] - before[c] : RC(0.0);
+    }
+}
+
+/* _JumpMoments.step after moments_push (the window's oldest sample was old_start before it):
+ * the sums one sample further, the jumps whose interval left the window subtracted, the
+ * isolated jump of force_jumps added */
+static void jumps_step(duffid_estimator *est, int64_t old_start)
+{
+    const int D = est->degree, D1 = D + 1, nf = est->n_forces;
+    const int64_t n = est->n;
+    duffid_real pw[MAX_POW], df[DUFFID_MAX_FORCES];
+    int64_t k;
+    int q, r, j;
+    est->jump_flag[est->head] = 0; /* the newest sample's position held a sample long gone */
+    if (est->n_jumps > 0) {
+        const duffid_real h = est->inv_cap;
+        for (q = D; q >= 1; q--) { /* S_q <- sum_r C(q, r) h^(q-r) S_r */
+            for (j = 0; j < nf; j++) {
+                duffid_real total = est->jump_sum[q * nf + j], c = RC(1.0), hp = RC(1.0);
+                for (r = q - 1; r >= 0; r--) {
+                    c = c * (duffid_real)(r + 1) / (duffid_real)(q - r);
+                    hp *= h;
+                    total += c * hp * est->jump_sum[r * nf + j];
+                }
+                est->jump_sum[q * nf + j] = total;
+            }
+        }
+        for (k = old_start + 1; k <= est->start && est->n_jumps > 0; k++) { /* interval k-1..k left */
+            const long back = (long)(n - k);
+            if (est->jump_flag[ring_at(est, back)] == 0) {
+                continue;
+            }
+            jump_at(est, back, df);
+            jump_powers(D, ((duffid_real)back + RC(0.5)) * est->inv_cap, pw);
+            for (q = 0; q < D1; q++) {
+                for (j = 0; j < nf; j++) {
+                    est->jump_sum[q * nf + j] -= pw[q] * df[j];
+                }
+            }
+            est->jump_flag[ring_at(est, back)] = 0;
+            est->n_jumps--;
+        }
+    }
+    if (est->has_jump && n - 2 >= est->start) { /* the interval n-2..n-1 */
+        unsigned char flags = 0;
+        for (j = 0; j < nf; j++) {
+            if (est->jump[j] != RC(0.0)) {
+                flags = (unsigned char)(flags | (1u << j));
+            }
+        }
+        est->jump_flag[ring_at(est, 1)] = flags;
+        est->n_jumps++;
+        jump_at(est, 1, df);
+        jump_powers(D, RC(1.5) * est->inv_cap, pw);
+        for (q = 0; q < D1; q++) {
+            for (j = 0; j < nf; j++) {
+                est->jump_sum[q * nf + j] += pw[q] * df[j];
+            }
+        }
+    }
+    if (est->n_jumps == 0) {
+        memset(est->jump_sum, 0, (size_t)(D1 * nf) * sizeof(duffid_real));
+    }
+}
+
+/* OnlineIdentifier._jump_columns for block b into est->jump_J (parts x n_rows, as B's rows):
+ * its force terms' kernel entries on the jumps' moments (sums / N) */
+static void jump_column(duffid_estimator *est, const block_t *b)
+{
+    const int nf = est->n_forces, n_rows = est->n_rows;
+    int k, r, i;
+    memset(est->jump_J, 0, (size_t)(b->n_parts * n_rows) * sizeof(duffid_real));
+    for (k = 0; k < b->n_terms; k++) {
+        const term_t *t = &est->m.terms[b->term0 + k];
+        int force = -1;
+        for (i = 0; i < nf; i++) {
+            force = t->unknown < 0 && est->force_channel[i] == t->channel ? i : force;
+        }
+        if (force < 0) {
+            continue;
+        }
+        for (r = 0; r < n_rows; r++) {
+            const int at = est->k_at[r * N_ORD + t->order], first = est->k_first[r * N_ORD + t->order];
+            duffid_real sum = RC(0.0);
+            for (i = 0; i < est->k_count[r * N_ORD + t->order]; i++) {
+                sum += est->poly[at + i] * est->jump_sum[(first + i) * nf + force] * est->inv_cap;
+            }
+            est->jump_J[t->part * n_rows + r] += t->coef * sum * est->entry_scale[r * N_ORD + t->order];
+        }
+    }
+}
+
+/* _jump_shift: (R^T R)^-1 v for the n x n leading block of the p x p factor R; zeros when v
+ * is zero or R singular */
+static void jump_shift(int n, int p, const duffid_real *R, const duffid_real *v, duffid_real *out)
+{
+    duffid_real w[MAX_LINE];
+    int i, k, any = 0;
+    for (i = 0; i < n; i++) {
+        any |= v[i] != RC(0.0) && R[i * p + i] != RC(0.0);
+        out[i] = RC(0.0);
+    }
+    for (i = 0; i < n; i++) {
+        if (R[i * p + i] == RC(0.0)) {
+            return;
+        }
+    }
+    if (!any) {
+        return;
+    }
+    for (i = 0; i < n; i++) { /* R^T w = v */
+        duffid_real sum = v[i];
+        for (k = 0; k < i; k++) {
+            sum -= R[k * p + i] * w[k];
+        }
+        w[i] = sum / R[i * p + i];
+    }
+    for (i = n - 1; i >= 0; i--) { /* R out = w */
+        duffid_real sum = w[i];
+        for (k = i + 1; k < n; k++) {
+            sum -= R[i * p + k] * out[k];
+        }
+        out[i] = sum / R[i * p + i];
+    }
+}
+
+/* A^T J of the m rows B (column after column, n columns) */
+static void jump_product(const duffid_real *B, const duffid_real *J, int m, int n, duffid_real lam, duffid_real *v)
+{
+    int i, r;
+    for (i = 0; i < n; i++) {
+        duffid_real sum = RC(0.0);
+        for (r = 0; r < m; r++) {
+            sum += B[i * m + r] * J[r];
+        }
+        v[i] = lam * v[i] + sum;
+    }
 }
 
 /* ------------------------------------------------------------------ kernel entries */
@@ -2549,8 +2762,10 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit, du
 /* OnlineIdentifier._robust_step + _robust_solve; returns the window length L */
 static long robust_step(duffid_estimator *est)
 {
+    const int64_t old_start = est->start;
     long L = moments_push(est, est->target);
     int full, e, i;
+    jumps_step(est, old_start);
     if (est->regrow) { /* after duffid_hold: the previous output until the window is full */
         if (L < est->target) {
             return -1;
@@ -2571,6 +2786,9 @@ static long robust_step(duffid_estimator *est)
             continue;
         }
         assemble(est, b, est->E, est->n_rows, est->B);
+        if (est->n_jumps > 0 && !est->defer) {
+            jump_column(est, b);
+        }
 #if DUFFID_SINGLE /* the rounding of the rows the solution rests on: their average */
         eq->rounding = full ? (est->lam * eq->rows * eq->rounding + (duffid_real)m * est->rounding) /
                                   (est->lam * eq->rows + (duffid_real)m)
@@ -2592,7 +2810,11 @@ static long robust_step(duffid_estimator *est)
                     }
                 }
             }
-            if (est->defer) { /* duffid_defer_solutions: the rows only (no lines: no change test) */
+            if (est->defer) { /* duffid_defer_solutions: the rows only (no lines: no change test, no
+                               * jumps' errors: the values only) */
+                for (i = 0; i < n; i++) {
+                    eq->jump_shift[i] = RC(0.0);
+                }
                 duffid_la_qr_accumulate(eq->R, n + 1, est->sqrt_lam, est->B, m);
                 eq->rows = est->lam * eq->rows + (duffid_real)m;
                 continue;
@@ -2606,12 +2828,27 @@ static long robust_step(duffid_estimator *est)
                 memcpy(est->B_copy, est->B, (size_t)(m * (nl + 1)) * sizeof(duffid_real));
             }
             offset_probe(est, e, m, L); /* before the rows B are factored away */
+            if (est->n_jumps > 0) { /* A^T J with the rows' forgetting (JUMP_ERROR) */
+                jump_product(est->B, est->jump_J, m, nl, est->lam, eq->jump_v);
+            } else if (est->lam != RC(1.0)) {
+                for (i = 0; i < nl; i++) {
+                    eq->jump_v[i] *= est->lam;
+                }
+            }
             duffid_la_qr_accumulate(eq->R, nl + 1, est->sqrt_lam, est->B, m);
             eq->rows = est->lam * eq->rows + (duffid_real)m;
             if (nl > n) {
                 line_solve(est, eq, n, t, (duffid_real)L);
             } else {
                 solve_factor(est, eq, n, eq->R, eq->rows, (duffid_real)L);
+            }
+            {
+                duffid_real shift[MAX_LINE];
+                int k = n;
+                jump_shift(nl, nl + 1, eq->R, eq->jump_v, shift);
+                for (i = 0; i < n; i++) { /* the lines' values at the newest rows */
+                    eq->jump_shift[i] = shift[i] + (nl > n && eq->drifting[i] ? shift[k++] * t : RC(0.0));
+                }
             }
             if (est->change_threshold > RC(0.0) && !drift_probe(est, e, m, t, (duffid_real)L)) {
                 change_test(est, e, m, fit, t);
@@ -2620,7 +2857,17 @@ static long robust_step(duffid_estimator *est)
             for (i = 0; i < p * p; i++) {
                 est->W[i] = RC(0.0);
             }
-            duffid_la_qr_accumulate(est->W, p, RC(1.0), est->B, m);
+            if (est->n_jumps > 0) { /* A^T J of these rows alone */
+                duffid_real v[MAX_UNK] = {RC(0.0)};
+                jump_product(est->B, est->jump_J, m, n, RC(1.0), v);
+                duffid_la_qr_accumulate(est->W, p, RC(1.0), est->B, m);
+                jump_shift(n, p, est->W, v, eq->jump_shift);
+            } else {
+                duffid_la_qr_accumulate(est->W, p, RC(1.0), est->B, m);
+                for (i = 0; i < n; i++) {
+                    eq->jump_shift[i] = RC(0.0);
+                }
+            }
             solve_factor(est, eq, n, est->W, (duffid_real)m, RC(1.0));
         }
     }
@@ -2783,6 +3030,14 @@ static long paper_step(duffid_estimator *est)
  * a forced block's unknowns are absolute values; an unforced block's are ratios to its
  * scale, found by its rules from a block already on a known scale (passes until none
  * progresses). Relative errors of products add in quadrature. */
+/* OnlineIdentifier._combine: unknown u's standard error with its jumps' bias (JUMP_ERROR) */
+static duffid_real published_rse(const equation_t *eq, int u)
+{
+    return eq->jump_shift[u] != RC(0.0)
+               ? duffid_la_hypot(eq->rse[u], RC(DUFFID_JUMP_ERROR) * R_FABS(eq->jump_shift[u] / eq->theta[u]))
+               : eq->rse[u];
+}
+
 static void combine(duffid_estimator *est)
 {
     const rt_model *m = &est->m;
@@ -2818,9 +3073,9 @@ static void combine(duffid_estimator *est)
                 }
                 {
                     duffid_real abs_val = s_val[j] * est->eq[j].theta[rule->other_unknown];
-                    duffid_real abs_err = duffid_la_hypot(s_err[j], est->eq[j].rse[rule->other_unknown]);
+                    duffid_real abs_err = duffid_la_hypot(s_err[j], published_rse(&est->eq[j], rule->other_unknown));
                     s_val[i] = abs_val / ratio;
-                    s_err[i] = duffid_la_hypot(abs_err, est->eq[i].rse[rule->unknown]);
+                    s_err[i] = duffid_la_hypot(abs_err, published_rse(&est->eq[i], rule->unknown));
                     known[i] = 1;
                     progress = 1;
                     break;
@@ -2842,7 +3097,7 @@ static void combine(duffid_estimator *est)
                 const int j = q->sources[k].block, u = q->sources[k].unknown;
                 if (known[j]) {
                     val = s_val[j] * est->eq[j].theta[u];
-                    err = duffid_la_hypot(s_err[j], est->eq[j].rse[u]);
+                    err = duffid_la_hypot(s_err[j], published_rse(&est->eq[j], u));
                     break;
                 }
             }
@@ -3226,6 +3481,7 @@ static void restart_window(duffid_estimator *est, int regrow)
     memset(est->acc, 0, moments); /* SlidingMoments.reset */
     memset(est->shadow, 0, SHADOWS * moments);
     est->start = est->n + 1;
+    jumps_reset(est);
     for (i = 0; i < SHADOWS; i++) {
         est->shadow_from[i] = i == 0 ? est->n + 1 : -1;
     }
@@ -3241,20 +3497,32 @@ static void restart_window(duffid_estimator *est, int regrow)
 static int force_jumps(duffid_estimator *est, const duffid_real *f)
 {
     int j, jumped = 0;
-    const int had_prev = est->has_f_prev, had_change = est->has_f_change;
+    const int had_prev = est->has_f_prev, had_change = est->has_f_change, had_candidate = est->has_jump_candidate;
+    duffid_real delta[DUFFID_MAX_FORCES];
+    est->has_jump = est->has_jump_candidate = 0;
     for (j = 0; j < est->n_forces; j++) {
         const duffid_real change = R_FABS(f[j] - est->f_prev[j]);
+        delta[j] = f[j] - est->f_prev[j];
         est->f_peak[j] = max_builtin(est->f_peak[j], R_FABS(f[j]));
+        est->jump[j] = RC(0.0);
+        if (had_prev && had_candidate && est->jump_candidate[j] != RC(0.0) &&
+            change <= RC(DUFFID_JUMP_ISOLATION) * R_FABS(est->jump_candidate[j])) {
+            est->jump[j] = est->jump_candidate[j]; /* the previous sample's jump was isolated */
+            est->has_jump = 1;
+        }
+        est->jump_candidate[j] = RC(0.0);
         if (had_prev && !had_change) { /* the first change sets the scale */
             est->f_change[j] = change;
         } else if (had_prev) {
             if (change > RC(DUFFID_JUMP_FACTOR) * est->f_change[j] && change > RC(DUFFID_JUMP_RANGE) * est->f_peak[j]) {
                 jumped = 1;
+                est->jump_candidate[j] = delta[j];
             }
             est->f_change[j] = est->f_change[j] + (change - est->f_change[j]) / RC(DUFFID_OUTLIER_MEMORY);
         }
         est->f_prev[j] = f[j];
     }
+    est->has_jump_candidate = jumped;
     est->has_f_change = had_prev;
     est->has_f_prev = 1;
     return jumped;
@@ -3264,7 +3532,7 @@ static int force_jumps(duffid_estimator *est, const duffid_real *f)
 static void process(duffid_estimator *est, const duffid_real *x, const duffid_real *f)
 {
     long window;
-    if (est->cfg.method == DUFFID_ROBUST && est->cfg.jump_restart && force_jumps(est, f)) {
+    if (est->cfg.method == DUFFID_ROBUST && force_jumps(est, f) && est->cfg.jump_restart) {
         /* once full windows have been accumulated, the previous output until the window is
          * full again; before, a growing window's solutions are its own: it grows anew */
         int e, accumulated = 0;
@@ -3354,7 +3622,7 @@ int duffid_hold(duffid_estimator *est)
     }
     guard_reset(est);
     restart_window(est, 1);
-    est->has_f_prev = 0; /* the next sample does not follow the previous one */
+    est->has_f_prev = est->has_jump_candidate = 0; /* the next sample does not follow the previous one */
     return DUFFID_OK;
 }
 

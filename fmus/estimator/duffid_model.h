@@ -118,6 +118,8 @@ typedef struct duffid_model {
     duffid_linear mass[DUFFID_MAX_LINEAR], stiffness[DUFFID_MAX_LINEAR];
     int channel_work;                            /* doubles of workspace of the channel function */
     int uses_sign;                               /* 1: a channel reads the sign of a velocity */
+    int channel_force[DUFFID_MAX_CHANNELS];      /* the force a channel is (0-based), -1: none
+                                                  * (its jumps bias the rows: DUFFID_JUMP_ERROR) */
     /* Identity of a generated model: a digest of its generated source (channel function
      * included), so that two models with equal tables (x^2 and x^3 channels) still differ
      * and an estimator state of one is refused by the other (duffid_check_state); "" for

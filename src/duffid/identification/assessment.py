@@ -25,6 +25,7 @@ from .sampling import (
     every_second,
     force_varies,
     natural_frequency,
+    near_force_jumps,
     noise_level,
     samples_per_period,
 )
@@ -438,6 +439,10 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
         notes.append(f"the record was upsampled x{upsampled} (band-limited) before identification: "
                      f"its {record.fs:.4g} Hz sampling gives fewer than "
                      f"{SAMPLES_PER_PERIOD:.0f} samples per period of its highest frequency")
+    elif spp < SAMPLES_PER_PERIOD and near_force_jumps(record.f).any():
+        notes.append(f"the record was not upsampled although its {record.fs:.4g} Hz sampling gives fewer than "
+                     f"{SAMPLES_PER_PERIOD:.0f} samples per period of its highest frequency: its force jumps "
+                     f"between samples (a step), around which band-limited interpolation would ring")
     status = {k: "uncertain" for k in names}
     uncertainty = {k: math.nan for k in names}
     share = {k: math.nan for k in names}

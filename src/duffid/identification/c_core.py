@@ -378,6 +378,7 @@ const duffid_model duffid_generated_model = {{
     {{{linear(d.mass or ())}}},
     {{{linear(d.stiffness or ())}}},
     {int(fn.sz_w())}, {int(d.uses_sign)},
+    {{{", ".join(str(i) for i in d.channel_forces)}}},
     {_SIGNATURE_SLOT}
 }};
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field, replace
+from math import comb
 from typing import Any, Mapping
 
 import numpy as np
@@ -38,7 +39,7 @@ from .orthogonal import BASES
 from .regressors import KernelBank, SlidingMoments, row_exponents
 
 __all__ = ["OnlineIdentifier", "check_record", "Identification", "Estimate", "METHODS",
-           "STATUSES", "CHANGE_WINDOWS", "CHANGE_SURPRISE", "CHANGE_ALONE_SHARE", "MAX_LINE_UNKNOWNS", "DRIFT_SIGMAS", "OFFSET_SIGMAS", "FORCE_VARIATION", "DriftLine", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "JUMP_FACTOR", "JUMP_RANGE", "status_codes", "prior_sizes", "filtered_cramer", "combine_equations",
+           "STATUSES", "CHANGE_WINDOWS", "CHANGE_SURPRISE", "CHANGE_ALONE_SHARE", "MAX_LINE_UNKNOWNS", "DRIFT_SIGMAS", "OFFSET_SIGMAS", "FORCE_VARIATION", "DriftLine", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "JUMP_FACTOR", "JUMP_RANGE", "JUMP_ISOLATION", "JUMP_ERROR", "status_codes", "prior_sizes", "filtered_cramer", "combine_equations",
            "auto_window", "Integrators", "solve_factor", "recent_solution", "triangular_factor", "equilibrated_condition"]
 
 #: The online methods (OnlineIdentifier, :data:`duffid.identification.options.ONLINE_METHODS`)
@@ -220,6 +221,70 @@ class _Assembly:
                 np.concatenate([flat @ rhs for rhs in self.rhs], axis=-1))
 
 
+class _JumpMoments:
+    """The power moments of the force jumps inside the window (:data:`JUMP_ERROR`): a jump
+    ``df`` between samples ``k - 1`` and ``k`` is a sample of ``df`` at the interval's middle,
+    ``S_q = (1/N) sum df ((n - k + 1/2) / N)^q`` over the jumps whose interval is inside the
+    window. Fixed work per sample: the sums move one sample further by a binomial (Taylor)
+    shift, a jump leaving the window is subtracted, and the sums are exactly zero without a
+    jump (the C core keeps a flag per sample of its ring and takes ``df`` from there)."""
+
+    def __init__(self, n_ref: int, degree: int, n_forces: int) -> None:
+        self.n_ref = int(n_ref)
+        self.degree = int(degree)
+        self.sums = np.zeros((degree + 1, n_forces))
+        self.reset()
+
+    def reset(self) -> None:
+        self.sums[:] = 0.0
+        self._jumps: dict[int, np.ndarray] = {}  # sample k (the interval k-1..k) -> df
+
+    @property
+    def any(self) -> bool:
+        """Whether a jump is inside the window."""
+        return bool(self._jumps)
+
+    def _powers(self, position: float) -> np.ndarray:
+        out = np.empty(self.degree + 1)
+        out[0] = 1.0
+        for q in range(1, self.degree + 1):
+            out[q] = out[q - 1] * position
+        return out
+
+    def step(self, n: int, start: int, jump: np.ndarray | None) -> np.ndarray:
+        """The moments at sample ``n`` (the window's oldest sample ``start``) after the jump
+        ``jump`` between samples ``n - 2`` and ``n - 1`` (None: none); shape (degree+1, forces)."""
+        if self._jumps:  # one sample further: S_q <- sum_r C(q, r) h^(q-r) S_r, h = 1/N
+            h = 1.0 / self.n_ref
+            for q in range(self.degree, 0, -1):
+                total, c, hp = self.sums[q].copy(), 1.0, 1.0
+                for r in range(q - 1, -1, -1):
+                    c = c * (r + 1) / (q - r)
+                    hp *= h
+                    total += c * hp * self.sums[r]
+                self.sums[q] = total
+            for k in [k for k in self._jumps if k - 1 < start]:  # its interval left the window
+                self.sums -= np.outer(self._powers((n - k + 0.5) / self.n_ref), self._jumps.pop(k))
+        if jump is not None and n - 2 >= start:
+            self._jumps[n - 1] = jump
+            self.sums += np.outer(self._powers(1.5 / self.n_ref), jump)
+        if not self._jumps:
+            self.sums[:] = 0.0
+        return self.sums / self.n_ref
+
+
+def _jump_shift(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``(R^T R)^-1 v`` for the factor ``R`` (n x n) of the rows and ``v = A^T J``: how the
+    rows' error column ``J`` moves the unknowns (:data:`JUMP_ERROR`)."""
+    n = len(v)
+    if not np.any(v) or not np.all(np.diag(R) != 0):
+        return np.zeros(n)
+    w = np.zeros(n)
+    for i in range(n):  # R^T w = v (forward)
+        w[i] = (v[i] - R[:i, i] @ w[:i]) / R[i, i]
+    return _back_substitution(R, w)
+
+
 # ---------------------------------------------------------------------- outliers
 #: A displacement sample further than this many robust standard deviations from the
 #: quadratic through the three samples before it is held back one sample: if the next
@@ -240,13 +305,29 @@ _GAUSS_MEAN_ABS = 1.2533141373155003  # sigma / mean|r| of a normal distribution
 #: largest force seen jumped between them (a step, an impact's onset): no quadrature
 #: through samples integrates that interval, and the rows of every window holding it are
 #: biased to first order in the sampling step (a 2-DOF step at 1 kHz: damping 6-8 % off,
-#: stated within 1 %). With the option ``jump_restart`` (off by default: a closed loop's
-#: switching controller jumps too, and the restarts starve the change test) the robust
-#: method's window restarts with the sample after the jump, as after :meth:`OnlineIdentifier.hold`.
+#: stated within 1 %): that bias is part of the standard errors (:data:`JUMP_ERROR`). With the
+#: option ``jump_restart`` (off by default: a closed loop's switching controller jumps too, and
+#: the restarts starve the change test) the robust method's window restarts with the sample
+#: after the jump instead, as after :meth:`OnlineIdentifier.hold`.
 JUMP_FACTOR = 20.0
 #: A jump is never smaller than this share of the largest force magnitude seen (the steps of
 #: a quantised or slowly varying force are no jumps).
 JUMP_RANGE = 0.01
+#: A force step is a jump only when the next change is at most this share of it: a steep but
+#: continuous rise (an impact's onset, a half-sine of a few samples) changes by about as much
+#: again at the next sample, and the quadrature integrates it to second order.
+JUMP_ISOLATION = 0.5
+#: Without ``jump_restart``, a jump's rows stay, and their bias is part of each unknown's
+#: standard error: the quadrature integrates the interval of a jump ``df`` as a ramp, while the
+#: force stepped somewhere inside it, so a row errs by up to this share of ``df`` times the
+#: interval times the row's kernel there (exactly this share for a step at a sample instant, as a
+#: zero-order hold or a simulated step gives). The rows' error column ``J`` (the jumps' kernel
+#: entries, :class:`_JumpMoments`) moves the unknowns by ``(A^T A)^-1 A^T J`` times this share,
+#: taken relative to each unknown in quadrature with its standard error. Measured on the 2-DOF
+#: step of ``benchmarks/trust.py`` (a step at 1 kHz): the damping b1 was published 6.1 % off with
+#: a stated error below 1 %, and is no longer published; the other values are published once
+#: the rows after the jump outweigh those holding it.
+JUMP_ERROR = 0.5
 
 
 class _OutlierGuard:
@@ -368,16 +449,24 @@ class _QRLeastSquares:
         self.R = np.zeros((n_unknowns + 1, n_unknowns + 1))
         self.rows = 0.0
         self.times = 0.0  # the rows' times (since a drifting equation's origin), weighted as the rows
+        self.jump = np.zeros(n_unknowns)  # A^T J, the rows' jump errors (JUMP_ERROR)
 
     def reset(self) -> None:
         self.R[:] = 0.0
         self.rows = self.times = 0.0
+        self.jump[:] = 0.0
 
-    def update(self, A: np.ndarray, D: np.ndarray, time: float = 0.0) -> None:
+    def update(self, A: np.ndarray, D: np.ndarray, time: float = 0.0, J: np.ndarray | None = None) -> None:
         stacked = np.vstack([np.sqrt(self.lam) * self.R, np.column_stack([A, D])])
         self.R = triangular_factor(stacked, self.n + 1)
         self.rows = self.lam * self.rows + len(A)
         self.times = self.lam * self.times + len(A) * time
+        if J is not None or np.any(self.jump):
+            self.jump = self.lam * self.jump + (0.0 if J is None else A.T @ J)
+
+    def jump_shift(self) -> np.ndarray:
+        """How the accumulated rows' jump errors move the unknowns (:func:`_jump_shift`)."""
+        return _jump_shift(self.R[:self.n, :self.n], self.jump)
 
     @property
     def mean_time(self) -> float:
@@ -780,6 +869,7 @@ class _EquationState:
         self.probe_fed = 0       # ... the rows it has had (it takes row probe_fed % rows next)
         self.offset_fed = 0      # the offset probe's rows (it takes row offset_fed % rows next)
         self.offset_moved = np.zeros(len(self.theta), dtype=bool)  # unknowns a constant moves
+        self.jump_shift = np.zeros(len(self.theta))  # how the rows' jump errors move the unknowns
 
 
 class OnlineIdentifier(Identifier):
@@ -845,6 +935,13 @@ class OnlineIdentifier(Identifier):
                              "together: use the robust method or a buffered basis (legendre, ...)")
         max_order = max(eq.max_order for eq in self.equations)
         self._states = [_EquationState(eq, _Assembly(eq, self.channels, max_order)) for eq in self.equations]
+        # the rows' error column of each equation: its force terms on the jumps (JUMP_ERROR)
+        n_f = model.n_forces
+        for st in self._states:
+            st.jump_rhs = np.zeros((st.equation.parts, (max_order + 1) * n_f))
+            for t in st.equation.rhs:
+                if t.channel.kind == "force":
+                    st.jump_rhs[t.part, t.order * n_f + t.channel.index] += t.sign
         constants = set(model.offset_parameters().values())  # equations with a constant force of their own
         for j, st in enumerate(self._states):
             st.offset_probed = method == "robust" and st.equation.parts == 1 and j not in constants
@@ -858,6 +955,7 @@ class OnlineIdentifier(Identifier):
             n_rows = o["n_rows"] or max(max(len(eq.unknowns) for eq in self.equations) + 1, 8)
             self.bank = KernelBank.build(row_exponents(o["rows"], n_rows), max_order)
             self._moments = SlidingMoments(self.capacity, self.bank.degree, len(self.channels))
+            self._jumps = _JumpMoments(self.capacity, self.bank.degree, model.n_forces)
             lam = 1.0 if o["forgetting"] is None else float(np.exp(-self.dt / o["forgetting"]))
             self._solvers = [_QRLeastSquares(len(eq.unknowns), lam) for eq in self.equations]
             # the change test's recent estimate (its forgetting factor follows the window)
@@ -894,10 +992,13 @@ class OnlineIdentifier(Identifier):
         self._changed_now: dict[str, bool] = {}
         self._regrow = False  # after hold(): the window is growing again
         self._f_prev: np.ndarray | None = None  # the force of the previous sample processed
+        self._jump_candidate: np.ndarray | None = None  # the previous sample's change, if a jump
+        self._jump: np.ndarray | None = None  # an isolated jump before the previous sample
         self._f_change: np.ndarray | None = None  # running mean |change| of each force
         self._f_peak = np.zeros(self.model.n_forces)  # largest |force| seen
         if self.method == "robust":
             self._moments.reset()
+            self._jumps.reset()
             self._set_target(self.capacity)
             self._solvers = [_QRLeastSquares(len(st.equation.unknowns), s.lam)
                              for st, s in zip(self._states, self._solvers)]
@@ -968,32 +1069,44 @@ class OnlineIdentifier(Identifier):
         self._guard.reset()
         self._guard.found = found
         self._restart_window(regrow=True)
-        self._f_prev = None  # the next sample does not follow the previous one
+        self._f_prev = self._jump_candidate = None  # the next sample does not follow the previous one
 
     def _restart_window(self, regrow: bool) -> None:
         """The window restarts with the next sample; with ``regrow`` the previous estimate is
         reported until it is full again."""
         self._channels.reset()
         self._moments.reset()
+        self._jumps.reset()
         self._regrow = regrow
 
     def _force_jumps(self, f: np.ndarray) -> bool:
         """Whether a force jumped between the previous sample processed and ``f`` (see
-        :data:`JUMP_FACTOR`); updates the running scales."""
+        :data:`JUMP_FACTOR`); updates the running scales and sets ``_jump``: the change from
+        the sample before the previous one to it when that was a jump and ``f`` changed by at
+        most :data:`JUMP_ISOLATION` of it (None: none)."""
         prev, self._f_prev = self._f_prev, np.array(f, dtype=float)
         self._f_peak = np.maximum(self._f_peak, np.abs(self._f_prev))
+        candidate, self._jump_candidate = self._jump_candidate, None
+        self._jump = None
         if prev is None:
             return False
-        change = np.abs(self._f_prev - prev)
+        delta = self._f_prev - prev
+        change = np.abs(delta)
+        if candidate is not None:
+            isolated = (candidate != 0) & (change <= JUMP_ISOLATION * np.abs(candidate))
+            if isolated.any():
+                self._jump = np.where(isolated, candidate, 0.0)
         if self._f_change is None:  # the first change sets the scale
             self._f_change = change
             return False
-        jumped = bool(np.any((change > JUMP_FACTOR * self._f_change) & (change > JUMP_RANGE * self._f_peak)))
+        jumps = (change > JUMP_FACTOR * self._f_change) & (change > JUMP_RANGE * self._f_peak)
         self._f_change = self._f_change + (change - self._f_change) / OUTLIER_MEMORY
-        return jumped
+        if jumps.any():
+            self._jump_candidate = np.where(jumps, delta, 0.0)
+        return bool(jumps.any())
 
     def _process(self, x: np.ndarray, f: np.ndarray) -> Estimate:
-        if self.method == "robust" and self.options["jump_restart"] and self._force_jumps(f):
+        if self.method == "robust" and self._force_jumps(f) and self.options["jump_restart"]:
             # once full windows have been accumulated, the previous estimate until the window
             # is full again; before, a growing window's solutions are its own: it grows anew
             self._restart_window(regrow=any(s.rows > 0 for s in self._solvers))
@@ -1099,7 +1212,11 @@ class OnlineIdentifier(Identifier):
 
     def _combine(self) -> tuple[dict[str, float], float, dict[str, float], dict[str, float]]:
         solutions = [dict(zip(st.equation.unknowns, st.theta)) for st in self._states]
-        errors = [dict(zip(st.equation.unknowns, st.rse)) for st in self._states]
+        # each unknown's standard error includes the bias of the jumps' rows (JUMP_ERROR)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            errors = [dict(zip(st.equation.unknowns, np.where(
+                st.jump_shift != 0, np.hypot(st.rse, JUMP_ERROR * np.abs(st.jump_shift / st.theta)), st.rse)))
+                for st in self._states]
         cond = max(st.cond for st in self._states)
         values, rse = combine_equations(self.model, solutions, errors)
         return values, cond, rse, self._shares(values)
@@ -1120,6 +1237,7 @@ class OnlineIdentifier(Identifier):
     # -------------------------------------------------------------- robust
     def _robust_step(self, g: np.ndarray) -> int | None:
         moments, L = self._moments.push(g, self._target)
+        jumps = self._jumps.step(self._moments.n, self._moments.start, self._jump)
         if self._regrow:
             if L < self._target:
                 return None
@@ -1127,8 +1245,17 @@ class OnlineIdentifier(Identifier):
         if L == 0:
             return 0
         E = self.bank.entries(L / self.capacity, moments, g, self.capacity * self.dt)
-        self._robust_solve([st.assembly(E) for st in self._states], L)
+        self._robust_solve([st.assembly(E) for st in self._states], L, self._jump_columns(jumps, L))
         return L
+
+    def _jump_columns(self, moments: np.ndarray, L: int) -> list[np.ndarray | None]:
+        """Each equation's rows' error column ``J`` on the jumps inside the window
+        (:data:`JUMP_ERROR`), None without a jump."""
+        if not self._jumps.any:
+            return [None] * len(self._states)
+        E = self.bank.entries(L / self.capacity, moments, np.zeros(moments.shape[1]), self.capacity * self.dt)
+        flat = E.reshape(E.shape[0], -1)
+        return [np.concatenate([flat @ rhs for rhs in st.jump_rhs]) for st in self._states]
 
     def _set_target(self, samples: int) -> None:
         """Set the full window length (samples) and the change test's memory that follows it."""
@@ -1139,7 +1266,8 @@ class OnlineIdentifier(Identifier):
             s.lam = float(np.exp(-self.dt / tau))
         self._memory = max(1, int(np.floor(tau / self.dt + 0.5)))  # samples of the recent memory
 
-    def _robust_solve(self, systems: list[tuple[np.ndarray, np.ndarray]], L: int) -> None:
+    def _robust_solve(self, systems: list[tuple[np.ndarray, np.ndarray]], L: int,
+                      jumps: list[np.ndarray | None]) -> None:
         """Update the estimate with the rows of the current window (length ``L``).
 
         While the window grows, the current window alone is solved (like the paper's
@@ -1149,10 +1277,13 @@ class OnlineIdentifier(Identifier):
         """
         full = L >= self._target
         threshold = self.options["change_threshold"]
-        for j, (st, solver, recent, (A, D)) in enumerate(zip(self._states, self._solvers, self._recent, systems)):
+        for j, (st, solver, recent, (A, D), J) in enumerate(zip(self._states, self._solvers, self._recent, systems,
+                                                                 jumps)):
+            n = len(st.equation.unknowns)
             if not full:
-                R = triangular_factor(np.column_stack([A, D]), len(st.equation.unknowns) + 1)
+                R = triangular_factor(np.column_stack([A, D]), n + 1)
                 st.theta, st.cond, st.rse, st.share, st.rhs_share = solve_factor(R, len(A), 1.0)
+                st.jump_shift = np.zeros(n) if J is None else _jump_shift(R[:n, :n], A.T @ J)
                 continue
             if self.n < st.resume:  # a window that holds samples from before the change
                 continue
@@ -1162,12 +1293,16 @@ class OnlineIdentifier(Identifier):
             previous = st.theta.copy() if line is None else line.theta.copy()
             fit = _relative_fit(solver.R, previous)
             st.residual = _relative_residual(rows, D, previous)
-            solver.update(rows, D)
+            solver.update(rows, D, J=J)
             if line is None:
                 st.theta, st.cond, st.rse, st.share, st.rhs_share = solve_factor(solver.R, solver.rows, float(L))
             else:
                 st.cond, st.share, st.rhs_share = line.solve(solver.R, solver.rows, float(L))
                 st.theta, st.rse = line.at(time)
+            shift = solver.jump_shift()
+            st.jump_shift = shift[:n].copy()
+            if line is not None:  # the lines' values at the newest rows
+                st.jump_shift[line.index] += shift[n:] * time
             self._offset_probe(j, A, D, L)
             if threshold is not None and self._drift_probe(j, A, D, time, L):
                 continue

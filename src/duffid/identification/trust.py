@@ -260,7 +260,7 @@ def _checked(record: Record, method: str, kind: str | None, physical: Chain, est
              options: Mapping[str, Any], pool: Pool, step: Callable[[str], Any], refine: bool) -> Identification:
     """:func:`identify` with ``check``: the record checks, the estimator's runs at the
     sampling and window the record needs, and :func:`assess` (its re-runs on ``pool``)."""
-    outliers = isolated_outliers(record.x)
+    outliers = isolated_outliers(record.x, record.f)
     if outliers:  # excluded: replaced by what their neighbours give, and reported
         x = record.x.copy()
         for i, j, value in outliers:

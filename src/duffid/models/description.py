@@ -111,6 +111,9 @@ class ModelDescription:
         ``(x[n_dof], f[n_forces], t, sgn[n_dof]) -> g[channels]``.
     uses_sign : bool
         A channel reads the sign of a velocity.
+    channel_forces : tuple of int
+        Per channel, the force it is (0-based), or -1: the channels whose jumps between two
+        samples bias the rows (:data:`duffid.identification.engine.JUMP_ERROR`).
     blocks : tuple of BlockDescription
     parameters : tuple of ParameterDescription
         Canonical order (the order of ``model.canonical_parameters()``).
@@ -130,6 +133,7 @@ class ModelDescription:
     channel_labels: tuple[str, ...]
     channel_function: ca.Function
     uses_sign: bool
+    channel_forces: tuple[int, ...]
     blocks: tuple[BlockDescription, ...]
     parameters: tuple[ParameterDescription, ...]
     public: tuple[tuple[str, int, bool], ...]
@@ -192,7 +196,8 @@ def describe(model: Any) -> ModelDescription:
     public = [(name, position[model.canonical_name(name)], name in reciprocal) for name in model.parameters]
     mass, stiffness = _linear_maps(model, position) if is_chain else _equation_linear_maps(model, position)
     return ModelDescription(model.name, model.n_dof, model.n_forces, max(eq.max_order for eq in equations),
-                            tuple(c.label for c in chans), function, uses_sign, tuple(blocks),
+                            tuple(c.label for c in chans), function, uses_sign,
+                            tuple(c.index if c.kind == "force" else -1 for c in chans), tuple(blocks),
                             tuple(parameters), tuple(public), mass, stiffness)
 
 
