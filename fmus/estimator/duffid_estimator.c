@@ -209,6 +209,8 @@ struct duffid_estimator {
     /* common state */
     int64_t n;                             /* index of the newest sample, -1 before any */
     int window_fixed;
+    int window_capped;                     /* the auto window's longest length holds fewer than
+                                            * DUFFID_MIN_WINDOW_PERIODS natural periods */
     int64_t spanned_from;                  /* the rows of full windows span a window from this
                                             * sample (-1 before the first full window) */
     int64_t *steady;                       /* canonical order, saturated at settle_count */
@@ -1321,6 +1323,7 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     n = est->n;
     STATE_RANGE(n, -1, limit)
     STATE_RANGE(est->window_fixed, 0, 1)
+    STATE_RANGE(est->window_capped, 0, est->window_fixed)
     if (cfg.method == DUFFID_ROBUST) {
         STATE_RANGE(est->n_jumps, 0, (int64_t)est->capacity + 2)
         STATE_RANGE(est->has_jump, 0, 1)
@@ -1547,6 +1550,7 @@ void duffid_reset(duffid_estimator *est)
     }
     est->n = -1;
     est->window_fixed = 0;
+    est->window_capped = 0;
     est->spanned_from = -1;
     est->has_f_prev = est->has_f_change = 0;
     est->has_jump_candidate = est->has_jump = 0;
@@ -3132,8 +3136,9 @@ static duffid_real combined_condition(const duffid_estimator *est)
 }
 
 /* identification.auto_window with the model's linear_natural_frequencies of the estimate:
- * the eigenvalues of M^-1 K (np.linalg.solve, then eigvals) */
-static long auto_window(duffid_estimator *est, long current)
+ * the eigenvalues of M^-1 K (np.linalg.solve, then eigvals): periods lowest natural periods in
+ * samples, never fewer than current nor more than limit (limit, too, when undefined) */
+static duffid_real natural_window(duffid_estimator *est, long current, duffid_real periods, duffid_real limit)
 {
     const rt_model *m = &est->m;
     const int n = est->n_dof;
@@ -3141,7 +3146,7 @@ static long auto_window(duffid_estimator *est, long current)
     duffid_real wr[DUFFID_MAX_DOF], wi[DUFFID_MAX_DOF], best = R_INF, samples;
     int i;
     if (!m->c.linear) {
-        return est->capacity;
+        return limit;
     }
     memset(est->lin, 0, (size_t)(2 * n * n) * sizeof(duffid_real));
     for (i = 0; i < m->c.n_mass; i++) {
@@ -3154,14 +3159,14 @@ static long auto_window(duffid_estimator *est, long current)
     }
     for (i = 0; i < 2 * n * n; i++) {
         if (!is_finite(est->lin[i])) {
-            return est->capacity; /* LinAlgError / singular inertia in Python */
+            return limit; /* LinAlgError / singular inertia in Python */
         }
     }
     if (duffid_la_solve(n, M, K, n) != 0) {
-        return est->capacity;
+        return limit;
     }
     if (duffid_la_eigenvalues(n, K, wr, wi) != 0) {
-        return est->capacity;
+        return limit;
     }
     for (i = 0; i < n; i++) {
         duffid_real omega = R_SQRT(R_FABS(wr[i]));
@@ -3170,16 +3175,44 @@ static long auto_window(duffid_estimator *est, long current)
         }
     }
     if (!is_finite(best)) {
-        return est->capacity;
+        return limit;
     }
-    samples = round_half_even(est->cfg.window_periods * RC(2.0) * PI / best / est->dt);
+    samples = round_half_even(periods * RC(2.0) * PI / best / est->dt);
     if (samples < (duffid_real)current) {
         samples = (duffid_real)current;
     }
-    if (!(samples <= (duffid_real)est->capacity)) {
-        samples = (duffid_real)est->capacity;
+    if (!(samples <= limit)) {
+        samples = limit;
     }
-    return (long)samples;
+    return samples;
+}
+
+/* OnlineIdentifier._capped: max_window holds fewer than DUFFID_MIN_WINDOW_PERIODS lowest
+ * natural periods of the estimate (0 when they are not defined) */
+static int capped(duffid_estimator *est)
+{
+    const duffid_real longest = natural_window(est, 0, RC(DUFFID_MIN_WINDOW_PERIODS), R_INF);
+    return is_finite(longest) && longest > (duffid_real)est->capacity;
+}
+
+/* OnlineIdentifier._window_spans: a fixed window, or an auto window whose longest length holds
+ * DUFFID_MIN_WINDOW_PERIODS natural periods: of the estimate once its masses and linear
+ * stiffnesses are steady, those it was fixed from afterwards */
+static int window_spans(duffid_estimator *est)
+{
+    int i;
+    if (!est->auto_window) {
+        return 1;
+    }
+    if (est->window_fixed) {
+        return !est->window_capped;
+    }
+    for (i = 0; i < est->n_params; i++) {
+        if (est->m.params[i].period && est->steady[i] < est->settle_count) {
+            return 0;
+        }
+    }
+    return !capped(est);
 }
 
 /* ------------------------------------------------------------------ publication */
@@ -3266,13 +3299,14 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
         duffid_real trusted[DUFFID_MAX_PARAMS];
         const int full = window >= est->target;
         const duffid_real tol = RC(0.5) * est->max_uncertainty;
-        int spanned;
+        int spanned, spans;
         /* the first full windows' rows rest on one window's samples until they span another:
          * their standard errors are not credible before (as after a change) */
         if (full && est->spanned_from < 0) {
             est->spanned_from = est->n + (int64_t)est->target;
         }
         spanned = est->spanned_from >= 0 && est->n >= est->spanned_from; /* a value not yet published waits */
+        spans = window_spans(est); /* before this sample's steady counts */
         for (i = 0; i < np; i++) { /* restarted by the change test */
             if (est->changed_now[i] >= 0) { /* a value it had is changed */
                 const int had_value = est->status[i] == DUFFID_STATUS_PUBLISHED || est->status[i] == DUFFID_STATUS_LOST ||
@@ -3290,7 +3324,7 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
         for (i = 0; i < np; i++) { /* canonical order */
             duffid_real v = est->canon[i];
             duffid_real relative = (is_finite(v) && v != RC(0.0)) ? est->canon_rse[i] : R_INF;
-            int small, large;
+            int small, large, determined;
             if (est->nominal[i] > RC(0.0) && is_finite(relative)) { /* the user's prior size */
                 relative = relative * R_FABS(v) / (R_FABS(v) > est->nominal[i] ? R_FABS(v) : est->nominal[i]);
             }
@@ -3308,10 +3342,12 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
                     const duffid_source *src = &est->m.params[i].shares[k];
                     offset |= src->unknown >= 0 && est->eq[src->block].off_moved[src->unknown];
                 }
-                small = good && excited && physical && relative <= est->max_uncertainty && !offset;
+                determined = good && excited && physical && relative <= est->max_uncertainty && !offset;
+                /* ... and only while the window spans the plant's dynamics (_window_spans) */
+                small = determined && spans;
                 large = moved || offset || !(good && physical && relative <= RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty);
             }
-            if (small) {
+            if (determined) {
                 count_up(&est->steady[i], est->settle_count);
             } else {
                 est->steady[i] = 0;
@@ -3384,7 +3420,9 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
     }
     if (est->cfg.method == DUFFID_ROBUST && est->auto_window && !est->window_fixed && window_known(est)) {
         est->window_fixed = 1;
-        set_target(est, auto_window(est, window));
+        set_target(est, (long)natural_window(est, window, est->cfg.window_periods, (duffid_real)est->capacity));
+        /* the longest window must hold DUFFID_MIN_WINDOW_PERIODS lowest natural periods */
+        est->window_capped = capped(est);
     }
 }
 

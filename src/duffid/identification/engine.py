@@ -39,7 +39,7 @@ from .orthogonal import BASES
 from .regressors import KernelBank, SlidingMoments, row_exponents
 
 __all__ = ["OnlineIdentifier", "check_record", "Identification", "Estimate", "METHODS",
-           "STATUSES", "CHANGE_WINDOWS", "CHANGE_SURPRISE", "CHANGE_ALONE_SHARE", "MAX_LINE_UNKNOWNS", "DRIFT_SIGMAS", "OFFSET_SIGMAS", "FORCE_VARIATION", "DriftLine", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "JUMP_FACTOR", "JUMP_RANGE", "JUMP_ISOLATION", "JUMP_ERROR", "status_codes", "prior_sizes", "filtered_cramer", "combine_equations",
+           "STATUSES", "CHANGE_WINDOWS", "CHANGE_SURPRISE", "CHANGE_ALONE_SHARE", "MAX_LINE_UNKNOWNS", "DRIFT_SIGMAS", "OFFSET_SIGMAS", "FORCE_VARIATION", "DriftLine", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "JUMP_FACTOR", "JUMP_RANGE", "JUMP_ISOLATION", "JUMP_ERROR", "MIN_WINDOW_PERIODS", "status_codes", "prior_sizes", "filtered_cramer", "combine_equations",
            "auto_window", "Integrators", "solve_factor", "recent_solution", "triangular_factor", "equilibrated_condition"]
 
 #: The online methods (OnlineIdentifier, :data:`duffid.identification.options.ONLINE_METHODS`)
@@ -313,6 +313,10 @@ JUMP_FACTOR = 20.0
 #: A jump is never smaller than this share of the largest force magnitude seen (the steps of
 #: a quantised or slowly varying force are no jumps).
 JUMP_RANGE = 0.01
+#: The auto window's longest length (``max_window``) must hold at least this many lowest natural
+#: periods of the estimate, else nothing is published (:meth:`OnlineIdentifier._window_spans`).
+MIN_WINDOW_PERIODS = 1.0
+_UNBOUNDED = 2**62  # a window length beyond any buffer
 #: A force step is a jump only when the next change is at most this share of it: a steep but
 #: continuous rise (an impact's onset, a half-sine of a few samples) changes by about as much
 #: again at the next sample, and the quadrature integrates it to second order.
@@ -977,6 +981,7 @@ class OnlineIdentifier(Identifier):
         self._last: Estimate | None = None
         self._channels.reset()
         self._window_fixed = False
+        self._window_capped = False
         canonical = self.model.canonical_parameters()
         self._steady = {k: 0 for k in canonical}
         self._anchor = {k: np.nan for k in canonical}
@@ -1148,6 +1153,7 @@ class OnlineIdentifier(Identifier):
         spanned = self.n >= self._spanned_from >= 0  # a value not yet published waits for it
         tol = 0.5 * self.options["max_uncertainty"]
         settle = self._settle
+        spans = self._window_spans(canonical)  # before this sample's steady counts
         worst = 0.0
         trusted = {}
         for k, hit in self._changed_now.items():  # restarted by the change test: a value it had is changed
@@ -1173,13 +1179,15 @@ class OnlineIdentifier(Identifier):
             # a value that an unknown constant force would move is not publishable (OFFSET_SIGMAS)
             offset = any(self._states[j].offset_moved[self._states[j].equation.unknowns.index(key)]
                          for j, key in self._sources[k] if key is not None)
-            small = good and excited and physical and relative <= self.options["max_uncertainty"] and not offset
+            determined = good and excited and physical and relative <= self.options["max_uncertainty"] and not offset
+            # ... and only while the window spans the plant's dynamics (_window_spans)
+            small = determined and spans
             # a held value is withdrawn, too, once the estimate has moved away from it
             held = self._value[k]
             moved = self._status[k] == STATUSES[1] and not abs(v - held) <= LOSS_FACTOR * self.options[
                 "max_uncertainty"] * abs(held)
             large = moved or offset or not (good and physical and relative <= LOSS_FACTOR * self.options["max_uncertainty"])
-            self._steady[k] = self._steady[k] + 1 if small else 0
+            self._steady[k] = self._steady[k] + 1 if determined else 0
             if not (np.isfinite(v) and abs(v - self._anchor[k]) <= tol * abs(self._anchor[k])):
                 self._anchor[k], self._anchored[k] = v, self.n
             grown = self.n - self._anchored[k] >= GROWTH_STEADY * window_samples
@@ -1204,6 +1212,26 @@ class OnlineIdentifier(Identifier):
         residual = max((st.residual for st in self._states if np.isfinite(st.residual)), default=np.nan)
         return Estimate(self.n * self.dt, dict(self._held), ok, cond, worst, window_samples * self.dt, current,
                         status, std_errors=std_errors, residual=residual)
+
+    def _window_spans(self, canonical: Mapping[str, float]) -> bool:
+        """Whether the window spans the plant's dynamics: a fixed window (the user's), or an
+        auto window whose longest length (``max_window``) holds :data:`MIN_WINDOW_PERIODS`
+        lowest natural periods: those of the estimate ``canonical`` once its masses and linear
+        stiffnesses are steady (their standard errors small for ``settle``), those it was fixed
+        from afterwards."""
+        if not self._auto:
+            return True
+        if self._window_fixed:
+            return not self._window_capped
+        if not all(self._steady[k] >= self._settle for k in self._period_names):
+            return False
+        return not self._capped(canonical)
+
+    def _capped(self, canonical: Mapping[str, float]) -> bool:
+        """Whether ``max_window`` holds fewer than :data:`MIN_WINDOW_PERIODS` lowest natural
+        periods of ``canonical`` (False when they are not defined)."""
+        longest = auto_window(self.model, canonical, self.dt, 0, _UNBOUNDED, MIN_WINDOW_PERIODS)
+        return self.capacity < longest < _UNBOUNDED
 
     def _window_ok(self, cond: float, L: int) -> bool:
         o = self.options
@@ -1462,6 +1490,8 @@ class OnlineIdentifier(Identifier):
             canonical = self._combine()[0]
             self._set_target(auto_window(self.model, canonical, self.dt, L, self.capacity,
                                          self.options["window_periods"]))
+            # the longest window (max_window) must hold MIN_WINDOW_PERIODS lowest natural periods
+            self._window_capped = self._capped(canonical)
 
     def _window_known(self) -> bool:
         """Every parameter that sets a natural period (masses, linear stiffnesses) steady (its
