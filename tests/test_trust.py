@@ -476,8 +476,8 @@ def test_online_nothing_is_published_through_a_window_shorter_than_the_plants_pe
     through 1 s windows was published far off: at 0.2 Hz (a step after rest, 100 samples a
     period, 40 dB) k 70 % and kp 470 % off, the mass never excited, so the window was never
     fixed from the periods; at 0.5 Hz, noise-free, b 3.6 % off. Now a value is published only
-    once the auto window is fixed from the natural periods and ``max_window`` holds at least
-    ``MIN_WINDOW_PERIODS`` of them; the same dimensionless record at 2 Hz (noise-free) still publishes
+    once the natural periods are known and ``max_window`` holds at least
+    ``MIN_WINDOW_PERIODS`` of them (while a mass is not excited: ``MIN_UNCHECKED_SAMPLES``); the same dimensionless record at 2 Hz (noise-free) still publishes
     within 1 %, on the C core as in Python."""
     from duffid.identification.trust import run_estimator
 

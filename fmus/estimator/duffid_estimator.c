@@ -3198,9 +3198,9 @@ static int capped(duffid_estimator *est)
 /* OnlineIdentifier._window_spans: a fixed window, or an auto window whose longest length holds
  * DUFFID_MIN_WINDOW_PERIODS natural periods: of the estimate once its masses and linear
  * stiffnesses are steady, those it was fixed from afterwards */
-static int window_spans(duffid_estimator *est)
+static int window_spans(duffid_estimator *est, long window)
 {
-    int i;
+    int i, unknown = 0;
     if (!est->auto_window) {
         return 1;
     }
@@ -3209,8 +3209,14 @@ static int window_spans(duffid_estimator *est)
     }
     for (i = 0; i < est->n_params; i++) {
         if (est->m.params[i].period && est->steady[i] < est->settle_count) {
-            return 0;
+            if (est->status[i] != DUFFID_STATUS_NOT_EXCITED) {
+                return 0; /* not yet determined */
+            }
+            unknown = 1; /* not excited: no period tells what the window spans */
         }
+    }
+    if (unknown) {
+        return window >= DUFFID_MIN_UNCHECKED_SAMPLES;
     }
     return !capped(est);
 }
@@ -3306,7 +3312,7 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
             est->spanned_from = est->n + (int64_t)est->target;
         }
         spanned = est->spanned_from >= 0 && est->n >= est->spanned_from; /* a value not yet published waits */
-        spans = window_spans(est); /* before this sample's steady counts */
+        spans = window_spans(est, window); /* before this sample's counts */
         for (i = 0; i < np; i++) { /* restarted by the change test */
             if (est->changed_now[i] >= 0) { /* a value it had is changed */
                 const int had_value = est->status[i] == DUFFID_STATUS_PUBLISHED || est->status[i] == DUFFID_STATUS_LOST ||

@@ -56,6 +56,7 @@
 #define DUFFID_JUMP_FACTOR 20.0 /* force jump: a change this many times the running mean change */
 #define DUFFID_JUMP_RANGE 0.01 /* force jump: never less than this share of the largest force seen */
 #define DUFFID_MIN_WINDOW_PERIODS 1.0 /* the auto window's longest length holds at least this many natural periods */
+#define DUFFID_MIN_UNCHECKED_SAMPLES 200 /* ... while a mass is not excited, the window holds at least this many samples */
 #define DUFFID_JUMP_ISOLATION 0.5 /* force jump: the next change is at most this share of it */
 #define DUFFID_JUMP_ERROR 0.5 /* force jump: a row errs by up to this share of the jump times the interval */
 

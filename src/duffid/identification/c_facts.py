@@ -95,6 +95,7 @@ PUBLICATION: tuple[Fact, ...] = (
     Fact("DUFFID_JUMP_FACTOR", engine.JUMP_FACTOR, "force jump: a change this many times the running mean change"),
     Fact("DUFFID_JUMP_RANGE", engine.JUMP_RANGE, "force jump: never less than this share of the largest force seen"),
     Fact("DUFFID_MIN_WINDOW_PERIODS", engine.MIN_WINDOW_PERIODS, "the auto window's longest length holds at least this many natural periods"),
+    Fact("DUFFID_MIN_UNCHECKED_SAMPLES", engine.MIN_UNCHECKED_SAMPLES, "... while a mass is not excited, the window holds at least this many samples"),
     Fact("DUFFID_JUMP_ISOLATION", engine.JUMP_ISOLATION, "force jump: the next change is at most this share of it"),
     Fact("DUFFID_JUMP_ERROR", engine.JUMP_ERROR, "force jump: a row errs by up to this share of the jump times the interval"),
 )
