@@ -74,11 +74,14 @@ def run(args: argparse.Namespace) -> int:
     """Run ``duffid cosim``; returns the exit status (1: the run failed; bad files raise)."""
     if threading.current_thread() is not threading.main_thread():
         return _run(args)
-    previous = signal.signal(signal.SIGINT, _stop_once)
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}  # _stop_once sets both
+    signal.signal(signal.SIGINT, _stop_once)
     try:
         return _run(args)
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for sig, handler in previous.items():
+            if handler is not None:
+                signal.signal(sig, handler)
 
 
 def _run(args: argparse.Namespace) -> int:
