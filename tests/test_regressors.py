@@ -17,7 +17,10 @@ from duffid.identification.regressors import (
     KernelBank,
     SlidingMoments,
     batch_moments,
+    GREGORY_POINTS,
     gregory_corrections,
+    gregory_end,
+    gregory_points,
     row_exponents,
 )
 
@@ -68,14 +71,54 @@ def test_paper_rows_have_the_raw_measurement_term():
     assert row_exponents("integrals", 2) == ((3, 2), (4, 2))
 
 
-def test_gregory_rule_is_exact_for_cubics():
-    for L in [1, 2, 3, 4, 5, 6, 7, 40]:
+def test_gregory_rule_is_exact_to_its_order():
+    """Newton-Cotes below six intervals; above, exact for polynomials of degree
+    gregory_points - 1 (GREGORY_POINTS - 1 once the window is long enough), and not beyond:
+    the corrections are the highest order the points allow."""
+    assert [str(d) for d in gregory_end(3)] == ["-5/8", "1/6", "-1/24"]  # the classical rule
+    for L in [1, 2, 3, 4, 5, 6, 7, 9, 13, 14, 40]:
         offsets, deltas = gregory_corrections(L)
         w = np.ones(L + 1)
         np.add.at(w, offsets, deltas)
         s = np.arange(L + 1) * H
-        for p in range(4 if L >= 3 else L + 1):
-            assert np.sum(w * s**p) * H == pytest.approx((L * H) ** (p + 1) / (p + 1), rel=1e-12)
+        exact_to = {1: 1, 2: 3, 3: 3, 4: 5, 5: 5}.get(L, gregory_points(L) - 1)
+        if L >= 14:
+            assert exact_to == GREGORY_POINTS - 1
+        for p in range(exact_to + 1):
+            assert np.sum(w * s**p) * H == pytest.approx((L * H) ** (p + 1) / (p + 1), rel=1e-12), (L, p)
+        if L >= 6 and exact_to % 2 == 0:  # an even degree's exactness brings the next odd one
+            exact_to += 1
+        if L >= 6:
+            p = exact_to + 1
+            assert abs(np.sum(w * s**p) * H / ((L * H) ** (p + 1) / (p + 1)) - 1) > 1e-11, (L, p)
+
+
+def test_a_higher_order_rule_bounds_the_damping_at_few_samples_per_period():
+    """The end corrections' order is what keeps a sinusoid's kernel integral right at ten
+    samples per period: the classical fourth-order rule errs about ten times more (an
+    acceleration row, whose kernel does not vanish at the ends)."""
+    N, T = 400, 1.0
+    h = T / N
+    omega = 2 * np.pi / (10 * h)
+
+    def kernel(u):  # the second derivative of s^2 (T - s)^2: the row of an acceleration term
+        return 2 * (T - u) ** 2 - 8 * u * (T - u) + 2 * u**2
+
+    s = np.arange(N + 1) * h
+    g = kernel(s) * np.cos(omega * s + 0.3)
+    exact = quad(lambda u: kernel(u) * np.cos(omega * u + 0.3), 0, T, limit=5000, epsabs=1e-14)[0]
+    scale = quad(lambda u: abs(kernel(u)), 0, T)[0]
+
+    def error(deltas_at_each_end):
+        w = np.ones(N + 1)
+        p = len(deltas_at_each_end)
+        w[:p] += deltas_at_each_end
+        w[N - p + 1:] += deltas_at_each_end[::-1]
+        return abs(np.sum(w * g) * h - exact) / scale
+
+    classical = error(np.array([float(d) for d in gregory_end(3)]))
+    ours = error(np.array([float(d) for d in gregory_end(GREGORY_POINTS)]))
+    assert ours < classical / 8
 
 
 def test_sliding_moments_equal_batch_moments():

@@ -51,7 +51,7 @@ typedef char line_unknowns_fit[MAX_LINE <= MAX_UNK ? 1 : -1]; /* the workspaces 
 #define N_ORD (MAX_ORDER + 1)
 #define MAX_DEG (DUFFID_MAX_ROWS + 4) /* highest moment power */
 #define MAX_POW (MAX_DEG + 1)
-#define MAX_CORR 6                   /* quadrature end corrections */
+#define MAX_CORR (2 * DUFFID_GREGORY_POINTS) /* quadrature end corrections */
 #define MIN_SAMPLES DUFFID_MIN_SAMPLES  /* engine.MIN_SAMPLES (duffid_facts.h) */
 #define MAX_CAPACITY 100000000L      /* longest robust window in samples */
 #define ANY_SIGN (DUFFID_ALLOW_POSITIVE | DUFFID_ALLOW_ZERO | DUFFID_ALLOW_NEGATIVE)
@@ -1720,7 +1720,7 @@ static void factorial_basis(const duffid_estimator *est, long i, duffid_real *ph
  * for one L */
 static void corrections(duffid_estimator *est, long L)
 {
-    static const duffid_real gregory[3] = {RC(-5.0) / RC(8.0), RC(1.0) / RC(6.0), RC(-1.0) / RC(24.0)};
+    static const double gregory[DUFFID_GREGORY_POINTS][DUFFID_GREGORY_POINTS] = DUFFID_GREGORY_END;
     static const int nc_num[5][6] = {
         {1, 1, 0, 0, 0, 0}, {1, 4, 1, 0, 0, 0}, {3, 9, 9, 3, 0, 0},
         {14, 64, 24, 64, 14, 0}, {95, 375, 250, 250, 375, 95}};
@@ -1742,15 +1742,13 @@ static void corrections(duffid_estimator *est, long L)
             delta[m] = (duffid_real)nc_num[L - 1][m] / (duffid_real)nc_den[L - 1] - RC(1.0);
         }
     } else {
-        est->corr_n = 6;
-        est->corr_off[0] = 0;
-        est->corr_off[1] = 1;
-        est->corr_off[2] = 2;
-        est->corr_off[3] = L;
-        est->corr_off[4] = L - 1;
-        est->corr_off[5] = L - 2;
-        for (m = 0; m < 6; m++) {
-            delta[m] = gregory[m % 3];
+        /* regressors.gregory_points: fewer where the two ends would meet */
+        const int p = L + 1 < 2 * DUFFID_GREGORY_POINTS ? (int)(L + 1) / 2 : DUFFID_GREGORY_POINTS;
+        est->corr_n = 2 * p;
+        for (m = 0; m < p; m++) {
+            est->corr_off[m] = m;
+            est->corr_off[p + m] = L - m;
+            delta[m] = delta[p + m] = (duffid_real)gregory[p - 1][m];
         }
     }
     for (m = 0; m < est->corr_n; m++) {
@@ -1927,22 +1925,13 @@ static long moments_push(duffid_estimator *est, long window)
             for (m = 0; m < est->corr_n; m++) {
                 v[m] = sample[m][c];
             }
-            if (n_full == 3) { /* a window of six samples or more: the three oldest */
-                const duffid_real *c0 = est->corr_w + full[0] * D1, *c1 = est->corr_w + full[1] * D1;
-                const duffid_real *c2 = est->corr_w + full[2] * D1;
-                const duffid_real v0 = v[full[0]], v1 = v[full[1]], v2 = v[full[2]];
-                for (k = 0; k < D1; k++) {
-                    out[k] = a[k] + c0[k] * v0 + c1[k] * v1 + c2[k] * v2;
+            for (k = 0; k < D1; k++) {
+                duffid_real sum = a[k];
+                int f;
+                for (f = 0; f < n_full; f++) {
+                    sum += est->corr_w[full[f] * D1 + k] * v[full[f]];
                 }
-            } else {
-                for (k = 0; k < D1; k++) {
-                    duffid_real sum = a[k];
-                    int f;
-                    for (f = 0; f < n_full; f++) {
-                        sum += est->corr_w[full[f] * D1 + k] * v[full[f]];
-                    }
-                    out[k] = sum;
-                }
+                out[k] = sum;
             }
             for (m = 0; m < est->corr_n; m++) {
                 if (est->corr_top[m] < D1) {

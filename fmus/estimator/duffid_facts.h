@@ -60,4 +60,18 @@
 #define DUFFID_JUMP_ISOLATION 0.5 /* force jump: the next change is at most this share of it */
 #define DUFFID_JUMP_ERROR 0.5 /* force jump: a row errs by up to this share of the jump times the interval */
 
+/* Quadrature (duffid.identification.regressors). */
+#define DUFFID_GREGORY_POINTS 7 /* Gregory's rule: corrected samples at each end of a window (fewer where the ends meet) */
+
+/* Gregory's end corrections c_i - 1 of p points (row p - 1; regressors.gregory_end) */
+#define DUFFID_GREGORY_END { \
+    {-0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0}, \
+    {-0.5833333333333334, 0.08333333333333333, 0.0, 0.0, 0.0, 0.0, 0.0}, \
+    {-0.625, 0.16666666666666666, -0.041666666666666664, 0.0, 0.0, 0.0, 0.0}, \
+    {-0.6513888888888889, 0.24583333333333332, -0.12083333333333333, 0.02638888888888889, 0.0, 0.0, 0.0}, \
+    {-0.6701388888888888, 0.32083333333333336, -0.23333333333333334, 0.10138888888888889, -0.01875, 0.0, 0.0}, \
+    {-0.6844080687830688, 0.3921792328042328, -0.3760251322751323, 0.24408068783068784, -0.09009589947089947, 0.014269179894179895, 0.0}, \
+    {-0.695775462962963, 0.4603835978835979, -0.546536044973545, 0.4714285714285714, -0.2606068121693122, 0.08247354497354498, -0.01136739417989418} \
+}
+
 #endif /* DUFFID_FACTS_H */

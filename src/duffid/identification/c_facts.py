@@ -12,9 +12,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..models.registry import GENERATED_MODEL_CODE, REGISTRY
-from . import engine
+from . import engine, regressors
 
-__all__ = ["Fact", "LIMITS", "RETURN_CODES", "MODEL_CODES", "PUBLICATION", "C_HEADER_NAME", "c_header", "limit", "return_code"]
+__all__ = ["Fact", "LIMITS", "RETURN_CODES", "MODEL_CODES", "PUBLICATION", "QUADRATURE", "C_HEADER_NAME", "c_header",
+           "limit", "return_code"]
 
 #: File name of the generated header (in ``fmus/estimator``).
 C_HEADER_NAME = "duffid_facts.h"
@@ -101,6 +102,25 @@ PUBLICATION: tuple[Fact, ...] = (
 )
 
 
+#: The quadrature's facts (their home is :mod:`duffid.identification.regressors`).
+QUADRATURE: tuple[Fact, ...] = (
+    Fact("DUFFID_GREGORY_POINTS", regressors.GREGORY_POINTS,
+         "Gregory's rule: corrected samples at each end of a window (fewer where the ends meet)"),
+)
+
+
+def _gregory_table() -> list[str]:
+    """``DUFFID_GREGORY_END``: row ``p - 1`` holds the corrections of ``p`` points (zero-padded)."""
+    P = regressors.GREGORY_POINTS
+    rows = []
+    for p in range(1, P + 1):
+        values = [_literal(float(d)) for d in regressors.gregory_end(p)] + ["0.0"] * (P - p)
+        rows.append("    {" + ", ".join(values) + "}")
+    return ["/* Gregory's end corrections c_i - 1 of p points (row p - 1; regressors.gregory_end) */",
+            "#define DUFFID_GREGORY_END { \\", *(r + (", \\" if i + 1 < P else " \\") for i, r in enumerate(rows)),
+            "}", ""]
+
+
 def limit(name: str) -> int:
     """The value of a limit by short name (``"max_params"``)."""
     return int(LIMITS[name].value)
@@ -139,6 +159,8 @@ def c_header() -> str:
         *block("Models (duffid.models.registry).", sorted(MODEL_CODES, key=lambda f: f.value)),
         *block("Statuses of a parameter and the publication rules' constants "
                "(duffid.identification.engine).", PUBLICATION),
+        *block("Quadrature (duffid.identification.regressors).", QUADRATURE),
+        *_gregory_table(),
         "#endif /* DUFFID_FACTS_H */",
         "",
     ]

@@ -21,8 +21,13 @@ Each entry is a polynomial kernel, so it is a linear combination of the *moments
 per reference length, ``c_i``: quadrature weights). :class:`SlidingMoments` updates them
 in O(1) per sample: the window is covered by two blocks whose power sums are kept
 about the boundary between them; a block is rebuilt from scratch every ``N`` samples,
-so rounding errors never accumulate. Quadrature is Gregory's fourth-order end-corrected
-trapezoid rule (closed Newton-Cotes for windows of fewer than six samples).
+so rounding errors never accumulate. Quadrature is Gregory's end-corrected trapezoid rule
+with :data:`GREGORY_POINTS` corrected samples at each end (order ``GREGORY_POINTS + 1``;
+fewer in windows of fewer than ``2 GREGORY_POINTS`` intervals, closed Newton-Cotes below
+six). The order matters at few samples per period: the rule's error sits at the window's
+ends, where the kernels do not vanish, and a lightly damped plant's damping is a small
+share of each row (at 10 samples per period of a swept sine, a fourth-order rule put the
+damping 8.7 % off, noise-free).
 
 Rows are normalised by ``int_0^T W``: a row is then a weighted average of the equation
 (units of force), and the ``d``-th derivative columns carry a factor ``T_ref^-d``.
@@ -30,6 +35,8 @@ Rows are normalised by ``int_0^T W``: a row is then a weighted average of the eq
 from __future__ import annotations
 
 from dataclasses import dataclass
+from fractions import Fraction
+from functools import cache
 from math import comb, factorial
 
 import numpy as np
@@ -38,6 +45,9 @@ from ..errors import InputError
 
 __all__ = [
     "row_exponents",
+    "GREGORY_POINTS",
+    "gregory_end",
+    "gregory_points",
     "gregory_corrections",
     "KernelBank",
     "SlidingMoments",
@@ -51,7 +61,47 @@ _NEWTON_COTES = {
     4: np.array([14, 64, 24, 64, 14]) / 45,
     5: np.array([95, 375, 250, 250, 375, 95]) / 288,
 }
-_GREGORY_END = np.array([-5.0 / 8.0, 1.0 / 6.0, -1.0 / 24.0])
+#: Corrected samples at each end of a window in Gregory's rule (its order is one more).
+GREGORY_POINTS = 7
+
+
+def _bernoulli(n: int) -> Fraction:
+    """The Bernoulli number ``B_n`` (``B_1 = -1/2``)."""
+    B = [Fraction(1)]
+    for m in range(1, n + 1):
+        B.append(-sum(comb(m + 1, j) * B[j] for j in range(m)) / (m + 1))
+    return B[n]
+
+
+@cache
+def gregory_end(points: int) -> tuple[Fraction, ...]:
+    """Gregory's end corrections ``c_i - 1`` of the ``points`` samples at one end of a window
+    (``i = 0`` the end sample), exact.
+
+    They make the rule exact for polynomials of degree ``points - 1``: with weights ``1 +
+    delta_i`` near each end and ``1`` inside, ``sum_i delta_i i^j`` must be ``-1/2`` for
+    ``j = 0`` (the trapezoid's half weight) and the Euler-Maclaurin term ``B_(j+1) / (j+1)``
+    for odd ``j`` (0 otherwise). ``gregory_end(3)`` is the classical ``(-5/8, 1/6, -1/24)``.
+    """
+    if points < 1:
+        raise InputError(f"Gregory's rule needs at least one corrected sample, got {points}")
+    rhs = [Fraction(-1, 2) if j == 0 else (_bernoulli(j + 1) / (j + 1) if j % 2 else Fraction(0))
+           for j in range(points)]
+    rows = [[Fraction(i) ** j for i in range(points)] + [rhs[j]] for j in range(points)]
+    for c in range(points):  # Gauss-Jordan on the (exact, non-singular) Vandermonde system
+        pivot = next(r for r in range(c, points) if rows[r][c] != 0)
+        rows[c], rows[pivot] = rows[pivot], rows[c]
+        for r in range(points):
+            if r != c and rows[r][c] != 0:
+                factor = rows[r][c] / rows[c][c]
+                rows[r] = [a - factor * b for a, b in zip(rows[r], rows[c])]
+    return tuple(rows[i][points] / rows[i][i] for i in range(points))
+
+
+def gregory_points(n_intervals: int) -> int:
+    """Corrected samples at each end of a window of ``n_intervals`` (at least 6) intervals:
+    :data:`GREGORY_POINTS`, fewer where the two ends would meet."""
+    return min(GREGORY_POINTS, (int(n_intervals) + 1) // 2)
 
 
 def row_exponents(family: str, n_rows: int) -> tuple[tuple[int, int], ...]:
@@ -89,8 +139,9 @@ def gregory_corrections(n_intervals: int) -> tuple[np.ndarray, np.ndarray]:
         return np.zeros(1, dtype=int), np.array([-1.0])
     if L in _NEWTON_COTES:
         return np.arange(L + 1), _NEWTON_COTES[L] - 1.0
-    offsets = np.array([0, 1, 2, L, L - 1, L - 2])
-    return offsets, np.concatenate([_GREGORY_END, _GREGORY_END])
+    p = gregory_points(L)
+    end = np.array([float(d) for d in gregory_end(p)])
+    return np.concatenate([np.arange(p), L - np.arange(p)]), np.concatenate([end, end])
 
 
 @dataclass(frozen=True)
