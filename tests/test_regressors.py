@@ -147,3 +147,35 @@ def test_sliding_moments_do_not_drift_on_long_records():
 def test_kernel_rows_reject_too_few_integrations():
     with pytest.raises(ValueError, match="initial conditions"):
         KernelBank.build(((3, 1),), 2)
+
+
+def _rule(samples_newest_first: np.ndarray, step: int, L: int, N: int, degree: int) -> np.ndarray:
+    """The moments of a window of L intervals by the rule on every ``step``-th sample (the
+    newest first), directly: (1/N) sum_m step c_m (i_m/N)^k g[i_m], i_m = step m."""
+    intervals = L // step
+    offsets, deltas = gregory_corrections(intervals)
+    c = np.ones(intervals + 1)
+    np.add.at(c, offsets, deltas)
+    i = step * np.arange(intervals + 1)
+    powers = (i[:, None] / N) ** np.arange(degree + 1)[None, :]
+    return step * (powers * c[:, None]).T @ samples_newest_first[i] / N
+
+
+def test_rate_difference_is_the_rule_minus_the_half_rate_rule_over_the_even_window():
+    rng = np.random.default_rng(3)
+    G = rng.standard_normal((700, 2)) + np.linspace(0, 3, 700)[:, None]
+    N, degree = 120, 7
+    for window in (120, 57):
+        sm = SlidingMoments(N, degree, 2)
+        for n, g in enumerate(G):
+            sm.push(g, window)
+            got = sm.rate_difference()
+            L = n - sm.start
+            if L < 2:
+                assert got is None
+                continue
+            diff, even = got, L - L % 2
+            newest_first = G[n::-1]
+            expected = _rule(newest_first, 1, even, N, degree) - _rule(newest_first, 2, even, N, degree)
+            scale = np.abs(_rule(newest_first, 1, even, N, degree)).max()
+            np.testing.assert_allclose(diff, expected, rtol=0, atol=1e-12 * scale, err_msg=f"sample {n}")

@@ -52,6 +52,7 @@ typedef char line_unknowns_fit[MAX_LINE <= MAX_UNK ? 1 : -1]; /* the workspaces 
 #define MAX_DEG (DUFFID_MAX_ROWS + 4) /* highest moment power */
 #define MAX_POW (MAX_DEG + 1)
 #define MAX_CORR (2 * DUFFID_GREGORY_POINTS) /* quadrature end corrections */
+#define MAX_RATE (2 * MAX_CORR + 1)  /* ... of the rule minus the half-rate rule (engine.RATE_NOISE) */
 #define MIN_SAMPLES DUFFID_MIN_SAMPLES  /* engine.MIN_SAMPLES (duffid_facts.h) */
 #define MAX_CAPACITY 100000000L      /* longest robust window in samples */
 #define ANY_SIGN (DUFFID_ALLOW_POSITIVE | DUFFID_ALLOW_ZERO | DUFFID_ALLOW_NEGATIVE)
@@ -163,6 +164,9 @@ typedef struct { /* the state of one block of the description */
     /* engine.JUMP_ERROR: the rows' error column J on the force jumps inside their windows */
     duffid_real *jump_v;              /* n_line: A^T J of the accumulated rows (with their forgetting) */
     duffid_real *jump_shift;          /* n: how J moves the unknowns, (A^T A)^-1 A^T J (at the newest rows) */
+    /* engine.RATE_NOISE: the rows' change Q at half the rate (the rule on every second sample) */
+    duffid_real *rate_v;              /* n_line: A^T Q of the accumulated rows (with their forgetting) */
+    duffid_real *rate_shift;          /* n: how Q moves the unknowns (at the newest rows) */
     duffid_real cond, rhs_share, rows, rows_recent, residual;
     int64_t departed;                 /* samples the departure has mattered in a row, saturated
                                        * at settle */
@@ -260,6 +264,19 @@ struct duffid_estimator {
     int corr_n, corr_top[MAX_CORR];         /* ... the non-zero extent of each in the basis */
     long corr_off[MAX_CORR];
     duffid_real *corr_w;                    /* [m][j]: delta_m x the factorial basis at its offset */
+    /* engine.RATE_NOISE: the window's moments by the rule minus those at half the rate
+     * (SlidingMoments.rate_difference) from the alternating sums of the samples */
+    duffid_real *acc_alt, *shadow_alt;      /* like acc and shadow, of (-1)^j g[j] */
+    duffid_real *dfact, *dmom;              /* the difference, factorial basis and power moments */
+    int rate_ok;                            /* this sample has it (a window of 2 intervals or more) */
+    long rate_L;                            /* cache key of rate_off and rate_delta (-1: empty) */
+    int rate_n;
+    long rate_off[MAX_RATE];
+    duffid_real rate_delta[MAX_RATE];       /* its weights at those offsets (the basis is not
+                                             * stored: memory, issue 28) */
+    duffid_real *E_rate;                    /* the difference's kernel entries, like E */
+    duffid_real *B_rate;                    /* a block's rows of the difference, like B */
+    duffid_real *rate_q;                    /* Q of a block's rows (workspace) */
     long leave_i;                           /* cache key of leave_phi (-1: empty) */
     duffid_real *leave_phi;                 /* the basis at the offset where samples leave */
     duffid_real *E;                         /* [r][order][channel] */
@@ -270,6 +287,8 @@ struct duffid_estimator {
     /* workspace of one update (no allocation, no large stack frames) */
     duffid_real *g, *B, *B_copy, *W, *U, *Rinv, *scale, *u_in, *Ap, *Dp, *Aw, *lin;
     duffid_real *canon, *canon_rse, *canon_share;
+    duffid_real *canon_steady;              /* canon_rse without the quadrature's bias (RATE_NOISE):
+                                             * what the window rule goes by */
     double *chan_work;                      /* a generated channel function's (double) */
 
     /* isolated outliers (identification._OutlierGuard) */
@@ -931,6 +950,7 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
     CARVE(&c, est->held, np);
     CARVE(&c, est->canon, np);
     CARVE(&c, est->canon_rse, np);
+    CARVE(&c, est->canon_steady, np);
     CARVE(&c, est->canon_share, np);
     CARVE(&c, est->chan_work, s->m.c.channel_work);
     CARVE(&c, est->g, n_ch);
@@ -953,6 +973,8 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
         CARVE(&c, eq->off_moved, n);
         CARVE(&c, eq->jump_v, robust ? nl : 0);
         CARVE(&c, eq->jump_shift, n);
+        CARVE(&c, eq->rate_v, robust ? nl : 0);
+        CARVE(&c, eq->rate_shift, n);
         CARVE(&c, eq->drifting, n);
         CARVE(&c, eq->line, lines ? nl : 0);
         CARVE(&c, eq->line_inv, lines ? nl * nl : 0);
@@ -982,6 +1004,13 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
         CARVE(&c, est->mom, (D + 1) * n_ch);
         CARVE(&c, est->poly, s->n_coef);
         CARVE(&c, est->corr_w, MAX_CORR * (D + 1));
+        CARVE(&c, est->acc_alt, (D + 1) * n_ch);
+        CARVE(&c, est->shadow_alt, SHADOWS * (D + 1) * n_ch);
+        CARVE(&c, est->dfact, (D + 1) * n_ch);
+        CARVE(&c, est->dmom, (D + 1) * n_ch);
+        CARVE(&c, est->E_rate, s->n_rows * N_ORD * n_ch);
+        CARVE(&c, est->B_rate, rows_max * (line_max + 1));
+        CARVE(&c, est->rate_q, rows_max);
         CARVE(&c, est->leave_phi, D + 1);
         CARVE(&c, est->E, s->n_rows * N_ORD * n_ch);
         CARVE(&c, est->one_E, s->n_rows);
@@ -1284,6 +1313,10 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     }
     for (i = 0; i < est->n_eq; i++) {
         STATE_RANGE(est->eq[i].warm, 0, 1)
+        /* the window's prediction error is output as it is until the block's next full window */
+        if (est->eq[i].residual == est->eq[i].residual) { /* not NaN */
+            STATE_RANGE(est->eq[i].residual, RC(0.0), R_INF)
+        }
         STATE_RANGE(est->eq[i].departed, 0, est->settle_count)
         STATE_RANGE(est->eq[i].surprised, 0, est->settle_count)
         STATE_RANGE(est->eq[i].drifted, 0, est->memory)
@@ -1397,6 +1430,12 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
         for (i = 0; i < est->corr_n; i++) {
             STATE_RANGE(est->corr_off[i], 0, est->corr_L)
         }
+        STATE_RANGE(est->rate_L, -1, N)
+        STATE_RANGE(est->rate_ok, 0, 1)
+        STATE_RANGE(est->rate_n, 0, MAX_RATE)
+        for (i = 0; i < est->rate_n; i++) {
+            STATE_RANGE(est->rate_off[i], 0, est->rate_L)
+        }
     }
 done:
     free(scratch);
@@ -1497,6 +1536,7 @@ static void clear_change(equation_t *eq, int n)
     eq->residual = R_NAN;
     for (u = 0; u < n; u++) {
         eq->jump_shift[u] = RC(0.0);
+        eq->rate_shift[u] = RC(0.0);
     }
 }
 
@@ -1519,7 +1559,7 @@ static void clear_factors(duffid_estimator *est, int e)
     }
     eq->rows = eq->rows_recent = eq->times_recent = eq->rows_probe = eq->rows_off = RC(0.0);
     for (i = 0; i < eq->line_cap; i++) {
-        eq->jump_v[i] = RC(0.0);
+        eq->jump_v[i] = eq->rate_v[i] = RC(0.0);
     }
     if (eq->line_cap > est->m.blocks[e].n_unknowns) {
         for (i = 0; i < eq->line_cap; i++) {
@@ -1599,6 +1639,11 @@ void duffid_reset(duffid_estimator *est)
         memset(est->ring, 0, (size_t)(est->capacity + 2) * (size_t)est->n_ch * sizeof(duffid_real));
         memset(est->acc, 0, moments);
         memset(est->shadow, 0, SHADOWS * moments);
+        memset(est->acc_alt, 0, moments);
+        memset(est->shadow_alt, 0, SHADOWS * moments);
+        est->rate_ok = 0;
+        est->rate_L = -1;
+        est->rate_n = 0;
         est->head = est->capacity + 1; /* the first sample goes to position 0 */
         est->start = 0;
         jumps_reset(est);
@@ -1716,50 +1761,100 @@ static void factorial_basis(const duffid_estimator *est, long i, duffid_real *ph
     }
 }
 
-/* regressors.gregory_corrections (SlidingMoments._corrections) in the factorial basis, cached
- * for one L */
-static void corrections(duffid_estimator *est, long L)
+/* regressors.gregory_corrections: the offsets and weights minus one of the rule over L
+ * intervals; returns their count */
+static int gregory_rule(long L, long *off, duffid_real *delta)
 {
     static const double gregory[DUFFID_GREGORY_POINTS][DUFFID_GREGORY_POINTS] = DUFFID_GREGORY_END;
     static const int nc_num[5][6] = {
         {1, 1, 0, 0, 0, 0}, {1, 4, 1, 0, 0, 0}, {3, 9, 9, 3, 0, 0},
         {14, 64, 24, 64, 14, 0}, {95, 375, 250, 250, 375, 95}};
     static const int nc_den[5] = {2, 3, 8, 45, 288};
-    duffid_real delta[MAX_CORR];
+    int m;
+    if (L < 1) {
+        off[0] = 0;
+        delta[0] = RC(-1.0);
+        return 1;
+    }
+    if (L <= 5) {
+        for (m = 0; m <= L; m++) {
+            off[m] = m;
+            delta[m] = (duffid_real)nc_num[L - 1][m] / (duffid_real)nc_den[L - 1] - RC(1.0);
+        }
+        return (int)L + 1;
+    }
+    { /* regressors.gregory_points: fewer where the two ends would meet */
+        const int p = L + 1 < 2 * DUFFID_GREGORY_POINTS ? (int)(L + 1) / 2 : DUFFID_GREGORY_POINTS;
+        for (m = 0; m < p; m++) {
+            off[m] = m;
+            off[p + m] = L - m;
+            delta[m] = delta[p + m] = (duffid_real)gregory[p - 1][m];
+        }
+        return 2 * p;
+    }
+}
+
+/* w[m][j] = delta_m x the factorial basis at off[m] */
+static void basis_weights(const duffid_estimator *est, int count, const long *off, const duffid_real *delta,
+                          duffid_real *w)
+{
     const int D1 = est->degree + 1;
     int m, j;
+    for (m = 0; m < count; m++) {
+        factorial_basis(est, off[m], w + m * D1);
+        for (j = 0; j < D1; j++) {
+            w[m * D1 + j] *= delta[m];
+        }
+    }
+}
+
+/* regressors.gregory_corrections (SlidingMoments._corrections) in the factorial basis, cached
+ * for one L */
+static void corrections(duffid_estimator *est, long L)
+{
+    duffid_real delta[MAX_CORR];
+    const int D1 = est->degree + 1;
+    int m;
     if (est->corr_L == L) {
         return;
     }
-    if (L < 1) {
-        est->corr_n = 1;
-        est->corr_off[0] = 0;
-        delta[0] = RC(-1.0);
-    } else if (L <= 5) {
-        est->corr_n = (int)L + 1;
-        for (m = 0; m <= L; m++) {
-            est->corr_off[m] = m;
-            delta[m] = (duffid_real)nc_num[L - 1][m] / (duffid_real)nc_den[L - 1] - RC(1.0);
-        }
-    } else {
-        /* regressors.gregory_points: fewer where the two ends would meet */
-        const int p = L + 1 < 2 * DUFFID_GREGORY_POINTS ? (int)(L + 1) / 2 : DUFFID_GREGORY_POINTS;
-        est->corr_n = 2 * p;
-        for (m = 0; m < p; m++) {
-            est->corr_off[m] = m;
-            est->corr_off[p + m] = L - m;
-            delta[m] = delta[p + m] = (duffid_real)gregory[p - 1][m];
-        }
-    }
+    est->corr_n = gregory_rule(L, est->corr_off, delta);
+    basis_weights(est, est->corr_n, est->corr_off, delta, est->corr_w);
     for (m = 0; m < est->corr_n; m++) {
-        duffid_real *w = est->corr_w + m * D1;
-        factorial_basis(est, est->corr_off[m], w);
-        for (j = 0; j < D1; j++) {
-            w[j] *= delta[m];
-        }
         est->corr_top[m] = est->corr_off[m] + 1 < D1 ? (int)est->corr_off[m] + 1 : D1; /* phi_j(i) = 0, j > i */
     }
     est->corr_L = L;
+}
+
+/* SlidingMoments._rate_weights (the basis is applied as they are used), cached for one L (at least 2): the
+ * rule's corrections over the even part L_e, minus twice the half-rate rule's at every second
+ * sample, and minus the oldest sample when L is odd (one weight per distinct offset) */
+static void rate_weights(duffid_estimator *est, long L)
+{
+    long off[MAX_RATE], half_off[MAX_CORR];
+    duffid_real delta[MAX_RATE], half[MAX_CORR];
+    const long even = L - L % 2;
+    int n, n_half, m, i;
+    if (est->rate_L == L) {
+        return;
+    }
+    n = gregory_rule(even, off, delta);
+    n_half = gregory_rule(even / 2, half_off, half);
+    for (m = 0; m < n_half + (L % 2); m++) {
+        const long at = m < n_half ? 2 * half_off[m] : L;
+        const duffid_real w = m < n_half ? RC(-2.0) * half[m] : RC(-1.0);
+        for (i = 0; i < n && off[i] != at; i++) {
+        }
+        if (i == n) {
+            off[n] = at;
+            delta[n++] = RC(0.0);
+        }
+        delta[i] += w;
+    }
+    est->rate_n = n;
+    memcpy(est->rate_off, off, (size_t)n * sizeof(long));
+    memcpy(est->rate_delta, delta, (size_t)n * sizeof(duffid_real));
+    est->rate_L = L;
 }
 
 /* step an accumulator: every sample one further away (acc[c * (degree + 1) + j]), the new
@@ -1819,6 +1914,54 @@ static const duffid_real *leaving_basis(duffid_estimator *est, long i)
     return est->leave_phi;
 }
 
+/* the power moments S_k = sum_j S2(k, j) N^(j-k) / N x fact_j (positive weights;
+ * S2(k, 0) = 0 for k > 0), channel after channel */
+static void power_moments(const duffid_estimator *est, const duffid_real *fact, duffid_real *mom)
+{
+    const int n_ch = est->n_ch, D = est->degree, D1 = D + 1;
+    int c, k;
+    for (c = 0; c + 1 < n_ch; c += 2) { /* two channels at a time: each weight is loaded once */
+        const duffid_real *in = fact + c * D1, *in2 = in + D1;
+        duffid_real *out = mom + c * D1, *out2 = out + D1;
+        out[0] = est->stirling[0] * in[0];
+        out2[0] = est->stirling[0] * in2[0];
+        for (k = 1; k <= D; k++) {
+            const duffid_real *st = est->stirling + k * D1;
+            duffid_real sum = RC(0.0), sum2 = RC(0.0);
+            int i;
+            for (i = 1; i <= k; i++) {
+                sum += st[i] * in[i];
+                sum2 += st[i] * in2[i];
+            }
+            out[k] = sum;
+            out2[k] = sum2;
+        }
+    }
+    if (c < n_ch) { /* an odd channel */
+        const duffid_real *in = fact + c * D1;
+        duffid_real *out = mom + c * D1;
+        out[0] = est->stirling[0] * in[0];
+        for (k = 1; k <= D; k++) {
+            const duffid_real *st = est->stirling + k * D1;
+            duffid_real sum = RC(0.0);
+            int i;
+            for (i = 1; i <= k; i++) {
+                sum += st[i] * in[i];
+            }
+            out[k] = sum;
+        }
+    }
+}
+
+/* out = sign x sample (n_ch values): a sample of the alternating sums */
+static void signed_sample(const duffid_real *sample, duffid_real sign, int n_ch, duffid_real *out)
+{
+    int c;
+    for (c = 0; c < n_ch; c++) {
+        out[c] = sign * sample[c];
+    }
+}
+
 /* SlidingMoments.push: the moments of the window (into est->mom, mom[c * (degree + 1) + k])
  * and its length L */
 static long moments_push(duffid_estimator *est, long window)
@@ -1827,7 +1970,8 @@ static long moments_push(duffid_estimator *est, long window)
     const int n_ch = est->n_ch, D = est->degree, D1 = D + 1;
     const int64_t n = est->n; /* SlidingMoments.n == OnlineIdentifier.n */
     const size_t bytes = (size_t)(D1 * n_ch) * sizeof(duffid_real);
-    duffid_real phi[MAX_POW];
+    duffid_real phi[MAX_POW], signed_g[MAX_CH], leaving[MAX_CH];
+    const duffid_real sign = (n & 1) ? RC(-1.0) : RC(1.0); /* (-1)^n: the alternating sums' */
     int64_t j, new_start;
     long w, L;
     int k, c, m;
@@ -1837,16 +1981,20 @@ static long moments_push(duffid_estimator *est, long window)
     slot = est->ring + (size_t)est->head * (size_t)n_ch;
     for (c = 0; c < n_ch; c++) {
         slot[c] = est->g[c];
+        signed_g[c] = sign * est->g[c];
     }
     w = window < N ? window : N;
     new_start = n - w > est->start ? n - w : est->start;
     if (new_start == est->start + 1) { /* a sliding window: one sample leaves */
         const long i = (long)(n - est->start);
-        shift_accumulator(est, est->acc, est->g, est->ring + (size_t)ring_at(est, i) * (size_t)n_ch,
-                          leaving_basis(est, i));
+        const duffid_real *old = est->ring + (size_t)ring_at(est, i) * (size_t)n_ch;
+        signed_sample(old, (i & 1) ? -sign : sign, n_ch, leaving);
+        shift_accumulator(est, est->acc, est->g, old, leaving_basis(est, i));
+        shift_accumulator(est, est->acc_alt, signed_g, leaving, leaving_basis(est, i));
         est->start = new_start;
     } else {
         shift_accumulator(est, est->acc, est->g, NULL, NULL);
+        shift_accumulator(est, est->acc_alt, signed_g, NULL, NULL);
         if (new_start - est->start > (int64_t)w + 1) {
             /* many samples leave at once (the window shrank): rebuilding from the new window
              * costs less than removing them one by one */
@@ -1855,8 +2003,10 @@ static long moments_push(duffid_estimator *est, long window)
         } else {
             for (j = est->start; j < new_start; j++) { /* samples leaving the window */
                 const long i = (long)(n - j);
-                accumulate(est, est->acc, leaving_basis(est, i), est->ring + (size_t)ring_at(est, i) * (size_t)n_ch,
-                           RC(-1.0));
+                const duffid_real *old = est->ring + (size_t)ring_at(est, i) * (size_t)n_ch;
+                signed_sample(old, (i & 1) ? -sign : sign, n_ch, leaving);
+                accumulate(est, est->acc, leaving_basis(est, i), old, RC(-1.0));
+                accumulate(est, est->acc_alt, leaving_basis(est, i), leaving, RC(-1.0));
             }
             est->start = new_start;
         }
@@ -1864,10 +2014,11 @@ static long moments_push(duffid_estimator *est, long window)
     for (k = 0; k < SHADOWS; k++) {
         if (est->shadow_from[k] >= 0) {
             shift_accumulator(est, est->shadow + k * D1 * n_ch, est->g, NULL, NULL);
+            shift_accumulator(est, est->shadow_alt + k * D1 * n_ch, signed_g, NULL, NULL);
         }
     }
     for (k = 0; k < SHADOWS; k++) {
-        duffid_real *shadow = est->shadow + k * D1 * n_ch;
+        duffid_real *shadow = est->shadow + k * D1 * n_ch, *shadow_alt = est->shadow_alt + k * D1 * n_ch;
         if (est->shadow_from[k] >= 0 && est->shadow_from[k] < est->start) {
             /* the shadow holds samples outside the window (it shrank): the first is rebuilt
              * from the window, the others start again */
@@ -1875,9 +2026,13 @@ static long moments_push(duffid_estimator *est, long window)
                 long i;
                 est->shadow_from[0] = est->start;
                 memset(shadow, 0, bytes);
+                memset(shadow_alt, 0, bytes);
                 for (i = 0; i <= (long)(n - est->start); i++) {
+                    const duffid_real *old = est->ring + (size_t)ring_at(est, i) * (size_t)n_ch;
                     factorial_basis(est, i, phi);
-                    accumulate(est, shadow, phi, est->ring + (size_t)ring_at(est, i) * (size_t)n_ch, RC(1.0));
+                    accumulate(est, shadow, phi, old, RC(1.0));
+                    signed_sample(old, (i & 1) ? -sign : sign, n_ch, leaving);
+                    accumulate(est, shadow_alt, phi, leaving, RC(1.0));
                 }
             } else {
                 est->shadow_from[k] = -1;
@@ -1885,11 +2040,13 @@ static long moments_push(duffid_estimator *est, long window)
         }
     }
     for (k = 0; k < SHADOWS; k++) {
-        duffid_real *shadow = est->shadow + k * D1 * n_ch;
+        duffid_real *shadow = est->shadow + k * D1 * n_ch, *shadow_alt = est->shadow_alt + k * D1 * n_ch;
         if (est->shadow_from[k] == est->start && n - est->start >= 1) {
             /* the shadow holds exactly the window: it becomes the main accumulator */
             memcpy(est->acc, shadow, bytes);
+            memcpy(est->acc_alt, shadow_alt, bytes);
             memset(shadow, 0, bytes);
+            memset(shadow_alt, 0, bytes);
             est->shadow_from[k] = n + 1;
         }
     }
@@ -1902,6 +2059,7 @@ static long moments_push(duffid_estimator *est, long window)
         for (k = 0; k < SHADOWS; k++) {
             if (est->shadow_from[k] < 0 && SHADOWS * (n + 1 - latest) >= (int64_t)w) {
                 memset(est->shadow + k * D1 * n_ch, 0, bytes);
+                memset(est->shadow_alt + k * D1 * n_ch, 0, bytes);
                 est->shadow_from[k] = n + 1;
                 break;
             }
@@ -1943,38 +2101,28 @@ static long moments_push(duffid_estimator *est, long window)
             }
         }
     }
-    /* the power moments S_k = sum_j S2(k, j) N^(j-k) / N x fact_j (positive weights;
-     * S2(k, 0) = 0 for k > 0) */
-    for (c = 0; c + 1 < n_ch; c += 2) { /* two channels at a time: each weight is loaded once */
-        const duffid_real *in = est->fact + c * D1, *in2 = in + D1;
-        duffid_real *out = est->mom + c * D1, *out2 = out + D1;
-        out[0] = est->stirling[0] * in[0];
-        out2[0] = est->stirling[0] * in2[0];
-        for (k = 1; k <= D; k++) {
-            const duffid_real *st = est->stirling + k * D1;
-            duffid_real sum = RC(0.0), sum2 = RC(0.0);
-            int i;
-            for (i = 1; i <= k; i++) {
-                sum += st[i] * in[i];
-                sum2 += st[i] * in2[i];
-            }
-            out[k] = sum;
-            out2[k] = sum2;
+    power_moments(est, est->fact, est->mom);
+    /* SlidingMoments.rate_difference: minus the alternating sums plus the rules' corrections */
+    est->rate_ok = L >= 2;
+    if (est->rate_ok) {
+        rate_weights(est, L);
+        for (k = 0; k < D1 * n_ch; k++) {
+            est->dfact[k] = -sign * est->acc_alt[k];
         }
-    }
-    if (c < n_ch) { /* an odd channel */
-        const duffid_real *in = est->fact + c * D1;
-        duffid_real *out = est->mom + c * D1;
-        out[0] = est->stirling[0] * in[0];
-        for (k = 1; k <= D; k++) {
-            const duffid_real *st = est->stirling + k * D1;
-            duffid_real sum = RC(0.0);
-            int i;
-            for (i = 1; i <= k; i++) {
-                sum += st[i] * in[i];
+        for (m = 0; m < est->rate_n; m++) {
+            const long at = est->rate_off[m];
+            const duffid_real *sample = est->ring + (size_t)ring_at(est, at) * (size_t)n_ch;
+            const int top = at + 1 < D1 ? (int)at + 1 : D1; /* phi_j(i) = 0, j > i */
+            factorial_basis(est, at, phi);
+            for (c = 0; c < n_ch; c++) {
+                const duffid_real v = est->rate_delta[m] * sample[c];
+                duffid_real *out = est->dfact + c * D1;
+                for (k = 0; k < top; k++) {
+                    out[k] += phi[k] * v;
+                }
             }
-            out[k] = sum;
         }
+        power_moments(est, est->dfact, est->dmom);
     }
     return L;
 }
@@ -2205,6 +2353,24 @@ static void kernel_entries(duffid_estimator *est, long L)
      * their terms cancel */
     est->rounding = norm2 > RC(0.0) ? R_EPS * R_SQRT((duffid_real)L * size2 / norm2) : R_INF;
 #endif
+}
+
+/* OnlineIdentifier._rate_rows: the kernel entries of the moments' difference at half the rate
+ * (est->dmom) with the window's kernels (kernel_entries' cache, for this L), into est->E_rate
+ * (the raw terms cancel) */
+static void rate_entries(duffid_estimator *est)
+{
+    const int n_ch = est->n_ch;
+    int k, u;
+    for (u = 0; u < est->n_jobs; u++) {
+        const int *job = est->job + 5 * u, count = job[2], entry = job[3];
+        const duffid_real *poly = est->poly + job[0], *m = est->dmom + job[1];
+        duffid_real sum = RC(0.0);
+        for (k = 0; k < count; k++) {
+            sum += poly[k] * m[k];
+        }
+        est->E_rate[entry] = sum * est->entry_scale[entry / n_ch];
+    }
 }
 
 /* rows of [A D] of one block (identification._Assembly) into B, column after column
@@ -2753,11 +2919,48 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit, du
 }
 
 /* OnlineIdentifier._robust_step + _robust_solve; returns the window length L */
+/* DriftLine.rows: a block's rows [A, D] (B, column after column, m rows) become [A, t A_i
+ * (its drifting unknowns), D] */
+static void line_rows(const equation_t *eq, int n, int m, duffid_real t, duffid_real *B)
+{
+    int i, k = n;
+    memcpy(B + eq->n_line * m, B + n * m, (size_t)m * sizeof(duffid_real));
+    for (i = 0; i < n; i++) {
+        if (eq->drifting[i]) {
+            int r;
+            for (r = 0; r < m; r++) {
+                B[k * m + r] = t * B[i * m + r];
+            }
+            k++;
+        }
+    }
+}
+
+/* the rows' change at half the rate under theta (engine.RATE_NOISE): q = D_d - A_d theta for
+ * the rows [A_d, D_d] (B, m rows, n columns and D_d after them); 0 when theta is not finite */
+static int rate_column(const duffid_real *B, int m, int n, const duffid_real *theta, duffid_real *q)
+{
+    int i, r;
+    for (i = 0; i < n; i++) {
+        if (!is_finite(theta[i])) {
+            return 0;
+        }
+    }
+    for (r = 0; r < m; r++) {
+        duffid_real sum = B[n * m + r];
+        for (i = 0; i < n; i++) {
+            sum -= B[i * m + r] * theta[i];
+        }
+        q[r] = sum;
+    }
+    return 1;
+}
+
 static long robust_step(duffid_estimator *est)
 {
     const int64_t old_start = est->start;
     long L = moments_push(est, est->target);
-    int full, e, i;
+    int full, rated, e, i;
     jumps_step(est, old_start);
     if (est->regrow) { /* after duffid_hold: the previous output until the window is full */
         if (L < est->target) {
@@ -2770,6 +2973,10 @@ static long robust_step(duffid_estimator *est)
     }
     est->last_L = (duffid_real)L;
     kernel_entries(est, L);
+    rated = est->rate_ok && !est->defer;
+    if (rated) {
+        rate_entries(est);
+    }
     full = L >= est->target;
     for (e = 0; e < est->n_eq; e++) {
         equation_t *eq = &est->eq[e];
@@ -2779,6 +2986,9 @@ static long robust_step(duffid_estimator *est)
             continue;
         }
         assemble(est, b, est->E, est->n_rows, est->B);
+        if (rated) {
+            assemble(est, b, est->E_rate, est->n_rows, est->B_rate);
+        }
         if (est->n_jumps > 0 && !est->defer) {
             jump_column(est, b);
         }
@@ -2791,22 +3001,15 @@ static long robust_step(duffid_estimator *est)
             const duffid_real t = (duffid_real)(est->n - eq->origin) * est->dt; /* the rows' time */
             duffid_real previous[MAX_UNK], fit;
             if (nl > n) { /* a block with lines: the rows [A, t A_i (the lines), D] */
-                int k = n;
-                memcpy(est->B + nl * m, est->B + n * m, (size_t)m * sizeof(duffid_real));
-                for (i = 0; i < n; i++) {
-                    if (eq->drifting[i]) {
-                        int r;
-                        for (r = 0; r < m; r++) {
-                            est->B[k * m + r] = t * est->B[i * m + r];
-                        }
-                        k++;
-                    }
+                line_rows(eq, n, m, t, est->B);
+                if (rated) {
+                    line_rows(eq, n, m, t, est->B_rate);
                 }
             }
             if (est->defer) { /* duffid_defer_solutions: the rows only (no lines: no change test, no
                                * jumps' errors: the values only) */
                 for (i = 0; i < n; i++) {
-                    eq->jump_shift[i] = RC(0.0);
+                    eq->jump_shift[i] = eq->rate_shift[i] = RC(0.0);
                 }
                 duffid_la_qr_accumulate(eq->R, n + 1, est->sqrt_lam, est->B, m);
                 eq->rows = est->lam * eq->rows + (duffid_real)m;
@@ -2828,6 +3031,13 @@ static long robust_step(duffid_estimator *est)
                     eq->jump_v[i] *= est->lam;
                 }
             }
+            if (rated && rate_column(est->B_rate, m, nl, previous, est->rate_q)) { /* A^T Q (RATE_NOISE) */
+                jump_product(est->B, est->rate_q, m, nl, est->lam, eq->rate_v);
+            } else if (est->lam != RC(1.0)) {
+                for (i = 0; i < nl; i++) {
+                    eq->rate_v[i] *= est->lam;
+                }
+            }
             duffid_la_qr_accumulate(eq->R, nl + 1, est->sqrt_lam, est->B, m);
             eq->rows = est->lam * eq->rows + (duffid_real)m;
             if (nl > n) {
@@ -2842,6 +3052,10 @@ static long robust_step(duffid_estimator *est)
                 for (i = 0; i < n; i++) { /* the lines' values at the newest rows */
                     eq->jump_shift[i] = shift[i] + (nl > n && eq->drifting[i] ? shift[k++] * t : RC(0.0));
                 }
+                jump_shift(nl, nl + 1, eq->R, eq->rate_v, shift);
+                for (i = 0, k = n; i < n; i++) {
+                    eq->rate_shift[i] = shift[i] + (nl > n && eq->drifting[i] ? shift[k++] * t : RC(0.0));
+                }
             }
             if (est->change_threshold > RC(0.0) && !drift_probe(est, e, m, t, (duffid_real)L)) {
                 change_test(est, e, m, fit, t);
@@ -2853,15 +3067,30 @@ static long robust_step(duffid_estimator *est)
             if (est->n_jumps > 0) { /* A^T J of these rows alone */
                 duffid_real v[MAX_UNK] = {RC(0.0)};
                 jump_product(est->B, est->jump_J, m, n, RC(1.0), v);
+                if (rated) { /* these rows, for A^T Q once the unknowns are known */
+                    memcpy(est->B_copy, est->B, (size_t)(m * p) * sizeof(duffid_real));
+                }
                 duffid_la_qr_accumulate(est->W, p, RC(1.0), est->B, m);
                 jump_shift(n, p, est->W, v, eq->jump_shift);
             } else {
+                if (rated) { /* these rows, for A^T Q once the unknowns are known */
+                    memcpy(est->B_copy, est->B, (size_t)(m * p) * sizeof(duffid_real));
+                }
                 duffid_la_qr_accumulate(est->W, p, RC(1.0), est->B, m);
                 for (i = 0; i < n; i++) {
                     eq->jump_shift[i] = RC(0.0);
                 }
             }
             solve_factor(est, eq, n, est->W, (duffid_real)m, RC(1.0));
+            if (rated && rate_column(est->B_rate, m, n, eq->theta, est->rate_q)) { /* RATE_NOISE */
+                duffid_real v[MAX_UNK] = {RC(0.0)};
+                jump_product(est->B_copy, est->rate_q, m, n, RC(1.0), v);
+                jump_shift(n, p, est->W, v, eq->rate_shift);
+            } else {
+                for (i = 0; i < n; i++) {
+                    eq->rate_shift[i] = RC(0.0);
+                }
+            }
         }
     }
     return L;
@@ -3023,15 +3252,24 @@ static long paper_step(duffid_estimator *est)
  * a forced block's unknowns are absolute values; an unforced block's are ratios to its
  * scale, found by its rules from a block already on a known scale (passes until none
  * progresses). Relative errors of products add in quadrature. */
-/* OnlineIdentifier._combine: unknown u's standard error with its jumps' bias (JUMP_ERROR) */
-static duffid_real published_rse(const equation_t *eq, int u)
+/* engine._published_error: unknown u's standard error with its jumps' bias (JUMP_ERROR) and its
+ * rows' change at half the rate beyond DUFFID_RATE_NOISE standard errors, in quadrature */
+static duffid_real published_rse(const equation_t *eq, int u, int with_rate)
 {
-    return eq->jump_shift[u] != RC(0.0)
-               ? duffid_la_hypot(eq->rse[u], RC(DUFFID_JUMP_ERROR) * R_FABS(eq->jump_shift[u] / eq->theta[u]))
-               : eq->rse[u];
+    const duffid_real rse = eq->rse[u];
+    duffid_real jump, change, rate;
+    if (eq->jump_shift[u] == RC(0.0) && (eq->rate_shift[u] == RC(0.0) || !with_rate)) {
+        return rse;
+    }
+    jump = eq->jump_shift[u] != RC(0.0) ? RC(DUFFID_JUMP_ERROR) * R_FABS(eq->jump_shift[u] / eq->theta[u]) : RC(0.0);
+    change = eq->rate_shift[u] != RC(0.0) && with_rate ? R_FABS(eq->rate_shift[u] / eq->theta[u]) : RC(0.0);
+    rate = change * change - RC(DUFFID_RATE_NOISE) * RC(DUFFID_RATE_NOISE) * rse * rse;
+    rate = rate <= RC(0.0) ? RC(0.0) : rate; /* np.maximum: a NaN stays */
+    return R_SQRT(rse * rse + jump * jump + rate);
 }
 
-static void combine(duffid_estimator *est)
+/* one pass of the combination with or without the quadrature's bias into errors */
+static void combine_pass(duffid_estimator *est, int with_rate, duffid_real *errors)
 {
     const rt_model *m = &est->m;
     const int n = est->n_eq;
@@ -3066,9 +3304,9 @@ static void combine(duffid_estimator *est)
                 }
                 {
                     duffid_real abs_val = s_val[j] * est->eq[j].theta[rule->other_unknown];
-                    duffid_real abs_err = duffid_la_hypot(s_err[j], published_rse(&est->eq[j], rule->other_unknown));
+                    duffid_real abs_err = duffid_la_hypot(s_err[j], published_rse(&est->eq[j], rule->other_unknown, with_rate));
                     s_val[i] = abs_val / ratio;
-                    s_err[i] = duffid_la_hypot(abs_err, published_rse(&est->eq[i], rule->unknown));
+                    s_err[i] = duffid_la_hypot(abs_err, published_rse(&est->eq[i], rule->unknown, with_rate));
                     known[i] = 1;
                     progress = 1;
                     break;
@@ -3090,14 +3328,22 @@ static void combine(duffid_estimator *est)
                 const int j = q->sources[k].block, u = q->sources[k].unknown;
                 if (known[j]) {
                     val = s_val[j] * est->eq[j].theta[u];
-                    err = duffid_la_hypot(s_err[j], published_rse(&est->eq[j], u));
+                    err = duffid_la_hypot(s_err[j], published_rse(&est->eq[j], u, with_rate));
                     break;
                 }
             }
         }
         est->canon[i] = val;
-        est->canon_rse[i] = err;
+        errors[i] = err;
     }
+}
+
+static void combine(duffid_estimator *est)
+{
+    const rt_model *m = &est->m;
+    int i, n_canon = est->n_params;
+    combine_pass(est, 1, est->canon_rse);
+    combine_pass(est, 0, est->canon_steady);
     /* OnlineIdentifier._shares: the largest share over the blocks with the term */
     for (i = 0; i < n_canon; i++) {
         const duffid_parameter *q = &m->params[i];
@@ -3319,9 +3565,15 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
         for (i = 0; i < np; i++) { /* canonical order */
             duffid_real v = est->canon[i];
             duffid_real relative = (is_finite(v) && v != RC(0.0)) ? est->canon_rse[i] : R_INF;
-            int small, large, determined;
+            /* ... without the quadrature's bias: what the window rule and the growth go by */
+            duffid_real steady_relative = (is_finite(v) && v != RC(0.0)) ? est->canon_steady[i] : R_INF;
+            int small, large, determined, steady;
             if (est->nominal[i] > RC(0.0) && is_finite(relative)) { /* the user's prior size */
                 relative = relative * R_FABS(v) / (R_FABS(v) > est->nominal[i] ? R_FABS(v) : est->nominal[i]);
+            }
+            if (est->nominal[i] > RC(0.0) && is_finite(steady_relative)) {
+                steady_relative = steady_relative * R_FABS(v) /
+                                  (R_FABS(v) > est->nominal[i] ? R_FABS(v) : est->nominal[i]);
             }
             worst = max_builtin(worst, relative);
             {
@@ -3338,11 +3590,12 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
                     offset |= src->unknown >= 0 && est->eq[src->block].off_moved[src->unknown];
                 }
                 determined = good && excited && physical && relative <= est->max_uncertainty && !offset;
+                steady = good && excited && physical && steady_relative <= est->max_uncertainty && !offset;
                 /* ... and only while the window spans the plant's dynamics (_window_spans) */
                 small = determined && spans;
                 large = moved || offset || !(good && physical && relative <= RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty);
             }
-            if (determined) {
+            if (steady) {
                 count_up(&est->steady[i], est->settle_count);
             } else {
                 est->steady[i] = 0;
@@ -3513,6 +3766,9 @@ static void restart_window(duffid_estimator *est, int regrow)
     memset(est->sgn, 0, sizeof est->sgn);
     memset(est->acc, 0, moments); /* SlidingMoments.reset */
     memset(est->shadow, 0, SHADOWS * moments);
+    memset(est->acc_alt, 0, moments);
+    memset(est->shadow_alt, 0, SHADOWS * moments);
+    est->rate_ok = 0;
     est->start = est->n + 1;
     jumps_reset(est);
     for (i = 0; i < SHADOWS; i++) {

@@ -59,6 +59,7 @@
 #define DUFFID_MIN_UNCHECKED_SAMPLES 200 /* ... while a mass is not excited, the window holds at least this many samples */
 #define DUFFID_JUMP_ISOLATION 0.5 /* force jump: the next change is at most this share of it */
 #define DUFFID_JUMP_ERROR 0.5 /* force jump: a row errs by up to this share of the jump times the interval */
+#define DUFFID_RATE_NOISE 2.0 /* quadrature: the unknowns' change with the rows at half the rate beyond this many standard errors is a bias */
 
 /* Quadrature (duffid.identification.regressors). */
 #define DUFFID_GREGORY_POINTS 7 /* Gregory's rule: corrected samples at each end of a window (fewer where the ends meet) */

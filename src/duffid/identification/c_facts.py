@@ -99,6 +99,8 @@ PUBLICATION: tuple[Fact, ...] = (
     Fact("DUFFID_MIN_UNCHECKED_SAMPLES", engine.MIN_UNCHECKED_SAMPLES, "... while a mass is not excited, the window holds at least this many samples"),
     Fact("DUFFID_JUMP_ISOLATION", engine.JUMP_ISOLATION, "force jump: the next change is at most this share of it"),
     Fact("DUFFID_JUMP_ERROR", engine.JUMP_ERROR, "force jump: a row errs by up to this share of the jump times the interval"),
+    Fact("DUFFID_RATE_NOISE", engine.RATE_NOISE,
+         "quadrature: the unknowns' change with the rows at half the rate beyond this many standard errors is a bias"),
 )
 
 

@@ -261,6 +261,11 @@ class SlidingMoments:
         self._buffer = np.zeros((self.n_ref + 2, n_channels))
         self._main = np.zeros((degree + 1, n_channels))
         self._shadow = np.zeros((degree + 1, n_channels))
+        # the same sums of the samples with alternating signs (-1)^j g[j] (j: the sample's
+        # index), for the rule at half the rate (rate_difference)
+        self._alt = np.zeros((degree + 1, n_channels))
+        self._alt_shadow = np.zeros((degree + 1, n_channels))
+        self._rate_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._corr_cache: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self.reset()
 
@@ -269,6 +274,8 @@ class SlidingMoments:
         self._buffer[:] = 0.0
         self._main[:] = 0.0
         self._shadow[:] = 0.0
+        self._alt[:] = 0.0
+        self._alt_shadow[:] = 0.0
         self.n = -1          # index of the newest sample
         self.start = 0       # index of the oldest sample in the window
         self._shadow_from = 0  # first sample held by the shadow accumulator
@@ -310,29 +317,77 @@ class SlidingMoments:
         N = self.n_ref
         self.n += 1
         n = self.n
+        sign = -1.0 if n % 2 else 1.0
         self._buffer[n % (N + 2)] = g
-        self._main[:] = self._shift @ self._main
-        self._shadow[:] = self._shift @ self._shadow
-        self._main[0] += g
-        self._shadow[0] += g
+        for acc, shadow, value in ((self._main, self._shadow, g), (self._alt, self._alt_shadow, sign * g)):
+            acc[:] = self._shift @ acc
+            shadow[:] = self._shift @ shadow
+            acc[0] += value
+            shadow[0] += value
         new_start = max(self.start, n - min(int(window), N))
         for j in range(self.start, new_start):  # samples leaving the window
             s = (n - j) / N
-            self._main -= np.outer(s**self._q, self._buffer[j % (N + 2)])
+            leaving = np.outer(s**self._q, self._buffer[j % (N + 2)])
+            self._main -= leaving
+            self._alt -= leaving if j % 2 == 0 else -leaving
         self.start = new_start
         if self._shadow_from < self.start:  # the shadow holds samples outside the window: rebuild
             self._shadow_from = self.start
             i = np.arange(n - self.start + 1)
-            self._shadow[:] = ((i[:, None] / N) ** self._q[None, :]).T @ self._buffer[(n - i) % (N + 2)]
+            powers = ((i[:, None] / N) ** self._q[None, :]).T
+            samples = self._buffer[(n - i) % (N + 2)]
+            self._shadow[:] = powers @ samples
+            self._alt_shadow[:] = powers @ (samples * np.where((n - i) % 2 == 0, 1.0, -1.0)[:, None])
         if self._shadow_from == self.start and n - self.start >= 1:
             # the shadow holds exactly the window: it becomes the main accumulator
             self._main[:] = self._shadow
+            self._alt[:] = self._alt_shadow
             self._shadow[:] = 0.0
+            self._alt_shadow[:] = 0.0
             self._shadow_from = n + 1
         L = n - self.start
         offsets, _, weighted = self._corrections(L)
         moments = self._main + weighted.T @ self._buffer[(n - offsets) % (N + 2)]
         return moments / N, L
+
+    def _rate_weights(self, L: int) -> tuple[np.ndarray, np.ndarray]:
+        """The samples and weights (x the powers) of :meth:`rate_difference` besides the
+        alternating sums, for a window of ``L`` intervals: the rule's end corrections over
+        the even part ``L_e`` of the window, minus the half-rate rule's (twice its
+        corrections at every second sample), and the oldest sample when ``L`` is odd (it is
+        outside ``L_e``)."""
+        cached = self._rate_cache.get(L)
+        if cached is None:
+            even = L - L % 2
+            fine_at, fine = gregory_corrections(even)
+            coarse_at, coarse = gregory_corrections(even // 2)
+            offsets = np.concatenate([fine_at, 2 * coarse_at, [L] if L % 2 else []]).astype(int)
+            deltas = np.concatenate([fine, -2.0 * coarse, [-1.0] if L % 2 else []])
+            cached = (offsets, ((offsets[:, None] / self.n_ref) ** self._q[None, :]) * deltas[:, None])
+            if L == self.n_ref or len(self._rate_cache) < 64:
+                self._rate_cache[L] = cached
+        return cached
+
+    def rate_difference(self) -> np.ndarray | None:
+        """The window's moments by the rule minus those by the same rule at half the rate
+        (every second sample, twice the step), over the window's even part ``L_e`` (its
+        oldest sample left out when ``L`` is odd); None below two intervals. Both rules
+        integrate the same samples, so their difference estimates the quadrature's error
+        whatever kernel the moments then meet (the window's own, of length ``L``).
+
+        The half-rate rule's interior is the samples at even distances from the newest
+        with weight two: the sum over all samples plus the alternating sum, so the
+        difference is minus the alternating sum plus the two rules' end corrections; the
+        alternating sums are kept like the plain ones (on ``(-1)^j g[j]``), at the same
+        cost. Returns the moments' difference, shape (degree+1, channels)."""
+        N = self.n_ref
+        n = self.n
+        L = n - self.start
+        if L < 2:
+            return None
+        offsets, weighted = self._rate_weights(L)
+        alternating = self._alt if n % 2 == 0 else -self._alt  # sum_i (-1)^i (i/N)^k g[n-i]
+        return (weighted.T @ self._buffer[(n - offsets) % (N + 2)] - alternating) / N
 
 
 def batch_moments(G: np.ndarray, lengths: np.ndarray, n_ref: int, degree: int) -> np.ndarray:
