@@ -8,7 +8,8 @@ the same code as the C core) is fed the record sample by sample. Printed per rat
 damping ratio: the worst published error of every parameter at any sample, with the standard
 error stated then, for Gregory's rule with :data:`~duffid.identification.regressors.GREGORY_POINTS`
 corrected end samples (the estimator's rule) and with three (the classical fourth-order
-rule, for comparison). The figures depend only on the arithmetic, not on the machine.
+rule, for comparison), both with the half-rate check of :data:`~duffid.identification.engine.RATE_NOISE`.
+The figures depend only on the arithmetic, not on the machine.
 """
 from __future__ import annotations
 

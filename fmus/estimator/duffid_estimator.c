@@ -1765,7 +1765,7 @@ static void factorial_basis(const duffid_estimator *est, long i, duffid_real *ph
  * intervals; returns their count */
 static int gregory_rule(long L, long *off, duffid_real *delta)
 {
-    static const double gregory[DUFFID_GREGORY_POINTS][DUFFID_GREGORY_POINTS] = DUFFID_GREGORY_END;
+    static const duffid_real gregory[DUFFID_GREGORY_POINTS][DUFFID_GREGORY_POINTS] = DUFFID_GREGORY_END(RC);
     static const int nc_num[5][6] = {
         {1, 1, 0, 0, 0, 0}, {1, 4, 1, 0, 0, 0}, {3, 9, 9, 3, 0, 0},
         {14, 64, 24, 64, 14, 0}, {95, 375, 250, 250, 375, 95}};
@@ -1788,7 +1788,7 @@ static int gregory_rule(long L, long *off, duffid_real *delta)
         for (m = 0; m < p; m++) {
             off[m] = m;
             off[p + m] = L - m;
-            delta[m] = delta[p + m] = (duffid_real)gregory[p - 1][m];
+            delta[m] = delta[p + m] = gregory[p - 1][m];
         }
         return 2 * p;
     }
@@ -1838,7 +1838,9 @@ static void rate_weights(duffid_estimator *est, long L)
     if (est->rate_L == L) {
         return;
     }
-    n = gregory_rule(even, off, delta);
+    /* an even window's own corrections are the rule's over L_e: moments_push takes them from
+     * fact - acc, so only the half-rate rule's are listed */
+    n = L % 2 ? gregory_rule(even, off, delta) : 0;
     n_half = gregory_rule(even / 2, half_off, half);
     for (m = 0; m < n_half + (L % 2); m++) {
         const long at = m < n_half ? 2 * half_off[m] : L;
@@ -2080,16 +2082,18 @@ static long moments_push(duffid_estimator *est, long window)
         for (c = 0; c < n_ch; c++) {
             const duffid_real *a = est->acc + c * D1;
             duffid_real *out = est->fact + c * D1, v[MAX_CORR] = {RC(0.0)};
+            int f;
             for (m = 0; m < est->corr_n; m++) {
                 v[m] = sample[m][c];
             }
             for (k = 0; k < D1; k++) {
-                duffid_real sum = a[k];
-                int f;
-                for (f = 0; f < n_full; f++) {
-                    sum += est->corr_w[full[f] * D1 + k] * v[full[f]];
+                out[k] = a[k];
+            }
+            for (f = 0; f < n_full; f++) {
+                const duffid_real *cw = est->corr_w + full[f] * D1, vf = v[full[f]];
+                for (k = 0; k < D1; k++) {
+                    out[k] += cw[k] * vf;
                 }
-                out[k] = sum;
             }
             for (m = 0; m < est->corr_n; m++) {
                 if (est->corr_top[m] < D1) {
@@ -2103,11 +2107,17 @@ static long moments_push(duffid_estimator *est, long window)
     }
     power_moments(est, est->fact, est->mom);
     /* SlidingMoments.rate_difference: minus the alternating sums plus the rules' corrections */
-    est->rate_ok = L >= 2;
+    est->rate_ok = L >= 2 && !est->defer; /* deferred solutions publish nothing */
     if (est->rate_ok) {
         rate_weights(est, L);
-        for (k = 0; k < D1 * n_ch; k++) {
-            est->dfact[k] = -sign * est->acc_alt[k];
+        if (L % 2) {
+            for (k = 0; k < D1 * n_ch; k++) {
+                est->dfact[k] = -sign * est->acc_alt[k];
+            }
+        } else { /* the rule's corrections over L_e = L: fact - acc */
+            for (k = 0; k < D1 * n_ch; k++) {
+                est->dfact[k] = -sign * est->acc_alt[k] + (est->fact[k] - est->acc[k]);
+            }
         }
         for (m = 0; m < est->rate_n; m++) {
             const long at = est->rate_off[m];
@@ -2973,7 +2983,7 @@ static long robust_step(duffid_estimator *est)
     }
     est->last_L = (duffid_real)L;
     kernel_entries(est, L);
-    rated = est->rate_ok && !est->defer;
+    rated = est->rate_ok;
     if (rated) {
         rate_entries(est);
     }

@@ -112,14 +112,15 @@ QUADRATURE: tuple[Fact, ...] = (
 
 
 def _gregory_table() -> list[str]:
-    """``DUFFID_GREGORY_END``: row ``p - 1`` holds the corrections of ``p`` points (zero-padded)."""
+    """``DUFFID_GREGORY_END(R)``: row ``p - 1`` holds the corrections of ``p`` points
+    (zero-padded), each literal wrapped in ``R`` (the core's real-constant macro)."""
     P = regressors.GREGORY_POINTS
     rows = []
     for p in range(1, P + 1):
-        values = [_literal(float(d)) for d in regressors.gregory_end(p)] + ["0.0"] * (P - p)
+        values = [f"R({_literal(float(d))})" for d in regressors.gregory_end(p)] + ["R(0.0)"] * (P - p)
         rows.append("    {" + ", ".join(values) + "}")
     return ["/* Gregory's end corrections c_i - 1 of p points (row p - 1; regressors.gregory_end) */",
-            "#define DUFFID_GREGORY_END { \\", *(r + (", \\" if i + 1 < P else " \\") for i, r in enumerate(rows)),
+            "#define DUFFID_GREGORY_END(R) { \\", *(r + (", \\" if i + 1 < P else " \\") for i, r in enumerate(rows)),
             "}", ""]
 
 

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field, replace
-from math import comb
 from typing import Any, Mapping
 
 import numpy as np
