@@ -16,7 +16,10 @@ Printed per change type (median and worst over the seeds):
   published value (any parameter) from the truth at any instant of the second before it;
 - ``worst now``: the largest distance of any published value from the truth at its sample;
 - ``last s``: the largest error of the changed parameter in the last second (NaN: not
-  published there), the target being 2 %.
+  published there), the target being 2 %;
+- ``beyond 3 SE``: the share of published parameter-samples further from the truth at their
+  sample than 3 of their stated standard errors (the project's first rule: a value shown is
+  within its stated uncertainty), and ``shown so``: for how long (s) at least one was.
 
 Then the false alarms on constant plants: every record of ``benchmarks/trust.py`` (its online
 run) and the constant version of this plant, counting the times a parameter turned
@@ -93,7 +96,12 @@ def run(changed: str | None, changes: list, start: float | None, seed: int) -> d
             recent = truth[max(0, i - span):i + 1, j]
             worst_recent = max(worst_recent, float(np.min(np.abs(values[i, j] - recent) / np.abs(recent))))
             worst_now = max(worst_now, abs(values[i, j] - truth[i, j]) / abs(truth[i, j]))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        beyond = np.abs(values - truth) > 3 * rows["std_errors"][:, :4]
+    shown = np.isfinite(values)
     out = {"worst vs last s": worst_recent, "worst now": worst_now,
+           "beyond 3 SE": float(np.sum(beyond & shown) / max(np.sum(shown), 1)),
+           "shown so": float(np.sum((beyond & shown).any(axis=1)) * DT),
            "false alarms": float(np.sum(np.diff((status == CHANGED).any(axis=1).astype(int)) == 1))}
     if changed is None:
         return out
@@ -150,16 +158,17 @@ def main(argv: list[str] | None = None) -> int:
         results.setdefault(name, []).append(run(changed, changes, start, seed))
     print(f"Tracking a changing plant (C core, default options; {args.seeds} seeds; median / worst)")
     columns = [("flagged after", False), ("re-published after", False), ("worst vs last s", True),
-               ("worst now", True), ("last s", True), ("false alarms", False)]
-    print(f"{'change':<15}" + "".join(f"{c:>30}" for c, _ in columns))
+               ("worst now", True), ("last s", True), ("beyond 3 SE", True), ("shown so", False),
+               ("false alarms", False)]
+    print(f"{'change':<15}" + "".join(f"{c:>22}" for c, _ in columns))
     for name, rows in results.items():
         cells = []
         for column, percent in columns:
             values = [r.get(column, math.nan) for r in rows]
             if column == "false alarms":
-                cells.append(f"{int(np.nansum(values)) if name == 'constant' else '-':>30}")
+                cells.append(f"{int(np.nansum(values)) if name == 'constant' else '-':>22}")
             else:
-                cells.append(f"{summary(values, percent):>30}")
+                cells.append(f"{summary(values, percent):>22}")
         print(f"{name:<15}" + "".join(cells))
     if not args.no_battery:
         alarms = battery_false_alarms()

@@ -152,6 +152,9 @@ typedef struct { /* the state of one block of the description */
     int probe_n;                      /* its lines (0: none); its factor is (n + probe_n + 1)^2 */
     duffid_real *R_probe;             /* its accumulated factor of [A, t A_0.., D] (one row a sample) */
     duffid_real rows_probe;           /* its rows (weighted as the accumulated ones) */
+    duffid_real times_probe;          /* ... their times, weighted as the rows */
+    duffid_real *drift_shift;         /* n: its drift from the rows' mean time to now beyond
+                                       * DUFFID_DRIFT_BIAS_SIGMAS (engine.DRIFT_BIAS_SIGMAS) */
     int64_t probed;                   /* samples it has found a drift in a row, saturated at settle */
     int probe_row;                    /* the row of the block's it takes next */
     /* engine.OFFSET_SIGMAS: the offset probe, the rows with an unknown constant force */
@@ -975,6 +978,7 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
         CARVE(&c, eq->jump_shift, n);
         CARVE(&c, eq->rate_v, robust ? nl : 0);
         CARVE(&c, eq->rate_shift, n);
+        CARVE(&c, eq->drift_shift, n);
         CARVE(&c, eq->drifting, n);
         CARVE(&c, eq->line, lines ? nl : 0);
         CARVE(&c, eq->line_inv, lines ? nl * nl : 0);
@@ -1537,6 +1541,7 @@ static void clear_change(equation_t *eq, int n)
     for (u = 0; u < n; u++) {
         eq->jump_shift[u] = RC(0.0);
         eq->rate_shift[u] = RC(0.0);
+        eq->drift_shift[u] = RC(0.0);
     }
 }
 
@@ -1557,7 +1562,7 @@ static void clear_factors(duffid_estimator *est, int e)
         memset(eq->R_off, 0, (size_t)(q * q) * sizeof(duffid_real));
         memset(eq->R_var, 0, sizeof eq->R_var);
     }
-    eq->rows = eq->rows_recent = eq->times_recent = eq->rows_probe = eq->rows_off = RC(0.0);
+    eq->rows = eq->rows_recent = eq->times_recent = eq->rows_probe = eq->times_probe = eq->rows_off = RC(0.0);
     for (i = 0; i < eq->line_cap; i++) {
         eq->jump_v[i] = eq->rate_v[i] = RC(0.0);
     }
@@ -2694,8 +2699,10 @@ static int drift_probe(duffid_estimator *est, int e, int m, duffid_real t, duffi
     row[np_] = est->B_copy[nl * m + r];
     duffid_la_qr_accumulate(eq->R_probe, p, est->sqrt_lam, row, 1);
     eq->rows_probe = est->lam * eq->rows_probe + RC(1.0);
+    eq->times_probe = est->lam * eq->times_probe + t;
     for (i = 0; i < n; i++) {
         departed[i] = 0;
+        eq->drift_shift[i] = RC(0.0);
     }
     dof = eq->rows_probe - (duffid_real)np_;
     for (i = 0; i < np_; i++) {
@@ -2703,6 +2710,8 @@ static int drift_probe(duffid_estimator *est, int e, int m, duffid_real t, duffi
     }
     if (dof > RC(0.0) && !singular_ && duffid_la_upper_inverse(P, R + n * p + n, p, inv) == 0) {
         const duffid_real sigma = R_FABS(R[np_ * p + np_]) * R_SQRT(overlap / dof);
+        /* from the rows' mean time to now (half a window after the newest rows) */
+        const duffid_real span = R_FABS(t + RC(0.5) * overlap * est->dt - eq->times_probe / eq->rows_probe);
         for (i = np_ - 1; i >= 0; i--) { /* back substitution */
             duffid_real sum = R[i * p + np_];
             for (k = i + 1; k < np_; k++) {
@@ -2716,10 +2725,14 @@ static int drift_probe(duffid_estimator *est, int e, int m, duffid_real t, duffi
         for (i = 0; i < P; i++) {
             const int c = n + i;
             const duffid_real rate = theta[c], end = theta[i] + rate * t;
-            duffid_real norm2 = RC(0.0), dot = RC(0.0), col2 = RC(0.0);
+            duffid_real norm2 = RC(0.0), dot = RC(0.0), col2 = RC(0.0), bias;
             for (k = i; k < P; k++) { /* the rate's standard error: row i of R22^-1 */
                 norm2 += inv[i * P + k] * inv[i * P + k];
             }
+            /* the drift beyond DUFFID_DRIFT_BIAS_SIGMAS errors to now: a bias of the constants
+             * (a line's value is that of now already) */
+            bias = rate * rate - RC(DUFFID_DRIFT_BIAS_SIGMAS) * RC(DUFFID_DRIFT_BIAS_SIGMAS) * sigma * sigma * norm2;
+            eq->drift_shift[i] = bias > RC(0.0) && !eq->drifting[i] ? span * R_SQRT(bias) : RC(0.0);
             for (k = n; k <= c; k++) { /* alone: its column orthogonal to the constants (_alone) */
                 dot += R[k * p + c] * R[k * p + np_];
                 col2 += R[k * p + c] * R[k * p + c];
@@ -3009,6 +3022,8 @@ static long robust_step(duffid_estimator *est)
 #endif
         if (full) {
             const duffid_real t = (duffid_real)(est->n - eq->origin) * est->dt; /* the rows' time */
+            /* ... the lines' values half a window later: now (DriftLine) */
+            const duffid_real now = t + RC(0.5) * (duffid_real)L * est->dt;
             duffid_real previous[MAX_UNK], fit;
             if (nl > n) { /* a block with lines: the rows [A, t A_i (the lines), D] */
                 line_rows(eq, n, m, t, est->B);
@@ -3051,7 +3066,7 @@ static long robust_step(duffid_estimator *est)
             duffid_la_qr_accumulate(eq->R, nl + 1, est->sqrt_lam, est->B, m);
             eq->rows = est->lam * eq->rows + (duffid_real)m;
             if (nl > n) {
-                line_solve(est, eq, n, t, (duffid_real)L);
+                line_solve(est, eq, n, now, (duffid_real)L);
             } else {
                 solve_factor(est, eq, n, eq->R, eq->rows, (duffid_real)L);
             }
@@ -3059,12 +3074,12 @@ static long robust_step(duffid_estimator *est)
                 duffid_real shift[MAX_LINE];
                 int k = n;
                 jump_shift(nl, nl + 1, eq->R, eq->jump_v, shift);
-                for (i = 0; i < n; i++) { /* the lines' values at the newest rows */
-                    eq->jump_shift[i] = shift[i] + (nl > n && eq->drifting[i] ? shift[k++] * t : RC(0.0));
+                for (i = 0; i < n; i++) { /* the lines' values now */
+                    eq->jump_shift[i] = shift[i] + (nl > n && eq->drifting[i] ? shift[k++] * now : RC(0.0));
                 }
                 jump_shift(nl, nl + 1, eq->R, eq->rate_v, shift);
                 for (i = 0, k = n; i < n; i++) {
-                    eq->rate_shift[i] = shift[i] + (nl > n && eq->drifting[i] ? shift[k++] * t : RC(0.0));
+                    eq->rate_shift[i] = shift[i] + (nl > n && eq->drifting[i] ? shift[k++] * now : RC(0.0));
                 }
             }
             if (est->change_threshold > RC(0.0) && !drift_probe(est, e, m, t, (duffid_real)L)) {
@@ -3262,20 +3277,23 @@ static long paper_step(duffid_estimator *est)
  * a forced block's unknowns are absolute values; an unforced block's are ratios to its
  * scale, found by its rules from a block already on a known scale (passes until none
  * progresses). Relative errors of products add in quadrature. */
-/* engine._published_error: unknown u's standard error with its jumps' bias (JUMP_ERROR) and its
- * rows' change at half the rate beyond DUFFID_RATE_NOISE standard errors, in quadrature */
+/* engine._published_error: unknown u's standard error with its jumps' bias (JUMP_ERROR), its
+ * rows' change at half the rate beyond DUFFID_RATE_NOISE standard errors and the drift probe's
+ * drift to now (DUFFID_DRIFT_BIAS_SIGMAS), in quadrature; without the last two: with_rate 0 */
 static duffid_real published_rse(const equation_t *eq, int u, int with_rate)
 {
     const duffid_real rse = eq->rse[u];
-    duffid_real jump, change, rate;
-    if (eq->jump_shift[u] == RC(0.0) && (eq->rate_shift[u] == RC(0.0) || !with_rate)) {
+    duffid_real jump, change, rate, drift;
+    if (eq->jump_shift[u] == RC(0.0) &&
+        ((eq->rate_shift[u] == RC(0.0) && eq->drift_shift[u] == RC(0.0)) || !with_rate)) {
         return rse;
     }
     jump = eq->jump_shift[u] != RC(0.0) ? RC(DUFFID_JUMP_ERROR) * R_FABS(eq->jump_shift[u] / eq->theta[u]) : RC(0.0);
     change = eq->rate_shift[u] != RC(0.0) && with_rate ? R_FABS(eq->rate_shift[u] / eq->theta[u]) : RC(0.0);
+    drift = eq->drift_shift[u] != RC(0.0) && with_rate ? R_FABS(eq->drift_shift[u] / eq->theta[u]) : RC(0.0);
     rate = change * change - RC(DUFFID_RATE_NOISE) * RC(DUFFID_RATE_NOISE) * rse * rse;
     rate = rate <= RC(0.0) ? RC(0.0) : rate; /* np.maximum: a NaN stays */
-    return R_SQRT(rse * rse + jump * jump + rate);
+    return R_SQRT(rse * rse + jump * jump + rate + drift * drift);
 }
 
 /* one pass of the combination with or without the quadrature's bias into errors */

@@ -83,6 +83,8 @@ PUBLICATION: tuple[Fact, ...] = (
          "change test: unknowns of a block whose departed unknowns are lines in time, with their rates, at most"),
     Fact("DUFFID_DRIFT_SIGMAS", engine.DRIFT_SIGMAS,
          "change test: the drift probe's rate beyond this many standard errors is a drift"),
+    Fact("DUFFID_DRIFT_BIAS_SIGMAS", engine.DRIFT_BIAS_SIGMAS,
+         "change test: the drift probe's rate beyond this many standard errors biases the constants"),
     Fact("DUFFID_OFFSET_SIGMAS", engine.OFFSET_SIGMAS,
          "offset probe: a constant force beyond this many standard errors that moves a value keeps it unpublished"),
     Fact("DUFFID_FORCE_VARIATION", engine.FORCE_VARIATION,
