@@ -179,3 +179,19 @@ def test_rate_difference_is_the_rule_minus_the_half_rate_rule_over_the_even_wind
             expected = _rule(newest_first, 1, even, N, degree) - _rule(newest_first, 2, even, N, degree)
             scale = np.abs(_rule(newest_first, 1, even, N, degree)).max()
             np.testing.assert_allclose(diff, expected, rtol=0, atol=1e-12 * scale, err_msg=f"sample {n}")
+
+
+@pytest.mark.parametrize("family", ["bernstein", "paper", "integrals"])
+def test_time_weighted_entries_are_those_of_the_kernels_times_the_age(family):
+    """KernelBank.within by Leibniz's rule, ``(s w)^(d) = s w^(d) + d w^(d-1)`` on the moments
+    one power up, equals the entries of the kernels ``s w_r`` expanded directly (rows
+    ``(a + 1, b)``, whose ``1 / (a + 1)!`` is ``1 / ((a + 1) a!)``), normalised as row r's."""
+    rows = row_exponents(family, 5)
+    bank = KernelBank.build(rows, 2)
+    shifted = KernelBank.build(tuple((a + 1, b) for a, b in rows), 2)
+    moments = np.random.default_rng(7).normal(size=(bank.degree + 2, 3))
+    tau, t_ref = 0.7, 0.25
+    direct = shifted.entries(tau, moments, np.zeros(3), t_ref)
+    factor = np.array([a + 1 for a, _ in rows]) * bank.row_scale(tau) / shifted.row_scale(tau)
+    np.testing.assert_allclose(bank.within(tau, moments, t_ref), direct * factor[:, None, None],
+                               rtol=1e-12, atol=1e-12 * np.abs(direct).max())

@@ -49,7 +49,7 @@ typedef char line_unknowns_fit[MAX_LINE <= MAX_UNK ? 1 : -1]; /* the workspaces 
 #define MAX_EQ DUFFID_MAX_BLOCKS
 #define MAX_ORDER DUFFID_MAX_DERIVATIVE /* derivative orders 0..2 */
 #define N_ORD (MAX_ORDER + 1)
-#define MAX_DEG (DUFFID_MAX_ROWS + 4) /* highest moment power */
+#define MAX_DEG (DUFFID_MAX_ROWS + 5) /* highest moment power (the kernels' + 1: KernelBank.within) */
 #define MAX_POW (MAX_DEG + 1)
 #define MAX_CORR (2 * DUFFID_GREGORY_POINTS) /* quadrature end corrections */
 #define MAX_RATE (2 * MAX_CORR + 1)  /* ... of the rule minus the half-rate rule (engine.RATE_NOISE) */
@@ -805,6 +805,7 @@ static void shape_of(const duffid_config *cfg, shape_t *s)
                 s->n_coef += row_a[r] + row_b[r] - d - kernel_first(row_a[r], d) + 1;
             }
         }
+        s->degree += 1; /* the moments: one power more than the kernels take (within_entry) */
     }
 }
 
@@ -1059,6 +1060,7 @@ static void build_kernel_bank(duffid_estimator *est)
     for (r = 0; r < n_rows; r++) {
         est->degree = est->row_a[r] + est->row_b[r] > est->degree ? est->row_a[r] + est->row_b[r] : est->degree;
     }
+    est->degree += 1; /* the moments: one power more than the kernels take (within_entry) */
     for (r = 0; r < n_rows; r++) {
         const int a = est->row_a[r], b = est->row_b[r];
         duffid_real prod = RC(1.0), fact_a = RC(1.0);
@@ -2673,6 +2675,45 @@ static void restart(duffid_estimator *est, int e, const int *departed)
     eq->resume = eq->recent_resume = eq->origin = est->n + est->target;
 }
 
+/* KernelBank.within: the normalised entry of order d of channel c with row r's kernel times
+ * the samples' age s (in reference lengths): (s w)^(d) = s w^(d) + d w^(d-1), the moments one
+ * power up and the kernel of one order lower (kernel_entries' cache, for this L) */
+static duffid_real within_entry(const duffid_estimator *est, int r, int d, int c)
+{
+    const int i = r * N_ORD + d;
+    const duffid_real *mom = est->mom + c * (est->degree + 1), *poly = est->poly + est->k_at[i];
+    duffid_real sum = RC(0.0);
+    int k;
+    for (k = 0; k < est->k_count[i]; k++) {
+        sum += poly[k] * mom[est->k_first[i] + k + 1];
+    }
+    if (d > 0) {
+        const duffid_real *lower = est->poly + est->k_at[i - 1];
+        duffid_real part = RC(0.0);
+        for (k = 0; k < est->k_count[i - 1]; k++) {
+            part += lower[k] * mom[est->k_first[i - 1] + k];
+        }
+        sum += (duffid_real)d * part;
+    }
+    return sum * est->entry_scale[i];
+}
+
+/* DriftLine.rows' S: row `row` of block b's column of unknown u with every sample's term
+ * weighted by its age, times the reference length (t_ref KernelBank.within, assembled) */
+static duffid_real timed_entry(const duffid_estimator *est, const block_t *b, int u, int row)
+{
+    const int part = row / est->n_rows, r = row % est->n_rows;
+    duffid_real sum = RC(0.0);
+    int k;
+    for (k = 0; k < b->n_terms; k++) {
+        const term_t *t = &est->m.terms[b->term0 + k];
+        if (t->unknown == u && t->part == part) {
+            sum += t->coef * within_entry(est, r, t->order, t->channel);
+        }
+    }
+    return sum * (duffid_real)est->capacity * est->cfg.dt;
+}
+
 /* OnlineIdentifier._drift_probe: row probe_row of the m rows B_copy ([A, the lines, D] at time
  * t, column after column) into the drift probe of equation e, its rates tested; returns 1 when
  * it restarted the equation. The rates need no full inverse: in the factor [[R11, R12], [0,
@@ -2693,8 +2734,8 @@ static int drift_probe(duffid_estimator *est, int e, int m, duffid_real t, duffi
     for (i = 0; i < n; i++) {
         row[i] = est->B_copy[i * m + r];
     }
-    for (i = 0; i < P; i++) {
-        row[n + i] = t * row[i];
+    for (i = 0; i < P; i++) { /* DriftLine.rows: t A_i - S_i */
+        row[n + i] = t * row[i] - timed_entry(est, &est->m.blocks[e], i, r);
     }
     row[np_] = est->B_copy[nl * m + r];
     duffid_la_qr_accumulate(eq->R_probe, p, est->sqrt_lam, row, 1);
@@ -2944,15 +2985,17 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit, du
 /* OnlineIdentifier._robust_step + _robust_solve; returns the window length L */
 /* DriftLine.rows: a block's rows [A, D] (B, column after column, m rows) become [A, t A_i
  * (its drifting unknowns), D] */
-static void line_rows(const equation_t *eq, int n, int m, duffid_real t, duffid_real *B)
+static void line_rows(const duffid_estimator *est, const block_t *b, const equation_t *eq, int m, duffid_real t,
+                      int timed, duffid_real *B)
 {
+    const int n = b->n_unknowns;
     int i, k = n;
     memcpy(B + eq->n_line * m, B + n * m, (size_t)m * sizeof(duffid_real));
     for (i = 0; i < n; i++) {
         if (eq->drifting[i]) {
             int r;
             for (r = 0; r < m; r++) {
-                B[k * m + r] = t * B[i * m + r];
+                B[k * m + r] = t * B[i * m + r] - (timed ? timed_entry(est, b, i, r) : RC(0.0));
             }
             k++;
         }
@@ -3022,13 +3065,11 @@ static long robust_step(duffid_estimator *est)
 #endif
         if (full) {
             const duffid_real t = (duffid_real)(est->n - eq->origin) * est->dt; /* the rows' time */
-            /* ... the lines' values half a window later: now (DriftLine) */
-            const duffid_real now = t + RC(0.5) * (duffid_real)L * est->dt;
             duffid_real previous[MAX_UNK], fit;
-            if (nl > n) { /* a block with lines: the rows [A, t A_i (the lines), D] */
-                line_rows(eq, n, m, t, est->B);
-                if (rated) {
-                    line_rows(eq, n, m, t, est->B_rate);
+            if (nl > n) { /* a block with lines: the rows [A, t A_i - S_i (the lines), D] */
+                line_rows(est, b, eq, m, t, 1, est->B);
+                if (rated) { /* (the difference's rows at the newest sample's time) */
+                    line_rows(est, b, eq, m, t, 0, est->B_rate);
                 }
             }
             if (est->defer) { /* duffid_defer_solutions: the rows only (no lines: no change test, no
@@ -3066,7 +3107,7 @@ static long robust_step(duffid_estimator *est)
             duffid_la_qr_accumulate(eq->R, nl + 1, est->sqrt_lam, est->B, m);
             eq->rows = est->lam * eq->rows + (duffid_real)m;
             if (nl > n) {
-                line_solve(est, eq, n, now, (duffid_real)L);
+                line_solve(est, eq, n, t, (duffid_real)L);
             } else {
                 solve_factor(est, eq, n, eq->R, eq->rows, (duffid_real)L);
             }
@@ -3075,11 +3116,11 @@ static long robust_step(duffid_estimator *est)
                 int k = n;
                 jump_shift(nl, nl + 1, eq->R, eq->jump_v, shift);
                 for (i = 0; i < n; i++) { /* the lines' values now */
-                    eq->jump_shift[i] = shift[i] + (nl > n && eq->drifting[i] ? shift[k++] * now : RC(0.0));
+                    eq->jump_shift[i] = shift[i] + (nl > n && eq->drifting[i] ? shift[k++] * t : RC(0.0));
                 }
                 jump_shift(nl, nl + 1, eq->R, eq->rate_v, shift);
                 for (i = 0, k = n; i < n; i++) {
-                    eq->rate_shift[i] = shift[i] + (nl > n && eq->drifting[i] ? shift[k++] * now : RC(0.0));
+                    eq->rate_shift[i] = shift[i] + (nl > n && eq->drifting[i] ? shift[k++] * t : RC(0.0));
                 }
             }
             if (est->change_threshold > RC(0.0) && !drift_probe(est, e, m, t, (duffid_real)L)) {

@@ -225,6 +225,30 @@ class KernelBank:
         return E * (self.row_scale(tau)[:, None, None] * d_scale[None, :, None])
 
 
+    def within(self, tau: float, moments: np.ndarray, t_ref: float) -> np.ndarray:
+        """Normalised entries of the kernels ``s w_r`` (``s``: a sample's age in reference
+        lengths), each row normalised as its own: ``(s w)^(d) = s w^(d) + d w^(d-1)``, so the
+        moments one power up and the entries of one order lower. A coefficient linear in time
+        (a :class:`~duffid.identification.engine.DriftLine`) at ``t_now - s t_ref`` has the
+        rows ``t_now E - t_ref within``.
+
+        Parameters
+        ----------
+        tau : float
+            Window length over the reference length.
+        moments : ndarray, shape (degree+2, channels)
+            Quadrature-weighted moments ``S_k``, one power more than :meth:`entries` takes.
+        t_ref : float
+            Reference length [s].
+        """
+        P = self.polynomials(tau)  # (s w vanishes with its first derivative at s = 0: no raw term)
+        E = P @ moments[1:]
+        orders = np.arange(1, self.max_order + 1, dtype=float)
+        E[:, 1:] += orders[None, :, None] * (P[:, :-1] @ moments[:-1])
+        d_scale = t_ref ** -np.arange(self.max_order + 1, dtype=float)
+        return E * (self.row_scale(tau)[:, None, None] * d_scale[None, :, None])
+
+
 class SlidingMoments:
     """O(1)-per-sample moments of the last ``L`` sample intervals of several channels.
 
