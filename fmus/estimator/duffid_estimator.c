@@ -2767,22 +2767,23 @@ static int drift_probe(duffid_estimator *est, int e, int m, duffid_real t, duffi
             const int c = n + i;
             const duffid_real rate = theta[c], end = theta[i] + rate * t;
             duffid_real norm2 = RC(0.0), dot = RC(0.0), col2 = RC(0.0), bias;
+            int confirmed;
             for (k = i; k < P; k++) { /* the rate's standard error: row i of R22^-1 */
                 norm2 += inv[i * P + k] * inv[i * P + k];
             }
-            /* the drift beyond DUFFID_DRIFT_BIAS_SIGMAS errors to now: a bias of the constants
-             * (a line's value is that of now already) */
-            bias = rate * rate - RC(DUFFID_DRIFT_BIAS_SIGMAS) * RC(DUFFID_DRIFT_BIAS_SIGMAS) * sigma * sigma * norm2;
-            eq->drift_shift[i] = bias > RC(0.0) && !eq->drifting[i] ? span * R_SQRT(bias) : RC(0.0);
             for (k = n; k <= c; k++) { /* alone: its column orthogonal to the constants (_alone) */
                 dot += R[k * p + c] * R[k * p + np_];
                 col2 += R[k * p + c] * R[k * p + c];
             }
+            confirmed = dot * dot >= RC(DUFFID_CHANGE_ALONE_SHARE) * col2 * gain;
+            /* the drift beyond DUFFID_DRIFT_BIAS_SIGMAS errors to now of a rate confirmed alone: a
+             * bias of the constants (a line's value is that of now already) */
+            bias = rate * rate - RC(DUFFID_DRIFT_BIAS_SIGMAS) * RC(DUFFID_DRIFT_BIAS_SIGMAS) * sigma * sigma * norm2;
+            eq->drift_shift[i] = confirmed && bias > RC(0.0) && !eq->drifting[i] ? span * R_SQRT(bias) : RC(0.0);
             /* ... and the line's end further from the accumulated value than that may move */
             departed[i] = R_FABS(rate) > RC(DUFFID_DRIFT_SIGMAS) * sigma * R_SQRT(norm2) &&
                           R_FABS(end - eq->theta[i]) > band * R_FABS(end) &&
-                          dot * dot >= RC(DUFFID_CHANGE_ALONE_SHARE) * col2 * gain &&
-                          eq->rse[i] <= est->max_uncertainty && !eq->drifting[i];
+                          confirmed && eq->rse[i] <= est->max_uncertainty && !eq->drifting[i];
             any |= departed[i];
         }
     }

@@ -130,8 +130,10 @@ DRIFT_SIGMAS = 4.0
 #: Until the drift probe restarts an equation, its unknowns are constants fitted to rows of a
 #: plant that may be drifting: a constant lags a drift by the span from the rows' mean time to
 #: now. A published value's standard error includes that lag's drift, the probe's rate beyond
-#: this many of its standard errors times the span, in quadrature (the rates of constant plants
-#: stayed within 2.2 standard errors, DRIFT_SIGMAS). Measured on a stiffness drifting by 20 %
+#: this many of its standard errors times the span, in quadrature, for an unknown whose rate
+#: alone explains the lines' gain (:data:`CHANGE_ALONE_SHARE`; without that, the free decay after
+#: a hammer blow, which cannot tell the unknowns' common scale, showed a joint slide of all
+#: four and withdrew every value). Measured on a stiffness drifting by 20 %
 #: over 6 s (``benchmarks/tracking.py``, 3 seeds each way): the published samples of k further
 #: than 3 stated errors from the truth fell from 815-1,906 to 462-1,811 (the rest: before the
 #: rates are significant).
@@ -1554,9 +1556,11 @@ class OnlineIdentifier(Identifier):
                 # the line's end is further from the accumulated value than that may move
                 stale = np.abs(ends - st.theta[index]) > band * np.abs(ends)
                 # the drift the rates show beyond DRIFT_BIAS_SIGMAS errors, from the rows' mean
-                # time to now (half a window after the newest rows): a bias of the constants
+                # time to now (half a window after the newest rows): a bias of the constants, of
+                # those whose rate alone explains the lines' gain (a joint slide of every unknown,
+                # as in a free decay that cannot tell their common scale, is no drift)
                 span = abs(time + 0.5 * L * self.dt - probe.mean_time)
-                bias = rates**2 - (DRIFT_BIAS_SIGMAS * errors) ** 2
+                bias = np.where(alone, rates**2 - (DRIFT_BIAS_SIGMAS * errors) ** 2, 0.0)
                 st.drift_shift[index] = np.where(bias > 0, span * np.sqrt(np.where(bias > 0, bias, 0.0)), 0.0)
                 if st.line is not None:  # a line's value is that of now already
                     st.drift_shift[st.line.drifting] = 0.0
