@@ -2678,10 +2678,10 @@ static void restart(duffid_estimator *est, int e, const int *departed)
 /* KernelBank.within: the normalised entry of order d of channel c with row r's kernel times
  * the samples' age s (in reference lengths): (s w)^(d) = s w^(d) + d w^(d-1), the moments one
  * power up and the kernel of one order lower (kernel_entries' cache, for this L) */
-static duffid_real within_entry(const duffid_estimator *est, int r, int d, int c)
+static duffid_real within_entry(const duffid_estimator *est, const duffid_real *moments, int r, int d, int c)
 {
     const int i = r * N_ORD + d;
-    const duffid_real *mom = est->mom + c * (est->degree + 1), *poly = est->poly + est->k_at[i];
+    const duffid_real *mom = moments + c * (est->degree + 1), *poly = est->poly + est->k_at[i];
     duffid_real sum = RC(0.0);
     int k;
     for (k = 0; k < est->k_count[i]; k++) {
@@ -2699,8 +2699,10 @@ static duffid_real within_entry(const duffid_estimator *est, int r, int d, int c
 }
 
 /* DriftLine.rows' S: row `row` of block b's column of unknown u with every sample's term
- * weighted by its age, times the reference length (t_ref KernelBank.within, assembled) */
-static duffid_real timed_entry(const duffid_estimator *est, const block_t *b, int u, int row)
+ * weighted by its age, times the reference length (t_ref KernelBank.within, assembled), from
+ * the window's moments (est->mom) or their difference at half the rate (est->dmom) */
+static duffid_real timed_entry(const duffid_estimator *est, const duffid_real *moments, const block_t *b, int u,
+                               int row)
 {
     const int part = row / est->n_rows, r = row % est->n_rows;
     duffid_real sum = RC(0.0);
@@ -2708,7 +2710,7 @@ static duffid_real timed_entry(const duffid_estimator *est, const block_t *b, in
     for (k = 0; k < b->n_terms; k++) {
         const term_t *t = &est->m.terms[b->term0 + k];
         if (t->unknown == u && t->part == part) {
-            sum += t->coef * within_entry(est, r, t->order, t->channel);
+            sum += t->coef * within_entry(est, moments, r, t->order, t->channel);
         }
     }
     return sum * (duffid_real)est->capacity * est->cfg.dt;
@@ -2735,7 +2737,7 @@ static int drift_probe(duffid_estimator *est, int e, int m, duffid_real t, duffi
         row[i] = est->B_copy[i * m + r];
     }
     for (i = 0; i < P; i++) { /* DriftLine.rows: t A_i - S_i */
-        row[n + i] = t * row[i] - timed_entry(est, &est->m.blocks[e], i, r);
+        row[n + i] = t * row[i] - timed_entry(est, est->mom, &est->m.blocks[e], i, r);
     }
     row[np_] = est->B_copy[nl * m + r];
     duffid_la_qr_accumulate(eq->R_probe, p, est->sqrt_lam, row, 1);
@@ -2987,7 +2989,7 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit, du
 /* DriftLine.rows: a block's rows [A, D] (B, column after column, m rows) become [A, t A_i
  * (its drifting unknowns), D] */
 static void line_rows(const duffid_estimator *est, const block_t *b, const equation_t *eq, int m, duffid_real t,
-                      int timed, duffid_real *B)
+                      const duffid_real *moments, duffid_real *B)
 {
     const int n = b->n_unknowns;
     int i, k = n;
@@ -2996,7 +2998,7 @@ static void line_rows(const duffid_estimator *est, const block_t *b, const equat
         if (eq->drifting[i]) {
             int r;
             for (r = 0; r < m; r++) {
-                B[k * m + r] = t * B[i * m + r] - (timed ? timed_entry(est, b, i, r) : RC(0.0));
+                B[k * m + r] = t * B[i * m + r] - timed_entry(est, moments, b, i, r);
             }
             k++;
         }
@@ -3068,9 +3070,9 @@ static long robust_step(duffid_estimator *est)
             const duffid_real t = (duffid_real)(est->n - eq->origin) * est->dt; /* the rows' time */
             duffid_real previous[MAX_UNK], fit;
             if (nl > n) { /* a block with lines: the rows [A, t A_i - S_i (the lines), D] */
-                line_rows(est, b, eq, m, t, 1, est->B);
-                if (rated) { /* (the difference's rows at the newest sample's time) */
-                    line_rows(est, b, eq, m, t, 0, est->B_rate);
+                line_rows(est, b, eq, m, t, est->mom, est->B);
+                if (rated) {
+                    line_rows(est, b, eq, m, t, est->dmom, est->B_rate);
                 }
             }
             if (est->defer) { /* duffid_defer_solutions: the rows only (no lines: no change test, no

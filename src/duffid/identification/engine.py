@@ -1356,24 +1356,32 @@ class OnlineIdentifier(Identifier):
             return 0
         D1 = self.bank.degree + 1
         E = self.bank.entries(L / self.capacity, moments[:D1], g, self.capacity * self.dt)
-        timed = None
-        if L >= self._target and self.options["change_threshold"] is not None:  # the lines' rows (DriftLine)
-            W = self.capacity * self.dt * self.bank.within(L / self.capacity, moments, self.capacity * self.dt)
-            timed = [st.assembly(W)[0] for st in self._states]
+        # the lines' rows (DriftLine) need the time-weighted entries
+        lines = L >= self._target and self.options["change_threshold"] is not None
         self._robust_solve([st.assembly(E) for st in self._states], L, self._jump_columns(jumps, L),
-                           self._rate_rows(L), timed)
+                           self._rate_rows(L, lines), self._timed(L, moments) if lines else None)
         return L
 
-    def _rate_rows(self, L: int) -> list[tuple[np.ndarray, np.ndarray] | None]:
+    def _timed(self, L: int, moments: np.ndarray) -> list[np.ndarray]:
+        """Each equation's rows of its unknowns' terms with every sample weighted by its age,
+        times the reference length (``S`` of :meth:`DriftLine.rows`), from ``moments`` of one
+        power more than the kernels take."""
+        t_ref = self.capacity * self.dt
+        W = t_ref * self.bank.within(L / self.capacity, moments, t_ref)
+        return [st.assembly(W)[0] for st in self._states]
+
+    def _rate_rows(self, L: int, lines: bool) -> list[tuple[np.ndarray, np.ndarray, np.ndarray | None] | None]:
         """Each equation's rows by the rule minus the rows at half the rate over the window
-        of ``L`` intervals (``A_d``, ``D_d``, :data:`RATE_NOISE`; the raw terms cancel), None
-        below two intervals."""
+        of ``L`` intervals (``A_d``, ``D_d``, :data:`RATE_NOISE`; the raw terms cancel) and, for
+        ``lines``, their time-weighted entries (``S_d``, :meth:`_timed`); None below two
+        intervals."""
         rate = self._moments.rate_difference()
         if rate is None:
             return [None] * len(self._states)
-        rate = rate[:self.bank.degree + 1]
-        E = self.bank.entries(L / self.capacity, rate, np.zeros(rate.shape[1]), self.capacity * self.dt)
-        return [st.assembly(E) for st in self._states]
+        E = self.bank.entries(L / self.capacity, rate[:self.bank.degree + 1], np.zeros(rate.shape[1]),
+                              self.capacity * self.dt)
+        timed = self._timed(L, rate) if lines else [None] * len(self._states)
+        return [st.assembly(E) + (S,) for st, S in zip(self._states, timed)]
 
     def _jump_columns(self, moments: np.ndarray, L: int) -> list[np.ndarray | None]:
         """Each equation's rows' error column ``J`` on the jumps inside the window
@@ -1394,7 +1402,7 @@ class OnlineIdentifier(Identifier):
         self._memory = max(1, int(np.floor(tau / self.dt + 0.5)))  # samples of the recent memory
 
     def _robust_solve(self, systems: list[tuple[np.ndarray, np.ndarray]], L: int,
-                      jumps: list[np.ndarray | None], rates: list[tuple[np.ndarray, np.ndarray] | None],
+                      jumps: list[np.ndarray | None], rates: list[tuple[np.ndarray, np.ndarray, np.ndarray | None] | None],
                       timed: list[np.ndarray] | None = None) -> None:
         """Update the estimate with the rows of the current window (length ``L``).
 
@@ -1427,7 +1435,7 @@ class OnlineIdentifier(Identifier):
             st.residual = _relative_residual(rows, D, previous)
             Q = None
             if rate is not None and np.all(np.isfinite(previous)):  # the rows' change at half the rate
-                Q = rate[1] - (rate[0] if line is None else line.rows(rate[0], time)) @ previous
+                Q = rate[1] - (rate[0] if line is None else line.rows(rate[0], time, rate[2])) @ previous
             solver.update(rows, D, J=J, Q=Q)
             if line is None:
                 st.theta, st.cond, st.rse, st.share, st.rhs_share = solve_factor(solver.R, solver.rows, float(L))
