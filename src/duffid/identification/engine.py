@@ -1017,9 +1017,10 @@ class OnlineIdentifier(Identifier):
             self._auto = not fixed
             n_rows = o["n_rows"] or max(max(len(eq.unknowns) for eq in self.equations) + 1, 8)
             self.bank = KernelBank.build(row_exponents(o["rows"], n_rows), max_order)
-            # one power more than the kernels take: the time-weighted entries of the lines' rows
-            # (KernelBank.within)
-            self._moments = SlidingMoments(self.capacity, self.bank.degree + 1, len(self.channels))
+            self._moments = SlidingMoments(self.capacity, self.bank.degree, len(self.channels))
+            # ... and with one power more, for the time-weighted entries of the lines' rows
+            # (KernelBank.within; kept apart so that the rows' own moments round as before)
+            self._timed_moments = SlidingMoments(self.capacity, self.bank.degree + 1, len(self.channels))
             self._jumps = _JumpMoments(self.capacity, self.bank.degree, model.n_forces)
             lam = 1.0 if o["forgetting"] is None else float(np.exp(-self.dt / o["forgetting"]))
             self._solvers = [_QRLeastSquares(len(eq.unknowns), lam) for eq in self.equations]
@@ -1064,6 +1065,7 @@ class OnlineIdentifier(Identifier):
         self._f_peak = np.zeros(self.model.n_forces)  # largest |force| seen
         if self.method == "robust":
             self._moments.reset()
+            self._timed_moments.reset()
             self._jumps.reset()
             self._set_target(self.capacity)
             self._solvers = [_QRLeastSquares(len(st.equation.unknowns), s.lam)
@@ -1142,6 +1144,7 @@ class OnlineIdentifier(Identifier):
         reported until it is full again."""
         self._channels.reset()
         self._moments.reset()
+        self._timed_moments.reset()
         self._jumps.reset()
         self._regrow = regrow
 
@@ -1347,6 +1350,7 @@ class OnlineIdentifier(Identifier):
     # -------------------------------------------------------------- robust
     def _robust_step(self, g: np.ndarray) -> int | None:
         moments, L = self._moments.push(g, self._target)
+        timed_moments = self._timed_moments.push(g, self._target)[0]
         jumps = self._jumps.step(self._moments.n, self._moments.start, self._jump)
         if self._regrow:
             if L < self._target:
@@ -1354,12 +1358,11 @@ class OnlineIdentifier(Identifier):
             self._regrow = False
         if L == 0:
             return 0
-        D1 = self.bank.degree + 1
-        E = self.bank.entries(L / self.capacity, moments[:D1], g, self.capacity * self.dt)
+        E = self.bank.entries(L / self.capacity, moments, g, self.capacity * self.dt)
         # the lines' rows (DriftLine) need the time-weighted entries
         lines = L >= self._target and self.options["change_threshold"] is not None
         self._robust_solve([st.assembly(E) for st in self._states], L, self._jump_columns(jumps, L),
-                           self._rate_rows(L, lines), self._timed(L, moments) if lines else None)
+                           self._rate_rows(L, lines), self._timed(L, timed_moments) if lines else None)
         return L
 
     def _timed(self, L: int, moments: np.ndarray) -> list[np.ndarray]:
@@ -1378,9 +1381,8 @@ class OnlineIdentifier(Identifier):
         rate = self._moments.rate_difference()
         if rate is None:
             return [None] * len(self._states)
-        E = self.bank.entries(L / self.capacity, rate[:self.bank.degree + 1], np.zeros(rate.shape[1]),
-                              self.capacity * self.dt)
-        timed = self._timed(L, rate) if lines else [None] * len(self._states)
+        E = self.bank.entries(L / self.capacity, rate, np.zeros(rate.shape[1]), self.capacity * self.dt)
+        timed = self._timed(L, self._timed_moments.rate_difference()) if lines else [None] * len(self._states)
         return [st.assembly(E) + (S,) for st, S in zip(self._states, timed)]
 
     def _jump_columns(self, moments: np.ndarray, L: int) -> list[np.ndarray | None]:
@@ -1500,7 +1502,7 @@ class OnlineIdentifier(Identifier):
             N = self.capacity
             q = np.arange(self.bank.degree + 1, dtype=float)
             powers = ((np.arange(L + 1)[:, None] / N) ** q[None, :]).sum(axis=0)
-            moments = (powers + self._moments.corrections(L)[:, :len(q)].sum(axis=0)) / N
+            moments = (powers + self._moments.corrections(L).sum(axis=0)) / N
             self._one = (L, self.bank.entries(L / N, moments[:, None], np.ones(1), N * self.dt)[:, 0, 0])
         return self._one[1]
 
