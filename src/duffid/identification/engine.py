@@ -133,10 +133,11 @@ DRIFT_SIGMAS = 4.0
 #: this many of its standard errors times the span, in quadrature, for an unknown whose rate
 #: alone explains the lines' gain (:data:`CHANGE_ALONE_SHARE`; without that, the free decay after
 #: a hammer blow, which cannot tell the unknowns' common scale, showed a joint slide of all
-#: four and withdrew every value). Measured on a stiffness drifting by 20 %
-#: over 6 s (``benchmarks/tracking.py``, 3 seeds each way): the published samples of k further
-#: than 3 stated errors from the truth fell from 815-1,906 to 462-1,811 (the rest: before the
-#: rates are significant).
+#: four and withdrew every value). Measured when it was introduced, before the lines weighed
+#: each sample by its own time, on a stiffness drifting by 20 % over 6 s
+#: (``benchmarks/tracking.py``, 3 seeds each way): the published samples of k further than 3
+#: stated errors from the truth fell from 815-1,906 to 462-1,811 (the rest: before the rates
+#: are significant).
 DRIFT_BIAS_SIGMAS = 3.0
 #: The offset probe (the online twin of ``identify``'s offset check, robust method): beside the
 #: accumulated least squares of an equation without a constant term, a fourth one adds an
@@ -645,8 +646,9 @@ class DriftLine:
     line at the newest sample with the standard error of that combination. (Rows ``t A_i``
     alone, every sample at the newest's time, put the line half a window late and the
     within-window drift into the other unknowns: on a stiffness drifting by 20 % over 6 s the
-    stiffness lagged by 0.3 % and the damping was 1.7 % off with stated errors of 0.3 %); the change test fits the same lines to its recent rows and compares both at
-    the recent rows' mean time. An unknown stays a line until :meth:`OnlineIdentifier.reset`:
+    stiffness lagged by 0.3 % and the damping was 1.7 % off with stated errors of 0.3 %.) The
+    change test fits the same lines to its recent rows and compares both at the recent rows'
+    mean time. An unknown stays a line until :meth:`OnlineIdentifier.reset`:
     after a step, or a drift that stops, its rate is about zero and costs precision (a line's
     end is known about half as well as a mean), not trust.
 
@@ -1020,7 +1022,9 @@ class OnlineIdentifier(Identifier):
             self._moments = SlidingMoments(self.capacity, self.bank.degree, len(self.channels))
             # ... and with one power more, for the time-weighted entries of the lines' rows
             # (KernelBank.within; kept apart so that the rows' own moments round as before)
-            self._timed_moments = SlidingMoments(self.capacity, self.bank.degree + 1, len(self.channels))
+            # (only with the change test: no lines without it)
+            self._timed_moments = None if o["change_threshold"] is None else SlidingMoments(
+                self.capacity, self.bank.degree + 1, len(self.channels))
             self._jumps = _JumpMoments(self.capacity, self.bank.degree, model.n_forces)
             lam = 1.0 if o["forgetting"] is None else float(np.exp(-self.dt / o["forgetting"]))
             self._solvers = [_QRLeastSquares(len(eq.unknowns), lam) for eq in self.equations]
@@ -1065,7 +1069,8 @@ class OnlineIdentifier(Identifier):
         self._f_peak = np.zeros(self.model.n_forces)  # largest |force| seen
         if self.method == "robust":
             self._moments.reset()
-            self._timed_moments.reset()
+            if self._timed_moments is not None:
+                self._timed_moments.reset()
             self._jumps.reset()
             self._set_target(self.capacity)
             self._solvers = [_QRLeastSquares(len(st.equation.unknowns), s.lam)
@@ -1144,7 +1149,8 @@ class OnlineIdentifier(Identifier):
         reported until it is full again."""
         self._channels.reset()
         self._moments.reset()
-        self._timed_moments.reset()
+        if self._timed_moments is not None:
+            self._timed_moments.reset()
         self._jumps.reset()
         self._regrow = regrow
 
@@ -1326,9 +1332,9 @@ class OnlineIdentifier(Identifier):
         errors = [dict(zip(st.equation.unknowns, _published_error(st.rse, st.theta, st.jump_shift, st.rate_shift,
                                                                   st.drift_shift)))
                   for st in self._states]
-        none = [np.zeros_like(st.rse) for st in self._states]
-        without = [dict(zip(st.equation.unknowns, _published_error(st.rse, st.theta, st.jump_shift, z, z)))
-                   for st, z in zip(self._states, none)]
+        without = [dict(zip(st.equation.unknowns, _published_error(st.rse, st.theta, st.jump_shift,
+                                                                   np.zeros_like(st.rse), np.zeros_like(st.rse))))
+                   for st in self._states]
         cond = max(st.cond for st in self._states)
         values, rse = combine_equations(self.model, solutions, errors)
         statistical = combine_equations(self.model, solutions, without)[1]
@@ -1350,7 +1356,7 @@ class OnlineIdentifier(Identifier):
     # -------------------------------------------------------------- robust
     def _robust_step(self, g: np.ndarray) -> int | None:
         moments, L = self._moments.push(g, self._target)
-        timed_moments = self._timed_moments.push(g, self._target)[0]
+        timed_moments = None if self._timed_moments is None else self._timed_moments.push(g, self._target)[0]
         jumps = self._jumps.step(self._moments.n, self._moments.start, self._jump)
         if self._regrow:
             if L < self._target:
@@ -1360,7 +1366,7 @@ class OnlineIdentifier(Identifier):
             return 0
         E = self.bank.entries(L / self.capacity, moments, g, self.capacity * self.dt)
         # the lines' rows (DriftLine) need the time-weighted entries
-        lines = L >= self._target and self.options["change_threshold"] is not None
+        lines = L >= self._target and timed_moments is not None
         self._robust_solve([st.assembly(E) for st in self._states], L, self._jump_columns(jumps, L),
                            self._rate_rows(L, lines), self._timed(L, timed_moments) if lines else None)
         return L
