@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 from rounding import identifier_spread, tolerance
 
-from duffid import Chain, Duffing1, Duffing2, OnlineIdentifier, Record, Step, measure
+from duffid import Chain, Duffing1, Duffing2, Multisine, OnlineIdentifier, Record, Step, measure, simulate
 from duffid.cbuild import find_compiler
 from duffid.errors import BuildError, CompilerNotFoundError
 from duffid.identification.batch import estimate
@@ -379,6 +379,27 @@ def test_deferred_solutions_give_the_last_samples_solution_bit_for_bit(case_b_ex
         assert not ident.defer_solutions()  # the automatic window is fixed by the statuses
     with CIdentifier(Duffing1(), clean.dt, method="paper") as ident:
         assert not ident.defer_solutions()
+
+
+def test_deferred_solutions_cannot_be_turned_back_into_per_sample_ones():
+    """A deferred run skips what per-sample solutions need (the alternating sums of the
+    half-rate rows): after deferred samples, turning it off is refused, and solves as flush
+    does; before the first sample (or after a reset) it is allowed."""
+    record = measure(simulate(Duffing1(), Multisine(8.0, 0.5, 10.0, 2.0, phases="random", seed=2), 2.0, 1e-3),
+                     snr_db=50, seed=4)
+    options = {"window": 0.3, "change_threshold": None}
+    with CIdentifier(Duffing1(), record.dt, **options) as ident:
+        every = ident.run(record.x, record.f)[-1]
+    with CIdentifier(Duffing1(), record.dt, **options) as ident:
+        assert ident.defer_solutions(True)
+        assert ident.defer_solutions(False)  # no sample yet
+        assert ident.defer_solutions(True)
+        ident.consume(record.x, record.f)
+        assert not ident.defer_solutions(False)
+        solved = ident.latest()
+        assert list(solved.current.values()) == list(every["current"][:4])
+        ident.reset()
+        assert ident.defer_solutions(False)  # afresh
 
 
 def test_identify_is_the_same_with_deferred_solutions(case_b_exact, monkeypatch):

@@ -265,8 +265,12 @@ struct duffid_estimator {
     duffid_real entry_scale[DUFFID_MAX_ROWS * N_ORD], raw_pow[DUFFID_MAX_ROWS];
     long corr_L;                            /* cache key of the corrections (-1: empty) */
     int corr_n, corr_top[MAX_CORR];         /* ... the non-zero extent of each in the basis */
+    int corr_near;                          /* the rule's usual shape (moments_push's fast loop): its first
+                                             * corr_near offsets are 0, 1, ... (short in the basis) and
+                                             * the others full; -1: another */
     long corr_off[MAX_CORR];
-    duffid_real *corr_w;                    /* [m][j]: delta_m x the factorial basis at its offset */
+    duffid_real *corr_w;                    /* [j][m] (j * MAX_CORR + m): delta_m x the factorial basis
+                                             * at its offset */
     /* engine.RATE_NOISE: the window's moments by the rule minus those at half the rate
      * (SlidingMoments.rate_difference) from the alternating sums of the samples */
     duffid_real *acc_alt, *shadow_alt;      /* like acc and shadow, of (-1)^j g[j] */
@@ -1801,16 +1805,17 @@ static int gregory_rule(long L, long *off, duffid_real *delta)
     }
 }
 
-/* w[m][j] = delta_m x the factorial basis at off[m] */
+/* w[j][m] (j * MAX_CORR + m) = delta_m x the factorial basis at off[m] */
 static void basis_weights(const duffid_estimator *est, int count, const long *off, const duffid_real *delta,
                           duffid_real *w)
 {
     const int D1 = est->degree + 1;
+    duffid_real phi[MAX_POW];
     int m, j;
     for (m = 0; m < count; m++) {
-        factorial_basis(est, off[m], w + m * D1);
+        factorial_basis(est, off[m], phi);
         for (j = 0; j < D1; j++) {
-            w[m * D1 + j] *= delta[m];
+            w[j * MAX_CORR + m] = phi[j] * delta[m];
         }
     }
 }
@@ -1827,8 +1832,14 @@ static void corrections(duffid_estimator *est, long L)
     }
     est->corr_n = gregory_rule(L, est->corr_off, delta);
     basis_weights(est, est->corr_n, est->corr_off, delta, est->corr_w);
+    est->corr_near = 0;
     for (m = 0; m < est->corr_n; m++) {
         est->corr_top[m] = est->corr_off[m] + 1 < D1 ? (int)est->corr_off[m] + 1 : D1; /* phi_j(i) = 0, j > i */
+        if (est->corr_near == m && est->corr_off[m] == m && est->corr_top[m] < D1) {
+            est->corr_near = m + 1;
+        } else if (est->corr_top[m] < D1) {
+            est->corr_near = -1; /* a short one after a full one */
+        }
     }
     est->corr_L = L;
 }
@@ -1971,6 +1982,42 @@ static void signed_sample(const duffid_real *sample, duffid_real sign, int n_ch,
     }
 }
 
+/* fact = acc + the end corrections of the rule's usual shape (corrections: corr_near offsets
+ * 0, 1, ... near the newest sample, short in the basis, then the far ones, full), each entry
+ * summed in the order of the general loop (the full ones, then the short ones), two channels
+ * at a time: each weight is loaded once */
+static void end_corrections(duffid_estimator *est, const duffid_real *const *sample, int near)
+{
+    const int n_ch = est->n_ch, D1 = est->degree + 1, n_far = est->corr_n - near;
+    int c, k, m;
+    for (c = 0; c < n_ch; c += 2) {
+        const int pair = c + 1 < n_ch;
+        const duffid_real *a = est->acc + c * D1, *a2 = a + (pair ? D1 : 0);
+        duffid_real *out = est->fact + c * D1, *out2 = out + D1;
+        duffid_real v[MAX_CORR], v2[MAX_CORR];
+        for (m = 0; m < est->corr_n; m++) {
+            v[m] = sample[m][c];
+            v2[m] = sample[m][pair ? c + 1 : c];
+        }
+        for (k = 0; k < D1; k++) {
+            const duffid_real *w = est->corr_w + k * MAX_CORR;
+            duffid_real sum = a[k], sum2 = a2[k];
+            for (m = near; m < near + n_far; m++) {
+                sum += w[m] * v[m];
+                sum2 += w[m] * v2[m];
+            }
+            for (m = k; m < near; m++) { /* phi_k(m) = 0 for m < k */
+                sum += w[m] * v[m];
+                sum2 += w[m] * v2[m];
+            }
+            out[k] = sum;
+            if (pair) {
+                out2[k] = sum2;
+            }
+        }
+    }
+}
+
 /* SlidingMoments.push: the moments of the window (into est->mom, mom[c * (degree + 1) + k])
  * and its length L */
 static long moments_push(duffid_estimator *est, long window)
@@ -1981,6 +2028,8 @@ static long moments_push(duffid_estimator *est, long window)
     const size_t bytes = (size_t)(D1 * n_ch) * sizeof(duffid_real);
     duffid_real phi[MAX_POW], signed_g[MAX_CH], leaving[MAX_CH];
     const duffid_real sign = (n & 1) ? RC(-1.0) : RC(1.0); /* (-1)^n: the alternating sums' */
+    const int alt = !est->defer; /* the alternating sums feed only the half-rate rows, which deferred
+                                  * solutions skip (duffid_defer_solutions) */
     int64_t j, new_start;
     long w, L;
     int k, c, m;
@@ -1997,13 +2046,17 @@ static long moments_push(duffid_estimator *est, long window)
     if (new_start == est->start + 1) { /* a sliding window: one sample leaves */
         const long i = (long)(n - est->start);
         const duffid_real *old = est->ring + (size_t)ring_at(est, i) * (size_t)n_ch;
-        signed_sample(old, (i & 1) ? -sign : sign, n_ch, leaving);
         shift_accumulator(est, est->acc, est->g, old, leaving_basis(est, i));
-        shift_accumulator(est, est->acc_alt, signed_g, leaving, leaving_basis(est, i));
+        if (alt) {
+            signed_sample(old, (i & 1) ? -sign : sign, n_ch, leaving);
+            shift_accumulator(est, est->acc_alt, signed_g, leaving, leaving_basis(est, i));
+        }
         est->start = new_start;
     } else {
         shift_accumulator(est, est->acc, est->g, NULL, NULL);
-        shift_accumulator(est, est->acc_alt, signed_g, NULL, NULL);
+        if (alt) {
+            shift_accumulator(est, est->acc_alt, signed_g, NULL, NULL);
+        }
         if (new_start - est->start > (int64_t)w + 1) {
             /* many samples leave at once (the window shrank): rebuilding from the new window
              * costs less than removing them one by one */
@@ -2013,9 +2066,11 @@ static long moments_push(duffid_estimator *est, long window)
             for (j = est->start; j < new_start; j++) { /* samples leaving the window */
                 const long i = (long)(n - j);
                 const duffid_real *old = est->ring + (size_t)ring_at(est, i) * (size_t)n_ch;
-                signed_sample(old, (i & 1) ? -sign : sign, n_ch, leaving);
                 accumulate(est, est->acc, leaving_basis(est, i), old, RC(-1.0));
-                accumulate(est, est->acc_alt, leaving_basis(est, i), leaving, RC(-1.0));
+                if (alt) {
+                    signed_sample(old, (i & 1) ? -sign : sign, n_ch, leaving);
+                    accumulate(est, est->acc_alt, leaving_basis(est, i), leaving, RC(-1.0));
+                }
             }
             est->start = new_start;
         }
@@ -2023,7 +2078,9 @@ static long moments_push(duffid_estimator *est, long window)
     for (k = 0; k < SHADOWS; k++) {
         if (est->shadow_from[k] >= 0) {
             shift_accumulator(est, est->shadow + k * D1 * n_ch, est->g, NULL, NULL);
-            shift_accumulator(est, est->shadow_alt + k * D1 * n_ch, signed_g, NULL, NULL);
+            if (alt) {
+                shift_accumulator(est, est->shadow_alt + k * D1 * n_ch, signed_g, NULL, NULL);
+            }
         }
     }
     for (k = 0; k < SHADOWS; k++) {
@@ -2040,8 +2097,10 @@ static long moments_push(duffid_estimator *est, long window)
                     const duffid_real *old = est->ring + (size_t)ring_at(est, i) * (size_t)n_ch;
                     factorial_basis(est, i, phi);
                     accumulate(est, shadow, phi, old, RC(1.0));
-                    signed_sample(old, (i & 1) ? -sign : sign, n_ch, leaving);
-                    accumulate(est, shadow_alt, phi, leaving, RC(1.0));
+                    if (alt) {
+                        signed_sample(old, (i & 1) ? -sign : sign, n_ch, leaving);
+                        accumulate(est, shadow_alt, phi, leaving, RC(1.0));
+                    }
                 }
             } else {
                 est->shadow_from[k] = -1;
@@ -2079,35 +2138,28 @@ static long moments_push(duffid_estimator *est, long window)
     corrections(est, L);
     { /* fact = acc + the quadrature's end corrections (those near the newest sample are short) */
         const duffid_real *sample[MAX_CORR];
-        int full[MAX_CORR], n_full = 0;
         for (m = 0; m < est->corr_n; m++) {
             sample[m] = est->ring + (size_t)ring_at(est, est->corr_off[m]) * (size_t)n_ch;
-            if (est->corr_top[m] == D1) {
-                full[n_full++] = m;
-            }
         }
-        for (c = 0; c < n_ch; c++) {
-            const duffid_real *a = est->acc + c * D1;
-            duffid_real *out = est->fact + c * D1, v[MAX_CORR] = {RC(0.0)};
-            int f;
-            for (m = 0; m < est->corr_n; m++) {
-                v[m] = sample[m][c];
-            }
-            for (k = 0; k < D1; k++) {
-                out[k] = a[k];
-            }
-            for (f = 0; f < n_full; f++) {
-                const duffid_real *cw = est->corr_w + full[f] * D1, vf = v[full[f]];
+        if (est->corr_near >= 0) {
+            end_corrections(est, sample, est->corr_near);
+        } else {
+            for (c = 0; c < n_ch; c++) {
+                const duffid_real *a = est->acc + c * D1;
+                duffid_real *out = est->fact + c * D1;
                 for (k = 0; k < D1; k++) {
-                    out[k] += cw[k] * vf;
-                }
-            }
-            for (m = 0; m < est->corr_n; m++) {
-                if (est->corr_top[m] < D1) {
-                    const duffid_real *cw = est->corr_w + m * D1;
-                    for (k = 0; k < est->corr_top[m]; k++) {
-                        out[k] += cw[k] * v[m];
+                    duffid_real sum = a[k];
+                    for (m = 0; m < est->corr_n; m++) { /* the full ones first, then the short */
+                        if (est->corr_top[m] == D1) {
+                            sum += est->corr_w[k * MAX_CORR + m] * sample[m][c];
+                        }
                     }
+                    for (m = 0; m < est->corr_n; m++) {
+                        if (est->corr_top[m] < D1 && k < est->corr_top[m]) {
+                            sum += est->corr_w[k * MAX_CORR + m] * sample[m][c];
+                        }
+                    }
+                    out[k] = sum;
                 }
             }
         }
@@ -2817,7 +2869,7 @@ static const duffid_real *constant_entries(duffid_estimator *est, long L)
             }
             fact[j] = falling / (duffid_real)(j + 1);
             for (m = 0; m < est->corr_n; m++) {
-                fact[j] += est->corr_w[m * D1 + j];
+                fact[j] += est->corr_w[j * MAX_CORR + m];
             }
         }
         for (k = 0; k < D1; k++) { /* the power moments, as moments_push */
@@ -3945,8 +3997,11 @@ int duffid_defer_solutions(duffid_estimator *est, int defer)
                   (est->auto_window && !est->window_fixed))) {
         return DUFFID_ERR_CONFIG;
     }
-    if (!defer) {
+    if (!defer && est->defer && est->n >= 0) {
+        /* a deferred run does not keep what per-sample solutions need (the alternating sums of
+         * the half-rate rows, moments_push): its solution is the final one (duffid_reset starts afresh) */
         resolve(est);
+        return DUFFID_ERR_CONFIG;
     }
     est->defer = defer != 0;
     return DUFFID_OK;

@@ -224,11 +224,14 @@ int duffid_flush(duffid_estimator *est, duffid_output *out);
 /* A batch that wants the final solution only (the checks of identify re-run the estimator on
  * noisy copies, at half the rate, with offsets): with defer = 1, a sample whose window is full
  * only adds its rows to the least squares; the solve and the publication wait for
- * duffid_flush (or defer = 0), which gives the solution of all the rows accumulated, equal to
- * what the last sample would have given. The statuses and published values then rest on that
- * one publication: for final solutions only, never for a sample-by-sample output. Robust
- * method without the change test (change_threshold = 0) and with a fixed window only (else
- * DUFFID_ERR_CONFIG: both need every sample's solution). Not for a real-time loop. */
+ * duffid_flush, which gives the solution of all the rows accumulated, equal to what the last
+ * sample would have given. The statuses and published values then rest on that one
+ * publication: for final solutions only, never for a sample-by-sample output. Robust method
+ * without the change test (change_threshold = 0) and with a fixed window only (else
+ * DUFFID_ERR_CONFIG: both need every sample's solution). Not for a real-time loop. defer = 0
+ * turns it off before the first sample (and after duffid_reset); once samples were deferred,
+ * the run does not keep what per-sample solutions need: defer = 0 then solves as duffid_flush
+ * does and returns DUFFID_ERR_CONFIG. */
 int duffid_defer_solutions(duffid_estimator *est, int defer);
 
 /* Consume one sample: displacements x[n_dof] and forces f[n_forces]. out may be NULL.

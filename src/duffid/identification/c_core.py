@@ -588,7 +588,9 @@ class CIdentifier(Identifier):
         add their rows; :meth:`flush` solves once, as the last sample would have. The
         per-sample outputs and statuses are then not those of :meth:`update`. Returns False
         (nothing changed) where every sample's solution is needed: the paper method, the
-        change test on, an automatic window not yet fixed."""
+        change test on, an automatic window not yet fixed. Turning it off after deferred
+        samples solves as :meth:`flush` does and returns False (such a run does not keep what
+        per-sample solutions need; :meth:`reset` starts afresh)."""
         return self._lib.duffid_defer_solutions(self._live(), int(bool(defer))) == 0
 
     def flush(self) -> Estimate | None:
