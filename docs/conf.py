@@ -62,10 +62,6 @@ napoleon_use_ivar = True
 # cannot be resolved without intersphinx (no network) and are not checked.
 nitpicky = True
 nitpick_ignore_regex = [(r"py:.*", r"(?!duffid\.).*")]
-# Known broken, in a file another engineer owns: identification/trust.py names
-# duffid.identification.engine.estimate, which moved to duffid.identification.batch.estimate.
-# Remove this line once the docstring is fixed.
-nitpick_ignore = [("py:func", "duffid.identification.engine.estimate")]
 
 # The gallery runs the examples that take seconds; the others (FMU builds, Dask clusters, the
 # Silverbox's 390k samples) are shown unexecuted: tests/test_examples.py runs them all.

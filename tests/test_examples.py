@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 EXAMPLES = sorted((Path(__file__).resolve().parent.parent / "examples").glob("*.py"))
-SLOW = {"silverbox_identify.py"}  # identifies 390k upsampled samples (about 80 s)
+SLOW = {"silverbox_identify.py"}  # identifies 390k upsampled samples (about 15 s on the C core)
 
 
 @pytest.mark.parametrize("script", [pytest.param(p, marks=pytest.mark.slow) if p.name in SLOW else p

@@ -2,7 +2,7 @@
 
 Tests marked ``data`` read ../shared/data/silverbox/ (never copied into the repository)
 and are skipped with a message when it is missing; the end-to-end ones are slow (the
-online estimator over 390k upsampled samples takes about 80 s, once per session).
+online estimator over 390k upsampled samples runs once per session: seconds on the C core).
 """
 from __future__ import annotations
 

@@ -54,7 +54,7 @@ import math
 import os
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -64,6 +64,7 @@ from tqdm import tqdm
 from ..assets import asset_path
 from ..data.record import Record
 from ..errors import RecordError
+from ..identification.dispatch import on_c_core, run_estimator
 from ..identification.engine import Identification, OnlineIdentifier
 from ..identification.refine import Refinement, refine, rms_error, simulate_record, upsample
 from ..identification.sampling import SAMPLES_PER_PERIOD, upsampling_factor
@@ -365,21 +366,40 @@ def damping_ratio(parameters: Mapping[str, float]) -> float:
 def identify_algebraic(record: Record, settings: Settings, *, progress: bool | None = None) -> Identification:
     """Online algebraic identification on the upsampled record.
 
-    The record's input and output are upsampled by ``settings.factor``
-    (band-limited) and fed sample by sample to a robust
-    :class:`~duffid.identification.engine.OnlineIdentifier` with the fixed window of
-    ``settings``. The returned history holds the estimates at the original samples.
+    The record's input and output are upsampled by ``settings.factor`` (band-limited) and
+    run through the robust online estimator with the fixed window of ``settings``
+    (:func:`~duffid.identification.dispatch.run_estimator`: the C core, or the Python
+    :class:`~duffid.identification.engine.OnlineIdentifier` without a C compiler, which gives
+    the same answers to rounding and takes minutes instead of seconds). The returned history
+    holds the estimates at the original samples. ``progress``: the Python identifier's bar
+    (None: on a terminal); the C core takes seconds.
     """
     q = settings.factor
     u = upsample(record.f, q)
     y = upsample(record.x, q)
+    fine = Record(record.t[0] + record.dt / q * np.arange(len(u)), u, y, source=record.source)
     model = silverbox_model(settings.linear)
-    ident = OnlineIdentifier(model, record.dt / q, **settings.options())
+    if not on_c_core(fine, model, "robust", "auto", settings.options()):
+        return _identified_in_python(record, fine, model, settings, progress)
+    result = run_estimator(fine, model, "robust", **settings.options())
+    keep = slice(0, None, q)  # the original samples
+    flags = result.identified[keep]
+    return replace(
+        result, t=record.t - record.t[0], history={k: h[keep] for k, h in result.history.items()},
+        condition=result.condition[keep], identified=flags,
+        t_identified=float(record.t[np.argmax(flags)] - record.t[0]) if flags.any() else None)
+
+
+def _identified_in_python(record: Record, fine: Record, model: Chain, settings: Settings,
+                          progress: bool | None) -> Identification:
+    """:func:`identify_algebraic` on the Python identifier, sample by sample (a progress bar)."""
+    q = settings.factor
+    ident = OnlineIdentifier(model, fine.dt, **settings.options())
     disable = not sys.stderr.isatty() if progress is None else not progress
     kept = []
-    for i in tqdm(range(len(u)), desc="algebraic estimator", disable=disable, leave=False,
+    for i in tqdm(range(fine.n_samples), desc="algebraic estimator", disable=disable, leave=False,
                   unit="sample", mininterval=0.5):
-        estimate = ident.update(y[i], u[i])
+        estimate = ident.update(fine.x[i], fine.f[i])
         if i % q == 0:
             kept.append(estimate)
     return Identification.from_estimates(ident, record, kept)

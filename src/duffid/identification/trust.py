@@ -157,7 +157,7 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
              refine: bool = True, jobs: int | None = None, **options: Any) -> Identification:
     """Identify ``model``'s parameters from a record, publishing only what the record supports.
 
-    The estimator (:func:`duffid.identification.engine.estimate`: the online methods sample by
+    The estimator (:func:`duffid.identification.batch.estimate`: the online methods sample by
     sample, or a buffered basis) runs on the record; with ``check`` (the default) around it:
 
     - a record with fewer than :data:`SAMPLES_PER_PERIOD` samples per period of its highest
