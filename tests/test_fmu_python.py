@@ -97,8 +97,9 @@ def test_options_and_nominal_parameters(fmus, case_a):
         assert result[f"{name}_hat"][-1] == value
     result = simulate_record(fmus["duffing1"], case_a, ["x", "f"], {"window": 0.1, "m_nominal": 3.0})
     expected = estimate(case_a, Duffing1(), window=0.1, nominal={"m": 3.0})
-    for name, value in expected.parameters.items():
-        assert result[f"{name}_hat"][-1] == value
+    for name, value in expected.parameters.items():  # the same value, or both unpublished (NaN)
+        got = result[f"{name}_hat"][-1]
+        assert got == value or (np.isnan(got) and np.isnan(value)), name
 
 
 def test_two_dof_gives_identify_answer(fmus, two_dof_exact):

@@ -409,10 +409,11 @@ def test_online_values_wait_until_the_rows_of_full_windows_span_a_window(case, l
             published = np.isfinite(history)
             assert np.all(np.abs(history[published] - value) <= 0.05 * abs(value)), (engine, name)
     # not vacuous: a well-excited record still publishes its values online (m, b, k; kp, as
-    # before, stays uncertain) for more than 90 % of its 8 s
+    # before, stays uncertain) for more than 85 % of its 8 s (90 % before the accumulated rows
+    # counted engine.WINDOW_EQUATIONS per window: b is published later)
     result = run_estimator(lab, Duffing1())
     for name in ("m", "b", "k"):
-        assert np.isfinite(result.history[name][-1]) and np.isfinite(result.history[name]).mean() > 0.9, name
+        assert np.isfinite(result.history[name][-1]) and np.isfinite(result.history[name]).mean() > 0.85, name
 
 
 @pytest.mark.parametrize("modify", ["x-offset", "f-offset"])
@@ -456,7 +457,9 @@ def test_a_force_jumps_bias_is_part_of_the_online_standard_errors():
     from duffid.identification.trust import run_estimator
 
     trust = load_benchmark("trust")
-    for case, published_by in (("2-DOF step 60 dB", {"m1": 2.2, "k1": 2.2, "k2": 2.2, "m2": 2.2}),
+    # (the chain's step publishes nothing online since the accumulated rows count
+    # engine.WINDOW_EQUATIONS per window: its blocks' 7 unknowns use up 1.75 windows of its 2.2 s)
+    for case, published_by in (("2-DOF step 60 dB", {}),
                                ("lab hardening hammer 60 dB", {"m": 0.3, "b": 0.4, "k": 0.4, "kp": 0.4})):
         record, plant, truth = trust.make_record(next(c for c in trust.CASES if c.name == case))
         results = {engine: run_estimator(record, trust.CLASSES[type(plant)], engine=engine) for engine in ("c", "python")}
@@ -540,3 +543,32 @@ def test_a_hammer_records_free_decay_is_no_drift():
         result = run_estimator(record, trust.CLASSES[type(plant)], engine=engine)
         for name, value in truth.items():
             assert abs(result.history[name][-1] - value) <= 1e-3 * abs(value), (engine, name)
+
+
+def test_the_first_windows_stated_errors_are_not_too_small():
+    """The accumulated rows of a few overlapping windows share their samples' noise: their
+    degrees of freedom count engine.WINDOW_EQUATIONS per window. On the constant plant of
+    benchmarks/tracking.py (five seeds, C core) the values published from full windows in the
+    record's first four windows are within 4.5 of their stated errors of the truth (3.8 at
+    most), and their root-mean-square in stated errors is at most 2.2 per parameter (kp 1.9);
+    before, kp's were 6.7 and 2.7."""
+    from benchmark_modules import load_benchmark
+    from duffid.identification.c_core import CIdentifier
+
+    tracking = load_benchmark("tracking")
+    z_early = []
+    for seed in range(100, 105):
+        record = tracking.record_of([], seed)
+        rows = CIdentifier(Duffing1(), tracking.DT).run(record.x, record.f)
+        values, errors, window = rows["parameters"][:, :4], rows["std_errors"][:, :4], rows["window"]
+        truth = tracking.truth_of(len(values), [])
+        full = window >= window[-1] - 0.5 * tracking.DT
+        early = full & (np.arange(len(values)) * tracking.DT < 4 * window[-1])
+        with np.errstate(invalid="ignore"):
+            z = np.abs(values - truth) / errors
+        z_early.append(np.where(early[:, None], z, np.nan))
+    z = np.vstack(z_early)
+    assert np.isfinite(z[:, [0, 2, 3]]).any(axis=0).all()  # not vacuous: m, k and kp published early
+    assert np.nanmax(z) <= 4.5, np.nanmax(z, axis=0)
+    rms = [np.sqrt(np.mean(column[np.isfinite(column)] ** 2)) for column in z.T if np.isfinite(column).any()]
+    assert max(rms) <= 2.2, rms

@@ -2570,14 +2570,26 @@ static void line_at(const equation_t *eq, int n, duffid_real t, const duffid_rea
     }
 }
 
-/* engine.DriftLine.solve and .at: the accumulated least squares of a block with lines, its
- * unknowns at time t */
-static void line_solve(duffid_estimator *est, equation_t *eq, int n, duffid_real t, duffid_real overlap)
+/* engine.accumulated_rows: the row count that gives the accumulated least squares of full
+ * windows (n unknowns, m rows per sample, windows of L intervals) its degrees of freedom,
+ * rows - n m L / DUFFID_WINDOW_EQUATIONS, at least (rows - n) / DUFFID_WINDOW_INFLATION^2 */
+static duffid_real accumulated_rows(duffid_real rows, int n, int m, duffid_real L)
+{
+    const duffid_real used = rows - (duffid_real)n * ((duffid_real)m * L / RC(DUFFID_WINDOW_EQUATIONS) - RC(1.0));
+    const duffid_real capped = (rows - (duffid_real)n) / (RC(DUFFID_WINDOW_INFLATION) * RC(DUFFID_WINDOW_INFLATION)) +
+                               (duffid_real)n;
+    return used > capped ? used : capped;
+}
+
+/* engine.DriftLine.solve and .at: the accumulated least squares of a block with lines (m rows
+ * per sample), its unknowns at time t */
+static void line_solve(duffid_estimator *est, equation_t *eq, int n, int m, duffid_real t, duffid_real overlap)
 {
     const int nl = eq->n_line;
+    const duffid_real rows = accumulated_rows(eq->rows, nl, m, overlap);
     duffid_real rse[MAX_UNK];
     int i;
-    if (duffid_la_solve_factor(nl, eq->R, eq->rows, overlap, COND_SINGULAR, est->scale, est->U, est->Rinv, eq->V,
+    if (duffid_la_solve_factor(nl, eq->R, rows, overlap, COND_SINGULAR, est->scale, est->U, est->Rinv, eq->V,
                                &eq->warm, eq->line, rse, &eq->cond) != 0) {
         singular(eq, n);
         for (i = 0; i < nl; i++) {
@@ -2587,7 +2599,7 @@ static void line_solve(duffid_estimator *est, equation_t *eq, int n, duffid_real
         return;
     }
     shares(est, eq, n, nl, eq->R, eq->line);
-    eq->line_sigma = line_inverse(est, nl, eq->R, eq->rows, overlap, eq->line_inv);
+    eq->line_sigma = line_inverse(est, nl, eq->R, rows, overlap, eq->line_inv);
     line_at(eq, n, t, eq->line, eq->line_inv, eq->line_sigma, eq->theta, eq->rse);
     with_rounding(eq, n);
 }
@@ -3162,9 +3174,9 @@ static long robust_step(duffid_estimator *est)
             duffid_la_qr_accumulate(eq->R, nl + 1, est->sqrt_lam, est->B, m);
             eq->rows = est->lam * eq->rows + (duffid_real)m;
             if (nl > n) {
-                line_solve(est, eq, n, t, (duffid_real)L);
+                line_solve(est, eq, n, m, t, (duffid_real)L);
             } else {
-                solve_factor(est, eq, n, eq->R, eq->rows, (duffid_real)L);
+                solve_factor(est, eq, n, eq->R, accumulated_rows(eq->rows, n, m, (duffid_real)L), (duffid_real)L);
             }
             {
                 duffid_real shift[MAX_LINE];
@@ -3717,7 +3729,9 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
                 steady = good && excited && physical && steady_relative <= est->max_uncertainty && !offset;
                 /* ... and only while the window spans the plant's dynamics (_window_spans) */
                 small = determined && spans;
-                large = moved || offset || !(good && physical && relative <= RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty);
+                /* ... not for its error before the full windows' rows span a window (not credible yet) */
+                large = moved || offset ||
+                        !(good && physical && (relative <= RC(DUFFID_LOSS_FACTOR) * est->max_uncertainty || (full && !spanned)));
             }
             if (steady) {
                 count_up(&est->steady[i], est->settle_count);
@@ -3980,7 +3994,9 @@ static int resolve(duffid_estimator *est)
     for (e = 0; e < est->n_eq; e++) {
         equation_t *eq = &est->eq[e];
         if (eq->rows > RC(0.0)) {
-            solve_factor(est, eq, est->m.blocks[e].n_unknowns, eq->R, eq->rows, (duffid_real)est->deferred);
+            const int n = est->m.blocks[e].n_unknowns, m = est->m.blocks[e].n_parts * est->n_rows;
+            solve_factor(est, eq, n, eq->R, accumulated_rows(eq->rows, n, m, (duffid_real)est->deferred),
+                         (duffid_real)est->deferred);
         }
     }
     publish(est, est->deferred, &est->last);
