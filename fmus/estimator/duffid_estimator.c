@@ -2143,23 +2143,25 @@ static long moments_push(duffid_estimator *est, long window)
         }
         if (est->corr_near >= 0) {
             end_corrections(est, sample, est->corr_near);
-        } else {
+        } else { /* the full ones first, then the short ones */
             for (c = 0; c < n_ch; c++) {
-                const duffid_real *a = est->acc + c * D1;
                 duffid_real *out = est->fact + c * D1;
-                for (k = 0; k < D1; k++) {
-                    duffid_real sum = a[k];
-                    for (m = 0; m < est->corr_n; m++) { /* the full ones first, then the short */
-                        if (est->corr_top[m] == D1) {
-                            sum += est->corr_w[k * MAX_CORR + m] * sample[m][c];
+                memcpy(out, est->acc + c * D1, (size_t)D1 * sizeof(duffid_real));
+                for (m = 0; m < est->corr_n; m++) {
+                    if (est->corr_top[m] == D1) {
+                        const duffid_real v = sample[m][c];
+                        for (k = 0; k < D1; k++) {
+                            out[k] += est->corr_w[k * MAX_CORR + m] * v;
                         }
                     }
-                    for (m = 0; m < est->corr_n; m++) {
-                        if (est->corr_top[m] < D1 && k < est->corr_top[m]) {
-                            sum += est->corr_w[k * MAX_CORR + m] * sample[m][c];
+                }
+                for (m = 0; m < est->corr_n; m++) {
+                    if (est->corr_top[m] < D1) {
+                        const duffid_real v = sample[m][c];
+                        for (k = 0; k < est->corr_top[m]; k++) {
+                            out[k] += est->corr_w[k * MAX_CORR + m] * v;
                         }
                     }
-                    out[k] = sum;
                 }
             }
         }
