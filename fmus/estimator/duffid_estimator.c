@@ -2002,18 +2002,25 @@ static void end_corrections(duffid_estimator *est, const duffid_real *const *sam
         for (k = 0; k < D1; k++) {
             const duffid_real *w = est->corr_w + k * MAX_CORR;
             duffid_real sum = a[k], sum2 = a2[k];
-            for (m = near; m < near + n_far; m++) {
-                sum += w[m] * v[m];
-                sum2 += w[m] * v2[m];
-            }
-            for (m = k; m < near; m++) { /* phi_k(m) = 0 for m < k */
-                sum += w[m] * v[m];
-                sum2 += w[m] * v2[m];
+            if (pair) {
+                for (m = near; m < near + n_far; m++) {
+                    sum += w[m] * v[m];
+                    sum2 += w[m] * v2[m];
+                }
+                for (m = k; m < near; m++) { /* phi_k(m) = 0 for m < k */
+                    sum += w[m] * v[m];
+                    sum2 += w[m] * v2[m];
+                }
+                out2[k] = sum2;
+            } else { /* an odd channel */
+                for (m = near; m < near + n_far; m++) {
+                    sum += w[m] * v[m];
+                }
+                for (m = k; m < near; m++) {
+                    sum += w[m] * v[m];
+                }
             }
             out[k] = sum;
-            if (pair) {
-                out2[k] = sum2;
-            }
         }
     }
 }
