@@ -85,13 +85,14 @@ GROWTH_STEADY = 0.25
 #: ``benchmarks/tracking.py`` (20 seeds, 6 s each): the root-mean-square ratio of kp's error to
 #: its stated error over the published samples of its first two, three and four windows was
 #: 2.8, 2.3 and 1.9 when only ``n`` rows were used up, and is 1.5 now, as over the rest of the
-#: record (1.4-1.6 either way); m's and k's are 0.5-0.8 there (0.8-1.3 before). With 2 kp's
-#: was 1.0-1.2, but the first published values came 0.1-0.4 s later.
+#: record (1.4-1.6; 1.4-1.8 before); m's and k's are 0.5-0.8 there (0.8-1.3 before). With 2
+#: kp's was 1.0-1.2, but the first published values came 0.1-0.4 s later.
 WINDOW_EQUATIONS = 4.0
 #: The largest factor by which :data:`WINDOW_EQUATIONS` raises a standard error (the rows of
-#: less than ``n / WINDOW_EQUATIONS`` windows would have none to spare): without it, values
-#: published from the growing window were withdrawn as the first full windows came (9 of the
-#: 20 constant records), and 5 with 2 until the rows span a window (see above); now none.
+#: less than ``n / WINDOW_EQUATIONS`` windows would have none to spare). Without it, values
+#: published from the growing window were withdrawn as the first full windows came (in 9 of
+#: the 20 constant records); with it alone in 5; with it and the hold until the rows span a
+#: window (see above) in none.
 WINDOW_INFLATION = 2.0
 
 #: Samples before any solution is identified (and half the shortest record).
