@@ -18,7 +18,7 @@ from duffid.data.record import Record
 from duffid.data.signals import Chirp, Multisine
 from duffid.errors import InputError
 from duffid.identification.engine import STATUSES
-from duffid.identification.motion import MOTIONS, integrated_displacement, identify_motion
+from duffid.identification.motion import FIT_TOLERANCE, MOTIONS, integrated_displacement, identify_motion
 
 M, FN, ZETA = 2.0, 10.0, 0.02
 K = M * (2 * np.pi * FN) ** 2
@@ -44,6 +44,25 @@ def plant_motion(force, t_end: float, dt: float, *, quadratic: float = 0.0):
                     max_step=4 * dt)
     x, v = sol.y
     return t, f, x, v, (f - B * v - spring(x)) / M
+
+
+def changed_plant(force, t_end: float, dt: float, factor: float, at: float):
+    """t, f, a of the hardening plant whose stiffness is ``factor`` times higher from ``at`` s."""
+    t = np.arange(0.0, t_end + dt / 2, dt)
+    f = force(t)
+    drive = CubicSpline(t, f)
+
+    def rhs(tt, y):
+        k = K * factor if tt >= at else K
+        return [y[1], (drive(tt) - B * y[1] - k * y[0] - KP * y[0]**3) / M]
+
+    before = t < at
+    options = {"method": "DOP853", "rtol": 1e-10, "atol": 1e-13, "max_step": 2 * dt}
+    first = solve_ivp(rhs, (0.0, t[before][-1]), [0.0, 0.0], t_eval=t[before], **options)
+    second = solve_ivp(rhs, (t[before][-1], t[-1]), first.y[:, -1], t_eval=t[~before], **options)
+    x, v = np.hstack([first.y, second.y])
+    k = np.where(t >= at, K * factor, K)
+    return t, f, (f - B * v - k * x - KP * x**3) / M, k
 
 
 def measured(signal, snr_db: float, seed: int, bias_share: float = 0.0):
@@ -226,3 +245,33 @@ def test_an_equation_without_a_physical_start_is_refused_with_the_reason():
     result = identify_motion(record, EquationModel("m*der(x,2) + k*x = f"))
     assert not any(np.isfinite(v) for v in result.parameters.values())
     assert result.assessment.notes
+
+
+def test_identify_takes_an_acceleration_record_to_the_fit(random_force_acceleration):
+    """duffid.identify on an acceleration record: the output-error fit (not the algebraic
+    estimator on an acceleration read as a displacement); options that do not apply are named."""
+    from duffid import identify
+
+    t, f, _, a_meas, _ = random_force_acceleration
+    record = Record(t, f, a_meas, source="accelerometer", motion="a")
+    result = identify(record, Duffing1(), max_uncertainty=0.02)
+    assert result.method == "output-error (acceleration)" and result.is_identified
+    assert max(errors(result).values()) <= 0.01
+    with pytest.raises(InputError, match="method, offsets do.es. not apply to a a record"):
+        identify(record, Duffing1(), "paper", offsets="force")
+    with pytest.raises(InputError, match="window do.es. not apply"):
+        identify(record, Duffing1(), window=0.2)
+
+
+def test_a_plant_that_changed_within_the_record_is_not_published():
+    """k 2 % higher over the second half of 2 s, acceleration at 40 dB: the whole fit is within
+    its tolerance of the noise (it would publish k 1 % off both halves' plants), one part of
+    the record is not; nothing is published and the note says the plant may have changed."""
+    force = Multisine(0.8 * K * AMPLITUDE, 1.0, 30.0, 2.0, phases="random", seed=3)
+    t, f, a, _ = changed_plant(force, 2.0, 2e-4, 1.02, 1.0)
+    result = identify_motion(Record(t, measured(f, 60, 1), measured(a, 40, 2, bias_share=0.01), source="changed"),
+                             Duffing1(), "a")
+    fit = result.assessment.fit
+    assert fit["simulation_nrmse"] <= FIT_TOLERANCE * fit["noise_nrmse"] < fit["worst_part_nrmse"]
+    assert not any(np.isfinite(v) for v in result.parameters.values())
+    assert any("the plant may have changed within the record" in note for note in result.assessment.notes)

@@ -19,6 +19,7 @@ from .data.signals import Chirp, Multisine, Step, from_spec
 from .errors import CosimError, RecordError, SimulationError
 from .identification.discover import discover
 from .identification.engine import METHODS, Estimate, Identification, OnlineIdentifier
+from .identification.motion_online import OnlineMotionIdentifier
 from .identification.trust import identify
 from .models.chain import Chain, Duffing1, Duffing2, DuffingCircuit
 from .models.registry import model_from_name
@@ -31,7 +32,7 @@ __all__ = [
     "Record", "RecordError",
     "Step", "Chirp", "Multisine", "from_spec",
     "simulate", "measure", "SimulationError",
-    "OnlineIdentifier", "identify", "discover", "Identification", "Estimate", "METHODS",
+    "OnlineIdentifier", "OnlineMotionIdentifier", "identify", "discover", "Identification", "Estimate", "METHODS",
     "System", "CosimError", "AdaptiveController", "design",
     "__version__",
 ]

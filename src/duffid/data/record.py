@@ -362,7 +362,7 @@ class Record:
             word = FAMILY_WORDS[self.motion]
             raise RecordError(f"{self.source}: the record measures {word} ({self.motion}), not displacements: "
                               f"{what} needs a displacement. A velocity or acceleration record is identified by "
-                              "duffid identify (duffid.identification.motion.identify_motion)")
+                              "duffid identify (duffid.identify), online by duffid.OnlineMotionIdentifier")
 
     # ----------------------------------------------------------------- methods
     def require_samples(self, n: int, purpose: str) -> None:

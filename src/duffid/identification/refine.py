@@ -572,6 +572,9 @@ class Refinement:
     bias, bias_std : tuple of float
         The fitted constant offset of each motion column and its standard error (record
         units; empty when no bias was fitted).
+    residuals : ndarray, shape (fitted samples, n_dof)
+        The output error at the end (simulated minus measured, record units), over the
+        fitted samples in time order (empty when not computed).
     """
 
     model: str
@@ -588,6 +591,7 @@ class Refinement:
     options: dict[str, Any] = field(default_factory=dict)
     bias: tuple[float, ...] = ()
     bias_std: tuple[float, ...] = ()
+    residuals: np.ndarray = field(default_factory=lambda: np.empty((0, 0)))
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary."""
@@ -869,6 +873,7 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
         options={"free": list(names), "skip": skip, "substeps": substeps, "interpolation": interpolation,
                  "max_nfev": max_nfev, "segment": segment, "stretches": len(bounds), "output": output},
         bias=tuple(float(b) for b in offset), bias_std=tuple(float(s) * x_scale for s in relative[len(names):]),
+        residuals=sol.fun.reshape(len(target), n) * x_scale,
     )
 
 

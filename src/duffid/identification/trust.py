@@ -91,6 +91,7 @@ from ..models.chain import Chain
 from .assessment import ASSESSMENT_UNCERTAINTY, PROGRESS_SAMPLES, assess
 from .dispatch import Pool, data_window, final_estimates, on_c_core, run_estimator
 from .engine import MIN_SHARE, Identification, check_record
+from .motion import identify_motion
 from .offsets import (
     canonical_of,
     carries_displacement_offset,
@@ -176,7 +177,10 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
     Parameters
     ----------
     record : Record
-        Forces and displacements, evenly sampled.
+        Forces and displacements, evenly sampled. A record of velocities or accelerations
+        (:attr:`~duffid.data.record.Record.motion`) is identified by the output-error fit of
+        :func:`~duffid.identification.motion.identify_motion` with its own checks (only
+        ``max_uncertainty`` applies).
     model : Chain
         Model structure.
     method : str
@@ -223,7 +227,15 @@ def identify(record: Record, model: Chain, method: str = "robust", *, offsets: s
         An unknown ``offsets`` kind, or a displacement offset for a model that cannot carry
         it (the message names the models that can).
     """
-    record.require_displacement("identify (a displacement record; duffid identify takes the others)")
+    if record.motion != "x":  # a velocity or acceleration: the output-error fit and its checks
+        named = sorted(set(options) - {"max_uncertainty"}) + [
+            flag for flag, given in (("method", method != "robust"), ("offsets", offsets is not None),
+                                     ("check", not check), ("refine", not refine)) if given]
+        if named:
+            raise InputError(f"{record.source}: {', '.join(named)} do(es) not apply to a {record.motion} record: "
+                             "it is identified by fitting the simulated motion to the measured one "
+                             "(duffid.identification.motion.identify_motion); only max_uncertainty applies")
+        return identify_motion(record, model, progress=progress, **options)
     kind = offset_kind(model, offsets)
     physical = with_force_offsets(model) if kind is not None else model
     estimation = _Estimation(model, physical, kind, method, engine)
