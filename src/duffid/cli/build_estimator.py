@@ -29,6 +29,7 @@ def unit_assignments(text: str) -> dict[str, str]:
 def add_parser(sub: Any) -> argparse.ArgumentParser:
     """Add the ``build-estimator`` subcommand."""
     from ..cbuild import PLATFORMS
+    from ..fmu.estimator_table import MOTION_INPUTS
     from ..identification.options import ENGINES
 
     p = sub.add_parser("build-estimator", help="build an estimator FMU for your own equation (C, FMI 2.0 or 3.0)",
@@ -52,7 +53,12 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("--name", default=None,
                    help="model name and file stem (default EquationEstimator, or ChainEstimator<N>)")
     p.add_argument("--columns", default="t,f,x", metavar="LIST",
-                   help="the signals as record columns (default t,f,x; 2 DOF: t,f,x1,x2)")
+                   help="the signals as record columns (default t,f,x; 2 DOF: t,f,x1,x2); a, a1.. or v, v1.. for "
+                        "a measured acceleration or velocity of the equation's x, x1.. (as --motion)")
+    p.add_argument("--motion", choices=tuple(MOTION_INPUTS), default=None,
+                   help="what the motion inputs measure: x displacement (default), v velocity or a acceleration "
+                        "(inputs v1.., a1..): the online output-error fit, a pythonfmu FMU (FMI 2.0, a Python "
+                        "host); --equation: default from --columns")
     p.add_argument("--units", type=unit_assignments, default=None, metavar="LIST",
                    help="units of the signals (x=m,f=N): the parameters' units follow from the equation; "
                         "give a parameter's unit too where they do not (k=N.m for k*sin(x))")
@@ -90,7 +96,14 @@ def run(args: argparse.Namespace) -> int:
     from ..cbuild import resolve_platforms
     from ..fmu.estimator import build_chain_fmu, build_equation_fmu
 
+    from ..identification.motion import displacement_columns, measured_motion
+
     columns = [c.strip() for c in args.columns.split(",") if c.strip()]
+    motion = measured_motion(columns)
+    if args.motion is not None and motion != "x" and args.motion != motion:
+        raise InputError(f"--columns {','.join(columns)} measure {motion}, --motion {args.motion}: give one of them")
+    motion = args.motion or motion
+    columns = displacement_columns(columns)  # the equation is written in the displacements
     name = args.name or ("EquationEstimator" if args.equation is not None else f"ChainEstimator{args.chain}")
     folder = _target(args.output, name, args.fmi)
     platforms, skipped = resolve_platforms(n.strip() for n in args.platforms.split(",") if n.strip())
@@ -99,7 +112,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"duffid build-estimator: {line}", file=sys.stderr)
     import fmpy
 
-    common = {"name": name, "fmi_version": args.fmi, "backend": args.backend, "platforms": platforms}
+    common = {"name": name, "fmi_version": args.fmi, "backend": args.backend, "platforms": platforms,
+              "motion": motion}
     if args.chain is not None:
         if args.units:
             raise InputError("--units applies to --equation; a chain is in m, N and s")

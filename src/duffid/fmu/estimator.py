@@ -62,6 +62,7 @@ from .c_model import build_c_model_fmu
 from .estimator_table import (
     C_FMU_NAMES,
     DEFAULT_SAMPLE_PERIOD,
+    MOTION_INPUTS,
     EstimatorInterface,
     builtin_interface,
     chain_interface,
@@ -132,13 +133,26 @@ def build_estimator_fmu(model: str | EstimatorInterface, out_dir: str | Path, fm
                              sampled_inputs=True)
 
 
-def _use_c(backend: str, fmi_version: int, what: str) -> bool:
+def _use_c(backend: str, fmi_version: int, what: str, motion: str = "x") -> bool:
     """Whether to build the C FMU: ``backend`` "c", or "auto" with a C compiler (else one line
-    on stderr says why the pythonfmu FMU is built)."""
+    on stderr says why the pythonfmu FMU is built); never for a velocity or acceleration
+    (``motion``), which only the pythonfmu FMU takes."""
     if backend not in ENGINES:
         raise InputError(f"backend must be one of {', '.join(ENGINES)}, got {backend!r}")
     if fmi_version not in (2, 3):
         raise InputError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
+    if motion not in MOTION_INPUTS:
+        raise InputError(f"motion must be one of {', '.join(MOTION_INPUTS)}, got {motion!r}")
+    if motion != "x":
+        word = MOTION_INPUTS[motion][0]
+        if backend == "c" or fmi_version != 2:
+            raise InputError(f"{what}: an estimator from a measured {word} is the output-error fit of the pythonfmu "
+                             "FMU (FMI 2.0, a Python host): the C estimator core needs a displacement; use "
+                             "--engine python (or auto) and FMI 2")
+        if backend == "auto":
+            print(f"duffid: building {what} as a pythonfmu FMU (runs in a Python host only): the C estimator "
+                  f"core needs a displacement, not {'an' if word[0] in 'aeiou' else 'a'} {word}", file=sys.stderr)
+        return False
     if backend == "python":
         if fmi_version != 2:
             raise InputError("the pythonfmu estimator FMU is FMI 2.0 only; use the C backend for FMI 3.0")
@@ -158,7 +172,7 @@ def _use_c(backend: str, fmi_version: int, what: str) -> bool:
 def build_equation_fmu(equation: str | Sequence[str], out_dir: str | Path, *, name: str = "EquationEstimator",
                        columns: Sequence[str] = ("t", "f", "x"), units: Mapping[str, str] | None = None,
                        fmi_version: int = 2, backend: str = "auto", platforms: Sequence[Platform] | None = None,
-                       compiler: str | None = None) -> Path:
+                       compiler: str | None = None, motion: str = "x") -> Path:
     """Build the estimator FMU of the user's own equations: ``<name>.fmu`` (FMI 2) or
     ``<name>_fmi3.fmu`` (FMI 3).
 
@@ -186,30 +200,37 @@ def build_equation_fmu(equation: str | Sequence[str], out_dir: str | Path, *, na
         Targets of the C FMU's binaries (default: this machine).
     compiler : str, optional
         C compiler for this machine.
+    motion : {"x", "v", "a"}
+        What the motion inputs measure (:data:`~duffid.fmu.estimator_table.MOTION_INPUTS`):
+        displacements, or velocities or accelerations (inputs ``v..``/``a..``, the output-error
+        fit of :class:`~duffid.identification.motion_online.OnlineMotionIdentifier`: the
+        pythonfmu FMU only, FMI 2.0).
 
     Raises
     ------
     EquationError, InputError
-        An equation that cannot be identified (naming the term), a bad name or unit, or a
-        model beyond the limits of the C core.
+        An equation that cannot be identified (naming the term), a bad name or unit, a
+        model beyond the limits of the C core, or a velocity or acceleration with backend
+        "c" or FMI 3.
     CompilerNotFoundError, BuildError
         Backend "c" without a compiler, or compilation failed.
     """
     interface = equation_interface(equation, columns, units=units, name=name)
-    if _use_c(backend, fmi_version, name):
+    if _use_c(backend, fmi_version, name, motion):
         return build_estimator_fmu(interface, out_dir, fmi_version, compiler=compiler, platforms=platforms)
     from .python_estimator import build_equation_fmu as build_python_equation_fmu
 
-    return build_python_equation_fmu(equation, out_dir, name=name, columns=columns, units=units)
+    return build_python_equation_fmu(equation, out_dir, name=name, columns=columns, units=units, motion=motion)
 
 
 def build_chain_fmu(n_dof: int, out_dir: str | Path, *, orders: Sequence[int] = (1, 3), coulomb: bool = False,
                     name: str | None = None, fmi_version: int = 2, backend: str = "auto",
-                    platforms: Sequence[Platform] | None = None, compiler: str | None = None) -> Path:
+                    platforms: Sequence[Platform] | None = None, compiler: str | None = None,
+                    motion: str = "x") -> Path:
     """Build the estimator FMU of a chain of ``n_dof`` masses (``ChainEstimator<n>.fmu`` by
     default; :func:`~duffid.fmu.estimator_table.chain_interface`): inputs ``x1 .. x<n>`` [m]
-    and ``f1`` [N]. ``fmi_version``, ``backend``, ``platforms`` and ``compiler`` as for
-    :func:`build_equation_fmu`.
+    and ``f1`` [N] (``a1 ..`` [m/s2] or ``v1 ..`` [m/s] with ``motion``). ``fmi_version``,
+    ``backend``, ``platforms``, ``compiler`` and ``motion`` as for :func:`build_equation_fmu`.
 
     Raises
     ------
@@ -220,11 +241,12 @@ def build_chain_fmu(n_dof: int, out_dir: str | Path, *, orders: Sequence[int] = 
         Backend "c" without a compiler, or compilation failed.
     """
     interface = chain_interface(n_dof, orders=orders, coulomb=coulomb, name=name)
-    if _use_c(backend, fmi_version, interface.identifier):
+    if _use_c(backend, fmi_version, interface.identifier, motion):
         return build_estimator_fmu(interface, out_dir, fmi_version, compiler=compiler, platforms=platforms)
     from .python_estimator import build_chain_fmu as build_python_chain_fmu
 
-    return build_python_chain_fmu(n_dof, out_dir, orders=orders, coulomb=coulomb, name=interface.identifier)
+    return build_python_chain_fmu(n_dof, out_dir, orders=orders, coulomb=coulomb, name=interface.identifier,
+                                  motion=motion)
 
 
 def build_estimator_fmus(out_dir: str | Path = Path("build/fmus"), *, python: bool = True,

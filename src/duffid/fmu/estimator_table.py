@@ -18,11 +18,12 @@ from __future__ import annotations
 
 import keyword
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Mapping, Sequence
 
 from ..errors import InputError
 from ..identification.engine import status_codes
+from ..identification.motion import MOTIONS
 from ..identification.options import ONLINE_METHODS, fmu_parameters
 from ..models.registry import GENERATED_MODEL_CODE, REGISTRY
 from .variables import FmuVariable
@@ -31,7 +32,8 @@ __all__ = ["C_FMU_NAMES", "MODELS", "MODEL_CODES", "GENERATED_MODEL_CODE", "INPU
            "parameter_unit", "chain_parameter_unit", "OPTIONS", "DEFAULT_SAMPLE_PERIOD", "SAMPLE_PERIOD_DESCRIPTION",
            "ENABLE_DESCRIPTION", "RESET_DESCRIPTION",
            "TYPES", "EstimatorInterface", "builtin_interface", "equation_interface", "chain_interface",
-           "interface_from_spec", "variable_types", "variable_units", "estimator_variables"]
+           "interface_from_spec", "variable_types", "variable_units", "estimator_variables", "MOTION_INPUTS",
+           "with_motion"]
 
 # The named models with a C estimator FMU (duffid.models.registry), as this module's tables:
 _NAMED = {name: e for name, e in REGISTRY.items() if e.fmu_name is not None}
@@ -123,6 +125,34 @@ class EstimatorInterface:
         from ..models.equation_model import EquationModel
 
         return EquationModel(self.spec["equations"], self.spec["columns"])
+
+
+#: What an estimator FMU's motion inputs measure: symbol -> (word, unit suffix); the inputs of
+#: a velocity or acceleration FMU are named with its symbol (``a``, ``a1`` for ``x``, ``x1``)
+#: and their units are the displacement's per second (squared).
+MOTION_INPUTS = {"x": ("displacement", ""), **{m: (word, {"v": "/s", "a": "/s2"}[m]) for m, word in MOTIONS.items()}}
+
+
+def with_motion(interface: EstimatorInterface, motion: str) -> EstimatorInterface:
+    """The interface whose motion inputs measure ``motion`` (:data:`MOTION_INPUTS`) instead of
+    the displacements: renamed (``x1`` -> ``a1``), their units per second (squared); the
+    spec records it."""
+    if motion not in MOTION_INPUTS:
+        raise InputError(f"motion must be one of {', '.join(MOTION_INPUTS)}, got {motion!r}")
+    if motion == "x":
+        return interface
+    word, suffix = MOTION_INPUTS[motion]
+    renamed = []
+    for name, unit, text in interface.x:
+        if not name.startswith("x"):
+            raise InputError(f"{interface.identifier}: the displacement {name!r} is not named x...; a "
+                             f"{word} input is named after it ({motion}...): name the displacements x, x1, ...")
+        renamed.append((motion + name[1:], None if unit is None else unit + suffix,
+                        text.replace("displacement of", f"{word} of") if "displacement of" in text
+                        else f"{word} of the {text}"))
+    return replace(interface, x=tuple(renamed), spec={**interface.spec, "motion": motion},
+                   description=interface.description.replace("online algebraic identification",
+                                                             f"online output-error identification from {word}"))
 
 
 def _check_identifier(name: str) -> None:
@@ -229,10 +259,12 @@ def interface_from_spec(spec: Mapping[str, Any]) -> EstimatorInterface:
     """The interface that ``spec`` (:attr:`EstimatorInterface.spec`) describes; an equation's
     units are taken as they are (they were derived when the spec was made)."""
     kind = spec.get("kind")
+    motion = spec.get("motion", "x")
     if kind == "builtin":
-        return builtin_interface(spec["model"])
+        return with_motion(builtin_interface(spec["model"]), motion)
     if kind == "chain":
-        return chain_interface(spec["n_dof"], orders=spec["orders"], coulomb=spec["coulomb"], name=spec["name"])
+        return with_motion(chain_interface(spec["n_dof"], orders=spec["orders"], coulomb=spec["coulomb"],
+                                           name=spec["name"]), motion)
     if kind != "equation":
         raise InputError(f"unknown estimator interface kind {kind!r}; choose builtin, chain or equation")
     from ..models.equation_model import EquationModel
@@ -240,11 +272,12 @@ def interface_from_spec(spec: Mapping[str, Any]) -> EstimatorInterface:
     model = EquationModel(spec["equations"], spec["columns"])
     sig = model.regressor.signals
     units = dict(spec.get("units") or {})
-    return EstimatorInterface(
+    return with_motion(EstimatorInterface(
         "equation", spec["name"], tuple((n, units.get(n), f"displacement {n}") for n in sig.x_names),
         tuple((n, units.get(n), f"force {n}") for n in sig.f_names), tuple(model.parameters),
         dict(spec.get("parameter_units") or {}),
-        "duffid online algebraic identification of " + "; ".join(model.texts), dict(spec))
+        "duffid online algebraic identification of " + "; ".join(model.texts),
+        {k: v for k, v in spec.items() if k != "motion"}), motion)
 
 
 def _interface(model: str | EstimatorInterface) -> EstimatorInterface:

@@ -66,6 +66,8 @@ from xml.etree.ElementTree import Element, SubElement
 
 from ..errors import InputError
 from ..identification.engine import STATUSES, OnlineIdentifier, status_codes
+from ..identification.motion_online import OPTIONS as MOTION_OPTIONS
+from ..identification.motion_online import OnlineMotionIdentifier
 from ..identification.options import fmu_parameters, from_c, to_c
 from .estimator_table import (
     DEFAULT_SAMPLE_PERIOD,
@@ -80,6 +82,7 @@ from .estimator_table import (
     equation_interface,
     interface_from_spec,
     variable_units,
+    with_motion,
 )
 from .fmi_xml import add_sampled_inputs, unit_definitions
 
@@ -169,12 +172,13 @@ class EstimatorSlave:
     """
 
     def __init__(self, slave: Any, model_name: str, equation: dict[str, Any] | None = None,
-                 chain: dict[str, Any] | None = None) -> None:
+                 chain: dict[str, Any] | None = None, motion: str = "x") -> None:
         Real, Integer, Boolean, String, causality, initial, variability = _variable_types()
         self.slave = slave
         self.model_name = model_name
         self.equation = equation
         self.chain = chain
+        self.motion = motion
         if equation is None and chain is None and model_name not in MODELS:
             raise InputError(f"unknown model {model_name!r}; choose {', '.join(MODELS)}")
         self.interface = self._interface()
@@ -183,7 +187,7 @@ class EstimatorSlave:
         self.fmu_name = model_name if equation is not None or chain is not None else FMU_NAMES[model_name]
         self.x_names = [name for name, _, _ in self.interface.x]
         self.f_names = [name for name, _, _ in self.interface.f]
-        self.ident: OnlineIdentifier | None = None
+        self.ident: OnlineIdentifier | OnlineMotionIdentifier | None = None
         self.used: dict[str, Any] = {}
         self.last_error: str | None = None
         types = {"Real": Real, "Integer": Integer, "Boolean": Boolean, "String": String}
@@ -205,9 +209,13 @@ class EstimatorSlave:
         slave.register_variable(Boolean("identified", causality=causality.output, initial=initial.exact,
                                         variability=variability.discrete,
                                         description="every estimate is trustworthy"))
-        for name, text, start in (("condition", "condition number of the equations", math.inf),
-                                  ("uncertainty", "largest relative standard error (robust)", math.nan),
-                                  ("window_length", "window length [s]", 0.0)):
+        fitted = motion != "x"  # the output-error fit's outputs say what they are
+        for name, text, start in (("condition", "NaN: the output-error fit has no condition number" if fitted
+                                   else "condition number of the equations", math.inf),
+                                  ("uncertainty", "largest relative standard error of the latest fit" if fitted
+                                   else "largest relative standard error (robust)", math.nan),
+                                  ("window_length", "the latest fit's horizon [s]" if fitted
+                                   else "window length [s]", 0.0)):
             setattr(slave, name, start)
             slave.register_variable(Real(name, causality=causality.output, initial=initial.exact,
                                          description=text))
@@ -219,7 +227,8 @@ class EstimatorSlave:
         slave.outliers = 0
         slave.register_variable(Integer("outliers", causality=causality.output, initial=initial.exact,
                                         variability=variability.discrete,
-                                        description="isolated displacement outliers excluded so far"))
+                                        description="0: the output-error fit has no outlier test" if fitted
+                                        else "isolated displacement outliers excluded so far"))
         for name in self.names:
             setattr(slave, f"{name}_std_error", math.nan)
             slave.register_variable(Real(f"{name}_std_error", causality=causality.output, initial=initial.exact,
@@ -227,25 +236,36 @@ class EstimatorSlave:
                                                      "published)"))
         slave.residual = math.nan
         slave.register_variable(Real("residual", causality=causality.output, initial=initial.exact,
-                                     description="the window's one-step prediction error relative to its force "
-                                                 "balance (it jumps when the plant changes)"))
+                                     description="the latest fit's or check's output error relative to the "
+                                                 "measured signal's RMS (it jumps when the plant changes)" if fitted
+                                     else "the window's one-step prediction error relative to its force "
+                                          "balance (it jumps when the plant changes)"))
 
-        self.parameters: dict[str, Any] = {"method": "robust"}
-        slave.method = "robust"
-        slave.register_variable(String("method", causality=causality.parameter, variability=variability.tunable,
-                                       description="robust or paper"))
-        for name, (kind, default, text) in _option_parameters().items():
-            self.parameters[name] = default
-            setattr(slave, name, default)
-            slave.register_variable(types[kind](name, causality=causality.parameter,
-                                                variability=variability.tunable, description=text))
-        for name in self.names:
-            pname = f"{name}_nominal"
-            self.parameters[pname] = 0.0
-            setattr(slave, pname, 0.0)
-            slave.register_variable(Real(pname, causality=causality.parameter, variability=variability.tunable,
-                                         description=f"optional prior size of {name} for the trust test "
-                                                     "(0: none, the scale comes from the data)"))
+        self.parameters: dict[str, Any] = {}
+        if motion != "x":  # the options of the output-error fit (0: "auto")
+            for name, (default, _, text) in MOTION_OPTIONS.items():
+                value = 0.0 if default == "auto" else float(default)
+                self.parameters[name] = value
+                setattr(slave, name, value)
+                slave.register_variable(Real(name, causality=causality.parameter, variability=variability.tunable,
+                                             description=text.replace("(auto:", "(0: auto,")))
+        else:
+            self.parameters["method"] = "robust"
+            slave.method = "robust"
+            slave.register_variable(String("method", causality=causality.parameter,
+                                           variability=variability.tunable, description="robust or paper"))
+            for name, (kind, default, text) in _option_parameters().items():
+                self.parameters[name] = default
+                setattr(slave, name, default)
+                slave.register_variable(types[kind](name, causality=causality.parameter,
+                                                    variability=variability.tunable, description=text))
+            for name in self.names:
+                pname = f"{name}_nominal"
+                self.parameters[pname] = 0.0
+                setattr(slave, pname, 0.0)
+                slave.register_variable(Real(pname, causality=causality.parameter, variability=variability.tunable,
+                                             description=f"optional prior size of {name} for the trust test "
+                                                         "(0: none, the scale comes from the data)"))
         self.parameters["sample_period"] = DEFAULT_SAMPLE_PERIOD
         slave.sample_period = DEFAULT_SAMPLE_PERIOD
         slave.register_variable(Real("sample_period", causality=causality.parameter, variability=variability.tunable,
@@ -254,11 +274,13 @@ class EstimatorSlave:
     def _interface(self) -> EstimatorInterface:
         """The interface of the FMU (duffid.fmu.estimator_table: the C FMUs' table)."""
         if self.chain is not None:
-            return chain_interface(int(self.chain["n_dof"]), orders=self.chain["orders"],
+            base = chain_interface(int(self.chain["n_dof"]), orders=self.chain["orders"],
                                    coulomb=bool(self.chain["coulomb"]), name=self.model_name)
-        if self.equation is not None:
-            return interface_from_spec({**self.equation, "kind": "equation", "name": self.model_name})
-        return builtin_interface(self.model_name)
+        elif self.equation is not None:
+            base = interface_from_spec({**self.equation, "kind": "equation", "name": self.model_name})
+        else:
+            base = builtin_interface(self.model_name)
+        return with_motion(base, self.motion)
 
     def _model(self) -> Any:
         """A new instance of the model estimated (a built-in model, a chain or the FMU's equations)."""
@@ -266,8 +288,9 @@ class EstimatorSlave:
 
     def _units(self) -> dict[str, str]:
         """Variable name -> unit: those of the estimator table (the C FMUs' units; for equations
-        the signals' units and the parameters' derived ones)."""
-        return variable_units(self.interface)
+        the signals' units and the parameters' derived ones), and the output-error fit's options'."""
+        extra = {name: unit for name, (_, unit, _) in MOTION_OPTIONS.items()} if self.motion != "x" else {}
+        return {**variable_units(self.interface), **extra}
 
     def describe(self, root: Element) -> Element:
         """Complete pythonfmu's modelDescription ``root``: the units of the C FMUs' table
@@ -331,6 +354,15 @@ class EstimatorSlave:
 
     def _create(self, period: float) -> None:
         values = self._current_parameters()
+        if self.motion != "x":
+            options = {name: ("auto" if values[name] == 0 and MOTION_OPTIONS[name][0] == "auto" else
+                              float(values[name])) for name in MOTION_OPTIONS}
+            try:
+                self.ident = OnlineMotionIdentifier(self._model(), period, self.motion, **options)
+            except InputError as exc:
+                self._fail(f"{self.model_name} estimator: {exc}")
+            self.used = values
+            return
         method, options = self._options(values)
         prior = {name: float(values[f"{name}_nominal"]) for name in self.names if values[f"{name}_nominal"] != 0}
         if prior and method == "robust":
@@ -447,7 +479,7 @@ def build_python_fmu(model_name: str, out_dir: str | Path, *, needs_execution_to
 
 def build_equation_fmu(equation: str | Sequence[str], out_dir: str | Path, *, name: str = "EquationEstimator",
                        columns: Sequence[str] = ("t", "f", "x"), units: Mapping[str, str] | None = None,
-                       needs_execution_tool: bool = True) -> Path:
+                       motion: str = "x", needs_execution_tool: bool = True) -> Path:
     """Build ``<name>.fmu``: duffid's online identifier of the user's own equations (pythonfmu,
     FMI 2.0 co-simulation, the interface of the module documentation).
 
@@ -466,6 +498,11 @@ def build_equation_fmu(equation: str | Sequence[str], out_dir: str | Path, *, na
         Unit strings of every displacement and force (``{"x": "m", "f": "N"}``), and of
         parameters whose unit the equations do not determine; the parameters' units follow
         (:func:`duffid.models.units.parameter_units`). None: no units.
+    motion : {"x", "v", "a"}
+        What the motion inputs measure: the displacements (the online algebraic identifier),
+        or their velocities or accelerations (inputs ``v..``/``a..``,
+        :class:`~duffid.identification.motion_online.OnlineMotionIdentifier`, its options as
+        parameters).
     needs_execution_tool : bool
         See :func:`build_python_fmu`.
 
@@ -479,34 +516,40 @@ def build_equation_fmu(equation: str | Sequence[str], out_dir: str | Path, *, na
     EquationError, InputError
         An equation that cannot be identified (naming the term), a bad name or unit.
     """
-    interface = equation_interface(equation, columns, units=units, name=name)
-    spec = {k: v for k, v in interface.spec.items() if k not in ("kind", "name")}
+    interface = with_motion(equation_interface(equation, columns, units=units, name=name), motion)
+    spec = {k: v for k, v in interface.spec.items() if k not in ("kind", "name", "motion")}
     script = _SCRIPT.format(model_name=name, class_name=name, sample_period=DEFAULT_SAMPLE_PERIOD,
-                            imports="import json\n", slave_arguments=f", equation=json.loads({json.dumps(spec)!r})",
-                            description=interface.description + " (duffid OnlineIdentifier)")
+                            imports="import json\n",
+                            slave_arguments=f", equation=json.loads({json.dumps(spec)!r}), motion={motion!r}",
+                            description=interface.description + f" (duffid {_identifier_class(motion)})")
     return _build(script, name, out_dir, needs_execution_tool)
 
 
+def _identifier_class(motion: str) -> str:
+    return "OnlineIdentifier" if motion == "x" else "OnlineMotionIdentifier"
+
+
 def build_chain_fmu(n_dof: int, out_dir: str | Path, *, orders: Sequence[int] = (1, 3), coulomb: bool = False,
-                    name: str | None = None, needs_execution_tool: bool = True) -> Path:
+                    name: str | None = None, motion: str = "x", needs_execution_tool: bool = True) -> Path:
     """Build ``ChainEstimator<n>.fmu``: the online identifier of a chain of ``n_dof`` masses
     from a wall (:func:`duffid.models.registry.model_from_name` ``"chain"``: springs of the
     stiffness ``orders`` and optionally Coulomb friction per mass, force on mass 1), pythonfmu,
     FMI 2.0 co-simulation, the interface of the module documentation: inputs ``x1 .. x<n>``
     [m] and ``f1`` [N]; outputs ``<param>_hat`` (``m<i>`` kg, ``b<i>`` N.s/m, ``k<i>_<j>``
-    N/m^j, ``fc<i>`` N) with statuses.
+    N/m^j, ``fc<i>`` N) with statuses. ``motion`` as for :func:`build_equation_fmu` (inputs
+    ``a1 ..`` [m/s2] or ``v1 ..`` [m/s]).
 
     Raises
     ------
     InputError
         A chain of fewer than 1 mass, no stiffness order, or a name that is not an identifier.
     """
-    interface = chain_interface(n_dof, orders=orders, coulomb=coulomb, name=name)
-    spec = {k: v for k, v in interface.spec.items() if k not in ("kind", "name")}
+    interface = with_motion(chain_interface(n_dof, orders=orders, coulomb=coulomb, name=name), motion)
+    spec = {k: v for k, v in interface.spec.items() if k not in ("kind", "name", "motion")}
     script = _SCRIPT.format(model_name=interface.identifier, class_name=interface.identifier,
                             sample_period=DEFAULT_SAMPLE_PERIOD, imports="import json\n",
-                            slave_arguments=f", chain=json.loads({json.dumps(spec)!r})",
-                            description=interface.description + " (duffid OnlineIdentifier)")
+                            slave_arguments=f", chain=json.loads({json.dumps(spec)!r}), motion={motion!r}",
+                            description=interface.description + f" (duffid {_identifier_class(motion)})")
     name = interface.identifier
     return _build(script, name, out_dir, needs_execution_tool)
 

@@ -35,7 +35,7 @@ every parameter within 0.03 % (its stated errors 0.005-0.011 %), the bias within
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -51,7 +51,7 @@ from .options import default_options
 from .refine import OUTPUTS, canonical_from_public, refine
 from .sampling import natural_frequency, noise_level
 
-__all__ = ["displacement_columns", "MOTIONS", "SEGMENT_PERIODS", "FIT_TOLERANCE", "FIT_PARTS", "PART_SAMPLES", "MAX_UNCERTAINTY", "START_POWER", "START_NONLINEAR", "START_BINS",
+__all__ = ["displacement_columns", "measured_motion", "band_limited_motion", "MOTIONS", "SEGMENT_PERIODS", "FIT_TOLERANCE", "FIT_PARTS", "PART_SAMPLES", "MAX_UNCERTAINTY", "START_POWER", "START_NONLINEAR", "START_BINS",
            "integrated_displacement", "identify_motion"]
 
 #: Largest relative standard error of a published value, by default (the robust method's).
@@ -123,11 +123,18 @@ def integrated_displacement(y: np.ndarray, dt: float, order: int, cutoff: float)
     return np.fft.irfft(np.fft.rfft(mirrored, axis=0) * gain[:, None], len(mirrored), axis=0)[:len(y)]
 
 
-def _start(record: Record, model: Chain, motion: str, cutoff: float | None, algebraic: bool = True
-           ) -> tuple[dict[str, float], float, tuple[np.ndarray, np.ndarray]]:
-    """The algebraic estimate on the band-limited displacement (the fit's start; NaN without
-    ``algebraic``), the cutoff and the band-limited displacement and velocity (the
-    stretches' starting states)."""
+def band_limited_motion(record: Record, motion: str, cutoff: float | None = None
+                        ) -> tuple[float, tuple[np.ndarray, np.ndarray]]:
+    """The displacement and velocity integrated from a velocity or acceleration record,
+    band-limited (:func:`integrated_displacement`; the fit's starting states), and the
+    high-pass used [Hz] (default: half the force's lowest content, :data:`START_POWER`, never
+    below two cycles per record).
+
+    Raises
+    ------
+    RecordError
+        When the force has no content to set the high-pass from (and no ``cutoff``).
+    """
     lowest = _lowest_force_frequency(record.f, record.dt)
     floor = 2.0 / (record.n_samples * record.dt)
     cutoff = max(0.5 * lowest, floor) if cutoff is None else float(cutoff)
@@ -136,10 +143,19 @@ def _start(record: Record, model: Chain, motion: str, cutoff: float | None, alge
                           "give cutoff= (Hz)")
     x = integrated_displacement(record.x, record.dt, 1 if motion == "v" else 2, cutoff)
     v = record.x - record.x.mean(axis=0) if motion == "v" else integrated_displacement(record.x, record.dt, 1, cutoff)
-    displacement = Record(record.t, record.f, x, source=f"{record.source} (integrated {MOTIONS[motion]})",
-                          sampling_rtol=record.sampling_rtol)
+    return cutoff, (x, v)
+
+
+def _start(record: Record, model: Chain, motion: str, cutoff: float | None, algebraic: bool = True
+           ) -> tuple[dict[str, float], float, tuple[np.ndarray, np.ndarray]]:
+    """The algebraic estimate on the band-limited displacement (the fit's start; NaN without
+    ``algebraic``), the cutoff and the band-limited displacement and velocity (the
+    stretches' starting states)."""
+    cutoff, (x, v) = band_limited_motion(record, motion, cutoff)
     if not algebraic:
         return {k: math.nan for k in model.parameters}, cutoff, (x, v)
+    displacement = Record(record.t, record.f, x, source=f"{record.source} (integrated {MOTIONS[motion]})",
+                          sampling_rtol=record.sampling_rtol)
     # the estimator's final solution (a constant force among its unknowns), never published
     values = final_estimates(displacement, with_force_offsets(model))
     start = {k: float(values.get(k, math.nan)) for k in model.parameters}
@@ -197,11 +213,28 @@ def _linear_start(record: Record, model: Chain, x: np.ndarray) -> dict[str, floa
             canonical[name] = 0.0
     return model.from_canonical(canonical)
 
-def displacement_columns(record: Record) -> list[str]:
+def displacement_columns(record: Record | Sequence[str]) -> list[str]:
     """The columns an equation for a velocity or acceleration record is written in: the
-    record's, with its motion columns named as the displacements they measure (``t, f, x``
-    for ``t, f, a``)."""
-    return [("x" + c[1:]) if c[:1] in MOTIONS else c for c in record.column_names]
+    record's (or these column names), with its motion columns named as the displacements they
+    measure (``t, f, x`` for ``t, f, a``)."""
+    names = record.column_names if isinstance(record, Record) else list(record)
+    return [("x" + c[1:]) if c[:1] in MOTIONS else c for c in names]
+
+
+def measured_motion(columns: Sequence[str]) -> str:
+    """What the motion columns among ``columns`` measure: ``"x"`` (displacements, also when
+    there are none), ``"v"`` or ``"a"`` (:data:`MOTIONS`).
+
+    Raises
+    ------
+    InputError
+        When they mix kinds (a record measures one kind of motion).
+    """
+    kinds = sorted({c[:1] for c in columns if c[:1] in ("x", *MOTIONS)})
+    if len(kinds) > 1:
+        raise InputError(f"columns {','.join(columns)} mix {' and '.join(kinds)}: a record measures one kind of "
+                         "motion (displacements x, velocities v or accelerations a)")
+    return kinds[0] if kinds else "x"
 
 
 def identify_motion(record: Record, model: Chain | EquationModel, motion: str | None = None, *,

@@ -38,12 +38,12 @@ from ..errors import InputError, RecordError
 from ..models.chain import Chain
 from ..models.equation_model import EquationModel
 from .engine import STATUSES, Estimate, Identification
-from .motion import FIT_TOLERANCE, MAX_UNCERTAINTY, MOTIONS, _start, identify_motion
+from .motion import FIT_TOLERANCE, MAX_UNCERTAINTY, MOTIONS, band_limited_motion, identify_motion
 from .refine import canonical_from_public, refine
 from .sampling import natural_frequency, noise_level
 
 __all__ = ["OnlineMotionIdentifier", "HORIZON_PERIODS", "REFITS_PER_HORIZON", "MIN_PERIODS", "FIRST_FIT",
-           "CHECK_PERIODS", "CHECK_EVERY", "run_motion_online"]
+           "CHECK_PERIODS", "CHECK_EVERY", "OPTIONS", "run_motion_online"]
 
 #: The automatic horizon, in natural periods of the latest fit's lowest mode (capped by
 #: ``max_horizon``).
@@ -67,8 +67,20 @@ CHECK_PERIODS = 3.0
 CHECK_EVERY = 1.0
 
 
+#: The options of :class:`OnlineMotionIdentifier`: name -> (default, unit, description).
+OPTIONS = {
+    "horizon": ("auto", "s", f"seconds of the latest samples each fit uses (auto: {HORIZON_PERIODS:g} natural "
+                              "periods of the latest fit, at most max_horizon)"),
+    "max_horizon": (10.0, "s", "largest horizon: the seconds of samples kept"),
+    "interval": ("auto", "s", f"seconds of data between fits (auto: the horizon / {REFITS_PER_HORIZON})"),
+    "max_uncertainty": (MAX_UNCERTAINTY, "1", "largest relative standard error of a published value"),
+}
+
+
 class OnlineMotionIdentifier:
     """Online identifier from the force and a measured velocity or acceleration.
+
+    The options and their defaults are :data:`OPTIONS`.
 
     Parameters
     ----------
@@ -98,8 +110,9 @@ class OnlineMotionIdentifier:
     """
 
     def __init__(self, model: Chain | EquationModel, dt: float, motion: str = "a", *,
-                 horizon: float | str = "auto", max_horizon: float = 10.0, interval: float | str = "auto",
-                 max_uncertainty: float = MAX_UNCERTAINTY) -> None:
+                 horizon: float | str = OPTIONS["horizon"][0], max_horizon: float = OPTIONS["max_horizon"][0],
+                 interval: float | str = OPTIONS["interval"][0],
+                 max_uncertainty: float = OPTIONS["max_uncertainty"][0]) -> None:
         if motion not in MOTIONS:
             raise InputError(f"motion must be one of {', '.join(MOTIONS)} (velocity, acceleration), got {motion!r}; "
                              "a displacement is identified by OnlineIdentifier")
@@ -212,8 +225,8 @@ class OnlineMotionIdentifier:
         n = min(self._periods(CHECK_PERIODS), self._stored)
         y, f = self._horizon_samples()
         try:
-            _, cutoff, (x, v) = _start(Record(np.arange(len(y)) * self.dt, f, y, source="the horizon",
-                                              motion=self.motion), self.model, self.motion, None, algebraic=False)
+            _, (x, v) = band_limited_motion(Record(np.arange(len(y)) * self.dt, f, y, source="the horizon",
+                                                   motion=self.motion), self.motion)
             record = Record(np.arange(n) * self.dt, f[-n:], y[-n:], source="the latest periods", motion=self.motion)
             with _quiet():
                 fit = refine(record, self.model, self._values, free=(), output=self.motion,
