@@ -41,6 +41,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/trust.py
 	$(BIN)/python benchmarks/speed.py
 	$(BIN)/python benchmarks/tracking.py
+	$(BIN)/python benchmarks/motion_online.py
 	$(BIN)/python benchmarks/platforms.py
 	$(BIN)/python benchmarks/equations.py
 	$(BIN)/python benchmarks/campaign.py

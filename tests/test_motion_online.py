@@ -85,17 +85,43 @@ def test_a_stiffness_step_is_withdrawn_at_once_and_published_again_within_one_pe
     assert np.all(np.abs(run["k"][:step][before] / K - 1) <= 0.01)
 
 
-def test_a_velocity_sensor_under_a_swept_sine_online_within_one_percent():
+def test_a_velocity_sensor_under_a_swept_sine_online_within_its_errors():
+    """While the sweep has covered little of the band the stated errors are near the 1 % limit
+    (measured: b 0.98 % off at 1.13 stated errors); every value is within 4 of them, and at
+    the end within 1 %."""
     force = Chirp(0.8 * K * AMPLITUDE, 2.0, 25.0, 6.0)
     t, f, _, v, _ = plant_motion(force, 6.0, 5e-4)
     record = Record(t, measured(f, 60, 3), measured(v, 50, 4, bias_share=0.005), source="vibrometer", motion="v")
-    result = run_motion_online(record, Duffing1())
-    assert result.method == "online output-error (velocity)"
-    assert all(s == PUBLISHED for s in result.online_status.values())
+    assert run_motion_online(record, Duffing1()).method == "online output-error (velocity)"
+    ident = OnlineMotionIdentifier(Duffing1(), record.dt, "v")
+    run = track(ident, record.x, record.f)
+    assert all(s == PUBLISHED for s in run["status"][-1].values())
     for name, truth in TRUE.items():
-        h = result.history[name]
-        assert np.all(np.abs(h[np.isfinite(h)] / truth - 1) <= 0.01), name
-    assert result.t_identified is not None and result.t_identified <= 2.0
+        values, std = run[name], run[name + "_std"]
+        published = np.isfinite(values)
+        assert published[int(2.0 / record.dt)], name  # from 2 s on
+        assert np.all(np.abs(values[published] - truth) <= 4 * std[published]), name
+        assert abs(values[-1] / truth - 1) <= 0.01, name
+
+
+def test_an_impact_hammer_online_at_40_db():
+    """A blow every second (a 3 ms half-sine), acceleration at 40 dB, 4 s: the first fits on a
+    fraction of a blow's decay fail, and must not set the horizon (they once set it to 0.01 s
+    from a nonsense fit, and nothing was ever published); every value published is within 4
+    of its stated errors and 1 %."""
+    def hammer(t):
+        phase = np.mod(np.asarray(t, dtype=float) - 0.1, 1.0)
+        return np.where(phase < 3e-3, 3.0 * K * AMPLITUDE * np.sin(np.pi * phase / 3e-3), 0.0)
+
+    t, f, _, _, a = plant_motion(hammer, 4.0, DT)
+    ident = OnlineMotionIdentifier(Duffing1(), DT, "a")
+    run = track(ident, measured(a, 40, 6, bias_share=0.01), measured(f, 50, 5))
+    assert ident.horizon == pytest.approx(4.0, rel=0.05)  # 40 natural periods
+    for name, truth in TRUE.items():
+        values, std = run[name], run[name + "_std"]
+        published = np.isfinite(values)
+        assert published[-1], (name, ident.notes)
+        assert np.all(np.abs(values[published] - truth) <= np.minimum(4 * std[published], 0.01 * truth)), name
 
 
 def test_a_plant_the_model_does_not_fit_is_never_published_online():
@@ -164,3 +190,18 @@ def test_bad_arguments_and_samples_are_refused():
         ident.update(math.nan, 0.0)
     with pytest.raises(Exception, match="measures a displacement"):
         run_motion_online(Record(np.arange(10) * DT, np.zeros(10), np.zeros(10), source="r"), Duffing1())
+
+
+def test_the_cli_plots_the_online_fit_of_an_accelerometer_record(accelerometer, tmp_path, capsys):
+    from duffid.cli import main
+
+    t, f, a = accelerometer
+    path = tmp_path / "rig.csv"
+    n = int(2.0 / DT)
+    np.savetxt(path, np.column_stack([t[:n], f[:n], a[:n]]), delimiter=",", header="time,load,acc\ns,N,m/s^2",
+               comments="", fmt="%.17g")
+    plot = tmp_path / "online.png"
+    assert main(["identify", str(path), "--columns", "t=time,f=load,a=acc", "--model", "duffing1",
+                 "--plot", str(plot)]) == 0
+    assert "published" in capsys.readouterr().out
+    assert plot.stat().st_size > 10_000

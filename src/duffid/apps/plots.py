@@ -18,7 +18,8 @@ __all__ = ["plot_estimates", "plot_record", "plot_hilbert", "plot_eta_vs_amplitu
 
 def plot_estimates(result: Identification, path: str | os.PathLike[str], *,
                    truth: Mapping[str, float] | None = None,
-                   series: Mapping[str, np.ndarray] | None = None, title: str | None = None) -> None:
+                   series: Mapping[str, np.ndarray] | None = None, title: str | None = None,
+                   run_label: str = "estimator run") -> None:
     """Estimates vs time, one panel per parameter (like the paper's Figures 8, 12, 13).
 
     Parameters
@@ -34,6 +35,8 @@ def plot_estimates(result: Identification, path: str | os.PathLike[str], *,
         Extra curves to plot instead of ``result.history`` (e.g. ratios ``b2/m2``).
     title : str, optional
         Figure title.
+    run_label : str
+        Legend of the history's curves.
     """
     curves = dict(series) if series is not None else dict(result.history)
     assessment = getattr(result, "assessment", None)
@@ -43,7 +46,7 @@ def plot_estimates(result: Identification, path: str | os.PathLike[str], *,
     fig = Figure(figsize=(6 * cols, 2.2 * rows))
     axes = fig.subplots(rows, cols, sharex=True, squeeze=False)
     for ax, (name, values) in zip(axes.flat, curves.items()):
-        ax.plot(result.t, values, lw=1.2, label="estimator run")
+        ax.plot(result.t, values, lw=1.2, label=run_label)
         if truth is not None and name in truth:
             ax.axhline(truth[name], color="k", ls="--", lw=0.8, label="truth")
             finite = values[np.isfinite(values)]

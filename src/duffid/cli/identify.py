@@ -130,20 +130,29 @@ def _run_motion(args: argparse.Namespace, record: Any, method: str, options: dic
     word = MOTIONS[record.motion]
     refused = [flag for flag, given in (("--segments", args.segments),
                                         ("--method", args.method not in (None, "robust")),
-                                        ("--offset", args.offset is not None), ("--plot", args.plot is not None))
+                                        ("--offset", args.offset is not None))
                if given]
     others = sorted(set(options) - {"max_uncertainty"})
     if refused or others:
         named = refused + [f"--{name.replace('_', '-')}" for name in others]
         raise InputError(f"{record.source}: {', '.join(named)} do(es) not apply to this {word} record: it is identified "
                          f"by fitting the simulated {word} to the measured one (with the sensor's bias), only "
-                         "--max-uncertainty, --equation, --jobs and the file flags apply")
+                         "--max-uncertainty, --equation, --plot, --jobs and the file flags apply")
     if args.equation is not None:  # written in the displacements whose motion the record measures
         model = EquationModel(equation_text(args, record.n_dof), displacement_columns(record))
     else:
         model = model_from_arguments(args, record.n_dof)
     extra = {"max_uncertainty": options["max_uncertainty"]} if "max_uncertainty" in options else {}
     result = identify_motion(record, model, **extra)
+    if args.plot is not None:  # the online fit's published values vs time, and the record's
+        from dataclasses import replace
+
+        from ..apps.plots import plot_estimates
+        from ..identification.motion_online import run_motion_online
+        online = run_motion_online(record, model, **extra)
+        plot_estimates(replace(result, t=online.t, history=online.history, t_identified=online.t_identified),
+                       args.plot, title=f"{result.model}: {online.method} (published values vs time), and the "
+                                        "record's fit", run_label="published online")
     if args.json:
         print(result.to_json())
         return 0

@@ -26,6 +26,15 @@ Parameters (tunable; read at the first step)
     ``sample_period`` [s].
     Defaults are identify()'s, so a record run through the FMU gives the CLI's answer.
 
+From a measured velocity or acceleration (``motion="v"`` or ``"a"`` of
+:func:`build_equation_fmu` and :func:`build_chain_fmu`, ``duffid build-estimator --motion``):
+the inputs are ``v..`` [m/s] or ``a..`` [m/s2] instead of the displacements, the FMU runs
+:class:`~duffid.identification.motion_online.OnlineMotionIdentifier` (the output-error fit on a
+receding horizon), its parameters are that identifier's options
+(:data:`~duffid.identification.motion_online.OPTIONS`: ``horizon``, ``max_horizon``,
+``interval`` [s], 0 = auto, ``max_uncertainty``) and ``sample_period``; ``condition`` is NaN,
+``outliers`` 0 and ``residual`` the latest fit's or check's output error over the signal's RMS.
+
 Semantics
 ---------
 Each ``doStep(t, h)`` consumes one sample: the inputs set for time ``t`` (the step's

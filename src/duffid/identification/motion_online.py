@@ -27,11 +27,13 @@ from __future__ import annotations
 
 import contextlib
 import math
+import sys
 import warnings
 from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from ..data.record import Record
 from ..errors import InputError, RecordError
@@ -43,7 +45,7 @@ from .refine import canonical_from_public, refine
 from .sampling import natural_frequency, noise_level
 
 __all__ = ["OnlineMotionIdentifier", "HORIZON_PERIODS", "REFITS_PER_HORIZON", "MIN_PERIODS", "FIRST_FIT",
-           "CHECK_PERIODS", "CHECK_EVERY", "OPTIONS", "run_motion_online"]
+           "CHECK_PERIODS", "CHECK_EVERY", "MOVED_ERRORS", "OPTIONS", "run_motion_online"]
 
 #: The automatic horizon, in natural periods of the latest fit's lowest mode (capped by
 #: ``max_horizon``).
@@ -55,6 +57,11 @@ MIN_PERIODS = 5.0
 #: Samples of the first fit; until a fit gives a natural frequency, the next is tried when the
 #: samples have doubled.
 FIRST_FIT = 256
+#: A fit's values are published only if the fit of its horizon's latest half (from them) is
+#: within this many standard errors of the difference of them (else the plant moved within the
+#: horizon: measured without it, a stiffness drifting 5 %/s at 40 dB was published up to 3.6 %
+#: off, 17 % of the published values beyond 3 stated errors).
+MOVED_ERRORS = 3.5
 #: Between fits, every :data:`CHECK_EVERY` natural periods, the published values are checked
 #: on the latest :data:`CHECK_PERIODS` periods: the model with those values (only its state
 #: and the sensor's bias fitted) must follow the measured signal there to
@@ -261,22 +268,54 @@ class OnlineMotionIdentifier:
         return self._y[index], self._f[index]
 
     def _fit(self) -> None:
-        """Fit the horizon; while the fit does not explain the signal and the horizon spans
-        more than twice :data:`MIN_PERIODS`, drop its older half and fit again (a plant that
-        changed or drifts is followed by a shorter horizon)."""
+        """Fit the horizon, and its latest half from that fit (:data:`MOVED_ERRORS`); while
+        the fit does not explain the signal, or the values moved within the horizon, and the
+        horizon spans more than twice :data:`MIN_PERIODS`, drop its older half and fit again
+        (a plant that changed or drifts is followed by a shorter horizon)."""
         while True:
             y, f = self._horizon_samples()
             result = self._fit_once(y, f)
             self.fits += 1
             explained = result is not None and bool(result.assessment.fit.get("explained", False))
+            moved = self._moved(result, y, f) if explained else None
             periods = len(y) * self.dt * self._frequency if math.isfinite(self._frequency) else 0.0
-            if explained or periods <= 2 * MIN_PERIODS:
+            if (explained and moved is None) or periods <= 2 * MIN_PERIODS:
                 break
             self._count = self._stored = len(y) // 2
         self._schedule()
         if math.isfinite(self._frequency):
             self._next_check = self._count + self._periods(CHECK_EVERY)
-        self._take(result, len(y) * self.dt)
+        self._take(result, len(y) * self.dt, moved)
+
+    def _moved(self, result: Identification, y: np.ndarray, f: np.ndarray) -> str | None:
+        """Why the values moved within the horizon (None: they did not): the fit of its latest
+        half, from the horizon's values, differs from them by more than :data:`MOVED_ERRORS`
+        standard errors of the difference (that of nested least squares, ``sqrt(s_half^2 -
+        s_all^2)``), or does not explain its samples."""
+        half = len(y) // 2
+        if half < FIRST_FIT:
+            return None
+        record = Record(np.arange(half) * self.dt, f[-half:], y[-half:], source=f"the latest {half * self.dt:.3g} s",
+                        motion=self.motion)
+        try:
+            with _quiet():
+                latest = identify_motion(record, self.model, max_uncertainty=self.options["max_uncertainty"],
+                                         start=result.estimates, progress=False)
+        except (InputError, RecordError, ValueError, np.linalg.LinAlgError) as exc:
+            return f"the fit of the horizon's latest half failed ({exc})"
+        self.fits += 1
+        if not latest.assessment.fit.get("explained", False):
+            return "the model with the horizon's values does not explain its latest half"
+        for name in self.names:
+            value, recent = result.estimates[name], latest.estimates[name]
+            s_all = abs(value) * result.assessment.uncertainty[name]
+            s_half = abs(recent) * latest.assessment.uncertainty[name]
+            spread = math.sqrt(max(s_half**2 - s_all**2, 0.25 * s_half**2))
+            if not abs(recent - value) <= MOVED_ERRORS * spread:
+                return (f"{name} moved within the horizon: {recent:.6g} over its latest half against {value:.6g} "
+                        f"over all of it ({abs(recent - value) / spread:.2g} standard errors of the difference); "
+                        "the plant may be drifting")
+        return None
 
     def _fit_once(self, y: np.ndarray, f: np.ndarray) -> Identification | None:
         """The fit of these samples from the previous values, or (when that does not explain
@@ -308,8 +347,9 @@ class OnlineMotionIdentifier:
         if not math.isfinite(self._frequency):
             self._next_fit = min(2 * self._count, self._next_fit)
 
-    def _take(self, result: Identification | None, span: float) -> None:
-        """Statuses and published values from a fit (None: it failed)."""
+    def _take(self, result: Identification | None, span: float, moved: str | None = None) -> None:
+        """Statuses and published values from a fit (None: it failed; ``moved``: why its values
+        moved within the horizon, then nothing is published)."""
         was_explained = self._explained
         self.last = result
         if result is None:
@@ -326,7 +366,7 @@ class OnlineMotionIdentifier:
             status = dict(result.assessment.status)
             relative = dict(result.assessment.uncertainty)
             self.notes = list(result.assessment.notes)
-            if all(map(math.isfinite, values.values())):
+            if self._explained and all(map(math.isfinite, values.values())):  # the horizon's scale
                 try:
                     hz = natural_frequency(self.model, canonical_from_public(self.model, values), lowest=True)
                 except (InputError, ValueError):
@@ -338,6 +378,10 @@ class OnlineMotionIdentifier:
                 status = {k: STATUSES[0] for k in self.names}
                 self.notes.append(f"the fitted samples span {periods:.2g} natural periods; values are published "
                                   f"from {MIN_PERIODS:g} on")
+            if moved is not None:
+                self._explained = False
+                status = {k: STATUSES[0] for k in self.names}
+                self.notes.append(moved + ": nothing is published")
         self._values = values
         self._relative = relative
         for k in self.names:
@@ -375,8 +419,10 @@ def _quiet() -> Iterator[None]:
         yield
 
 
-def run_motion_online(record: Record, model: Chain | EquationModel, **options: Any) -> Identification:
-    """Run :class:`OnlineMotionIdentifier` over a velocity or acceleration record.
+def run_motion_online(record: Record, model: Chain | EquationModel, *, progress: bool | None = None,
+                      **options: Any) -> Identification:
+    """Run :class:`OnlineMotionIdentifier` (``options``) over a velocity or acceleration record,
+    with a progress bar (``progress``; None: on a terminal).
 
     Returns
     -------
@@ -390,11 +436,16 @@ def run_motion_online(record: Record, model: Chain | EquationModel, **options: A
     ident = OnlineMotionIdentifier(model, record.dt, record.motion, **options)
     history = {k: np.empty(record.n_samples) for k in ident.names}
     identified = np.zeros(record.n_samples, dtype=bool)
-    for i in range(record.n_samples):
-        est = ident.update(record.x[i], record.f[i])
-        for k, v in est.parameters.items():
-            history[k][i] = v
-        identified[i] = est.identified
+    disable = not sys.stderr.isatty() if progress is None else not progress
+    with tqdm(total=record.n_samples, desc=f"online fit of {model.name}", unit="sample", disable=disable,
+              leave=False, mininterval=0.5) as bar:
+        for i in range(record.n_samples):
+            est = ident.update(record.x[i], record.f[i])
+            for k, v in est.parameters.items():
+                history[k][i] = v
+            identified[i] = est.identified
+            if i % 1000 == 999:
+                bar.update(1000)
     last = ident.estimate()
     t = record.t - record.t[0]
     return Identification(
