@@ -176,3 +176,31 @@ def test_non_finite_input_is_an_error(instance):
 def test_unknown_model_is_rejected(tmp_path):
     with pytest.raises(ValueError, match="duffing1"):
         build_python_fmu("circuit", tmp_path)
+
+
+def test_the_fmu_state_round_trip(fmus, case_a, tmp_path):
+    """fmi2GetFMUstate (declared since the acceleration FMUs): back to a state, the same
+    outputs again, bit for bit (the identifier's state is copied, not only the variables)."""
+    messages: list = []
+    fmu, vr = start_fmi2(fmus["duffing1"], tmp_path, messages, start={"sample_period": case_a.dt})
+    outputs = [vr[n] for n in ("m_hat", "b_hat", "k_hat", "kp_hat", "condition", "window_length")]
+
+    def run(first, n):
+        rows = []
+        for i in range(first, first + n):
+            fmu.setReal([vr["x"], vr["f"]], [case_a.x[i, 0], case_a.f[i, 0]])
+            fmu.doStep(currentCommunicationPoint=i * case_a.dt, communicationStepSize=case_a.dt)
+            rows.append(fmu.getReal(outputs))
+        return np.array(rows)
+
+    split = case_a.n_samples // 3
+    run(0, split)
+    state = fmu.getFMUstate()
+    once = run(split, split)
+    assert np.isfinite(once[-1, 0])
+    fmu.setFMUstate(state)
+    np.testing.assert_array_equal(run(split, split), once)
+    fmu.freeFMUstate(state)
+    fmu.terminate()
+    fmu.freeInstance()
+    assert fmpy.read_model_description(str(fmus["duffing1"])).coSimulation.canGetAndSetFMUstate

@@ -49,6 +49,9 @@ set (see :meth:`EstimatorSlave.do_step`). To identify a record of ``n`` samples,
 communication step ``dt`` and the inputs on the grid ``t0 + k dt``: after the last step
 the outputs are the estimate after the last sample. Units are those of the C FMUs.
 
+The FMU's state can be got and set (``canGetAndSetFMUstate``; not serialised): it holds every
+variable's value and a copy of the identifier (:meth:`EstimatorSlave.get_state`).
+
 NaN convention: an estimate that is not (yet) published is NaN, exactly as in
 :class:`~duffid.identification.engine.Estimate`; ``identified`` tells when all are valid.
 FMI 2.0 Reals are IEEE 754 doubles and fmpy passes NaN through unchanged; a master
@@ -65,6 +68,7 @@ run anywhere.
 """
 from __future__ import annotations
 
+import copy
 import json
 import math
 import sys
@@ -128,6 +132,12 @@ class {class_name}(Fmi2Slave):
 
     def do_step(self, current_time, step_size):
         return self._estimator.do_step(current_time, step_size)
+
+    def _get_fmu_state(self):
+        return self._estimator.get_state()
+
+    def _set_fmu_state(self, state):
+        self._estimator.set_state(state)
 '''
 
 
@@ -166,6 +176,11 @@ def _option_parameters() -> dict[str, tuple[str, Any, str]]:
         default = o.default if o.kind in ("choice", "bool") else to_c(o, o.default)
         out[o.name] = (_FMI_TYPES[o.kind], default, o.coded_description)
     return out
+
+
+def _copied(ident: Any, attributes: Mapping[str, Any]) -> dict[str, Any]:
+    """A deep copy of an identifier's ``attributes`` but its model (shared)."""
+    return copy.deepcopy({k: v for k, v in attributes.items() if k != "model"}, memo={id(ident.model): ident.model})
 
 
 class _StepError(ValueError):
@@ -325,6 +340,27 @@ class EstimatorSlave:
     # ------------------------------------------------------------------ FMI
     def exit_initialization_mode(self) -> None:
         """Nothing to do: the identifier needs the step size, known at the first step."""
+
+    def get_state(self) -> dict[str, Any]:
+        """The FMU's state (fmi2GetFMUstate): every variable's value and a copy of everything
+        of the identifier that changes with the samples (its model is shared)."""
+        values = {v.name: getattr(self.slave, v.name) for v in self.slave.vars.values()}
+        return {"values": values, "ident": None if self.ident is None else _copied(self.ident, vars(self.ident)),
+                "used": dict(self.used), "last_error": self.last_error}
+
+    def set_state(self, state: dict[str, Any]) -> None:
+        """Return to a :meth:`get_state` (fmi2SetFMUstate; the state stays usable)."""
+        for name, value in state["values"].items():
+            setattr(self.slave, name, value)
+        if state["ident"] is None:
+            self.ident = None
+        else:
+            if self.ident is None:
+                self._create(float(state["values"]["sample_period"]))
+            assert self.ident is not None
+            vars(self.ident).update(_copied(self.ident, state["ident"]))
+        self.used = dict(state["used"])
+        self.last_error = state["last_error"]
 
     def _log(self, message: str) -> None:
         """Log an error (logStatusError) and also print it on stderr: pythonfmu 0.7 passes
@@ -564,7 +600,8 @@ def build_chain_fmu(n_dof: int, out_dir: str | Path, *, orders: Sequence[int] = 
 
 
 def _build(script_text: str, class_name: str, out_dir: str | Path, needs_execution_tool: bool) -> Path:
-    """pythonfmu's builder on a generated script (no network); the FMU file."""
+    """pythonfmu's builder on a generated script (no network); the FMU file (it declares
+    canGetAndSetFMUstate: :meth:`EstimatorSlave.get_state`)."""
     from pythonfmu.builder import FmuBuilder
 
     out_dir = Path(out_dir)
@@ -574,7 +611,7 @@ def _build(script_text: str, class_name: str, out_dir: str | Path, needs_executi
         script.write_text(script_text)
         try:
             fmu = FmuBuilder.build_FMU(script, dest=out_dir, needsExecutionTool=needs_execution_tool,
-                                       canHandleVariableCommunicationStepSize=False)
+                                       canHandleVariableCommunicationStepSize=False, canGetAndSetFMUstate=True)
         finally:
             # the builder imports the script from the temporary folder: forget both, so
             # that a host in this process imports the copy inside the FMU
