@@ -21,7 +21,7 @@ change type and SNR, over ``--seeds`` noise/force seeds (median / worst):
 Changes: ``k +25 %`` and ``k +2 %`` and ``m +20 %`` (a payload) steps at 4 s, ``k drift
 +20 %`` linear from 2 to 6 s.
 
-Usage: ``python benchmarks/motion_online.py [--seeds N] [--snr 50 40]``.
+Usage: ``python benchmarks/motion_online.py [--seeds N] [--snr 50 40] [--changes 'k drift +20 %' ...]``.
 """
 from __future__ import annotations
 
@@ -46,6 +46,7 @@ AMPLITUDE = 0.01
 KP = 0.5 * K / AMPLITUDE**2
 NAMES = ("m", "b", "k", "kp")
 CHANGED = STATUSES[4]
+CHANGES = ("constant", "k +25 %", "k +2 %", "m +20 %", "k drift +20 %")
 
 
 def stiffness_of(change: str):
@@ -134,8 +135,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.partition("\n")[0])
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--snr", type=float, nargs="+", default=[50.0, 40.0])
+    parser.add_argument("--changes", nargs="+", default=list(CHANGES), choices=CHANGES, metavar="CHANGE",
+                        help=f"the change types (default all: {', '.join(CHANGES)})")
     args = parser.parse_args()
-    changes = ("constant", "k +25 %", "k +2 %", "m +20 %", "k drift +20 %")
+    changes = args.changes
     columns = ("published from", "share", "worst error", "worst z", "beyond 3 SE", "withdrawn after",
                "re-published after", "after", "s per s")
     rows = []

@@ -33,6 +33,19 @@ def simulate_record(fmu, record, names, start_values=None):
                              start_values=start)
 
 
+def step_samples(fmu, vr, record, inputs, outputs, first, n):
+    """Feed samples ``first .. first + n - 1`` of ``record`` (motions, then forces, to the FMU
+    variables ``inputs``) one ``doStep`` each; the values of ``outputs`` after every step."""
+    values = np.column_stack([record.x, record.f])
+    refs = [vr[name] for name in inputs]
+    rows = []
+    for i in range(first, first + n):
+        fmu.setReal(refs, list(values[i]))
+        fmu.doStep(currentCommunicationPoint=i * record.dt, communicationStepSize=record.dt)
+        rows.append(fmu.getReal([vr[name] for name in outputs]))
+    return np.array(rows)
+
+
 def start_fmi2(path, tmp_path, messages, start=None, types=None, logging_on=False, name="instance"):
     """Instantiate an FMI 2 co-simulation FMU with our own logger callback, set start values
     (``types``: name -> "Integer", "Boolean" or "String"; others Real) and initialise at t = 0.

@@ -110,19 +110,14 @@ def test_the_fmu_state_round_trip(chain_fmu, accelerometer, tmp_path):
     """fmi2GetFMUstate after 1.5 s, then 0.45 s on; back to the state: the same 0.45 s again,
     output for output (the identifier, its horizon and its published values come back), and
     the state stays usable after it was set."""
-    from fmu_helpers import start_fmi2
+    from fmu_helpers import start_fmi2, step_samples
 
     messages: list = []
     fmu, vr = start_fmi2(chain_fmu, tmp_path, messages, start={"sample_period": accelerometer.dt})
-    outputs = [vr[f"{n}_hat"] for n in ("m1", "b1", "k1_1", "k1_3")] + [vr["window_length"], vr["residual"]]
+    outputs = [f"{n}_hat" for n in ("m1", "b1", "k1_1", "k1_3")] + ["window_length", "residual"]
 
     def run(first: int, n: int) -> np.ndarray:
-        rows = []
-        for i in range(first, first + n):
-            fmu.setReal([vr["a1"], vr["f1"]], [accelerometer.x[i, 0], accelerometer.f[i, 0]])
-            fmu.doStep(currentCommunicationPoint=i * accelerometer.dt, communicationStepSize=accelerometer.dt)
-            rows.append(fmu.getReal(outputs))
-        return np.array(rows)
+        return step_samples(fmu, vr, accelerometer, ["a1", "f1"], outputs, first, n)
 
     split, n = int(1.5 / DT), int(0.45 / DT)
     run(0, split)

@@ -17,7 +17,7 @@ pytest.importorskip("pythonfmu")
 from fmpy.fmi1 import FMICallException  # noqa: E402
 from fmpy.fmi2 import fmi2Terminated  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
-from fmu_helpers import simulate_record, start_fmi2  # noqa: E402
+from fmu_helpers import simulate_record, start_fmi2, step_samples  # noqa: E402
 
 from duffid import Duffing1, Duffing2  # noqa: E402
 from duffid.fmu.estimator_table import DEFAULT_SAMPLE_PERIOD, estimator_variables  # noqa: E402
@@ -183,15 +183,10 @@ def test_the_fmu_state_round_trip(fmus, case_a, tmp_path):
     outputs again, bit for bit (the identifier's state is copied, not only the variables)."""
     messages: list = []
     fmu, vr = start_fmi2(fmus["duffing1"], tmp_path, messages, start={"sample_period": case_a.dt})
-    outputs = [vr[n] for n in ("m_hat", "b_hat", "k_hat", "kp_hat", "condition", "window_length")]
+    outputs = ["m_hat", "b_hat", "k_hat", "kp_hat", "condition", "window_length"]
 
     def run(first, n):
-        rows = []
-        for i in range(first, first + n):
-            fmu.setReal([vr["x"], vr["f"]], [case_a.x[i, 0], case_a.f[i, 0]])
-            fmu.doStep(currentCommunicationPoint=i * case_a.dt, communicationStepSize=case_a.dt)
-            rows.append(fmu.getReal(outputs))
-        return np.array(rows)
+        return step_samples(fmu, vr, case_a, ["x", "f"], outputs, first, n)
 
     split = case_a.n_samples // 3
     run(0, split)

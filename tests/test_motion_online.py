@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from test_motion import AMPLITUDE, K, TRUE, changed_plant, measured, plant_motion
+from test_motion import AMPLITUDE, K, TRUE, changed_plant, measured, plant_motion, two_dof_accelerations
 
 from duffid import Duffing1, OnlineMotionIdentifier
 from duffid.data.record import Record
@@ -136,15 +136,9 @@ def test_a_plant_the_model_does_not_fit_is_never_published_online():
 @pytest.mark.slow
 def test_a_two_dof_chain_online_from_accelerations():
     from duffid import Duffing2
-    from duffid.identification.refine import OdeSimulator
 
-    model = Duffing2(m1=2.0, b1=4.0, k1=8000.0, kp1=4e7, m2=1.5, b2=3.0, k2=6000.0, kp2=3e7)
-    dt = 5e-4
-    t = np.arange(0.0, 6.0, dt)
-    f = Multisine(60.0, 1.0, 40.0, 6.0, phases="random", seed=1)(t)
-    a = OdeSimulator(model, dt, substeps=8, free=()).simulate(model.canonical_parameters(), f, [0, 0], [0, 0],
-                                                                output="a")
-    result = run_motion_online(Record(t, f, measured(a, 50, 10), source="two", motion="a"), Duffing2())
+    model, record = two_dof_accelerations()
+    result = run_motion_online(record, Duffing2())
     assert all(s == PUBLISHED for s in result.online_status.values())
     for name, value in model.parameters.items():
         h = result.history[name]

@@ -10,7 +10,7 @@ import pkgutil
 import pytest
 
 import duffid
-from duffid import Duffing1, Multisine, measure, simulate
+from duffid import Duffing1, Multisine, Record, measure, simulate
 from duffid.errors import DuffidError
 
 BOGUS = "definitely_not_an_option"
@@ -59,6 +59,7 @@ def _probes(record):
     from duffid.identification.dispatch import final_estimates
     from duffid.identification.engine import OnlineIdentifier
     from duffid.identification.equation import identify_equation
+    from duffid.identification.motion_online import run_motion_online
     from duffid.identification.refine import refine
     from duffid.identification.trust import identify, run_estimator
     from duffid.models.chain import Chain
@@ -84,6 +85,9 @@ def _probes(record):
             lambda: OnlineIdentifier(plant, record.dt, **{BOGUS: 1}),
         "duffid.identification.equation.identify_equation":
             lambda: identify_equation(record, "m*der(x,2) + b*der(x) + k*x + kp*x^3 = f", **{BOGUS: 1}),
+        "duffid.identification.motion_online.run_motion_online":
+            lambda: run_motion_online(Record(record.t, record.f, record.x, source="r", motion="a"), plant,
+                                      **{BOGUS: 1}),
         "duffid.identification.refine.refine":
             lambda: refine(record, plant, dict(plant.parameters), **{BOGUS: 1}),
         "duffid.identification.trust.identify": lambda: identify(record, plant, **{BOGUS: 1}),
