@@ -107,7 +107,8 @@ def test_the_cli_builds_an_acceleration_estimator(tmp_path, capsys):
 
 
 def test_the_fmu_state_round_trip(chain_fmu, accelerometer, tmp_path):
-    """fmi2GetFMUstate after 1.5 s, then 0.45 s on; back to the state: the same 0.45 s again,
+    """fmi2GetFMUstate 0.3 s before the values are first published, then 0.6 s on; back to the
+    state: the same 0.6 s again,
     output for output (the identifier, its horizon and its published values come back), and
     the state stays usable after it was set."""
     from fmu_helpers import start_fmi2, step_samples
@@ -119,7 +120,9 @@ def test_the_fmu_state_round_trip(chain_fmu, accelerometer, tmp_path):
     def run(first: int, n: int) -> np.ndarray:
         return step_samples(fmu, vr, accelerometer, ["a1", "f1"], outputs, first, n)
 
-    split, n = int(1.5 / DT), int(0.45 / DT)
+    first = int(np.argmax(run_motion_online(accelerometer, model_from_name("chain", 1)).identified))
+    assert first > 0
+    split, n = max(first - int(0.3 / DT), 1), int(0.6 / DT)
     run(0, split)
     state = fmu.getFMUstate()
     once = run(split, n)
