@@ -235,7 +235,7 @@ class EstimatorSlave:
                                         description="every estimate is trustworthy"))
         fitted = motion != "x"  # the output-error fit's outputs say what they are
         for name, text, start in (("condition", "NaN: the output-error fit has no condition number" if fitted
-                                   else "condition number of the equations", math.inf),
+                                   else "condition number of the equations", math.nan if fitted else math.inf),
                                   ("uncertainty", "largest relative standard error of the latest fit" if fitted
                                    else "largest relative standard error (robust)", math.nan),
                                   ("window_length", "the latest fit's horizon [s]" if fitted

@@ -168,7 +168,6 @@ class OnlineMotionIdentifier:
         self._explained = False
         self._moving = False  # the latest tested horizon's values moved (until one does not)
         self._residual = math.nan
-        self._spanned = 0.0
         self.fits = 0
         self.checks = 0
         self._next_check = 0
