@@ -402,19 +402,86 @@ def test_deferred_solutions_cannot_be_turned_back_into_per_sample_ones():
         assert ident.defer_solutions(False)  # afresh
 
 
+def test_a_row_stride_takes_every_sth_full_windows_rows(case_b_exact):
+    """duffid_defer_solutions(est, s): only every s-th full window adds its rows, the first
+    full one first. A stride longer than the record keeps that one alone: its solution is the
+    per-sample run's at the first full window, bit for bit; strides between give solutions of
+    the same samples within a few of their stated errors; a stride changed after the first
+    sample, or out of range, is refused."""
+    record = measure(case_b_exact, snr_db=50, seed=7)
+    options = {"window": 0.4, "change_threshold": None}
+    with CIdentifier(Duffing1(), record.dt, **options) as ident:
+        every = ident.run(record.x, record.f)
+    first_full = int(np.argmax(every["window"] >= every["window"][-1]))
+    assert 0 < first_full < len(record.t) - 1
+
+    def final(stride: int) -> dict:
+        with CIdentifier(Duffing1(), record.dt, **options) as ident:
+            assert ident.defer_solutions(True, stride)
+            ident.consume(record.x, record.f)
+            return ident.flush().current
+
+    alone = final(len(record.t))
+    assert list(alone.values()) == list(every["current"][first_full][:4])
+    full = final(1)
+    assert list(full.values()) == list(every["current"][-1][:4])
+    errors = every["std_errors"][-1][:4]  # absolute, of the published values
+    assert np.isfinite(errors).all()
+    for stride in (2, 5, 17):
+        strided = final(stride)
+        assert strided != full
+        for (name, value), error in zip(strided.items(), errors):
+            assert abs(value - full[name]) < 3 * error, (stride, name)
+    with CIdentifier(Duffing1(), record.dt, **options) as ident:
+        assert ident.defer_solutions(True, 4)
+        ident.consume(record.x[:10], record.f[:10])
+        assert not ident.defer_solutions(True, 5)  # the run's stride is fixed
+        assert ident.defer_solutions(True, 4)
+        with pytest.raises(ValueError, match="row_stride"):
+            ident.defer_solutions(True, 0)
+
+
+def test_identify_strides_the_replicates_rows_without_changing_their_spread(monkeypatch):
+    """The noisy replicates take the rows of BOOTSTRAP_ROWS_PER_WINDOW windows per window
+    length (a stride > 1 for this record): the same values and statuses, each stated error
+    within the spread of eight replicates of the one with every sample's rows (the same
+    noise draws), and a deferred run of the strided estimator on the record itself as the
+    replicates' centre."""
+    from duffid import Multisine, identify
+    from duffid.identification import trust
+
+    record = measure(simulate(Duffing1(), Multisine(8.0, 0.5, 10.0, 4.0, phases="random", seed=3), 8.0, 1e-3),
+                     snr_db=40, seed=8)
+    strides = []
+    original = trust._Estimation.row_stride
+    monkeypatch.setattr(trust._Estimation, "row_stride", lambda self: strides.append(original(self)) or strides[-1])
+    strided = identify(record, Duffing1(), jobs=1)
+    assert max(strides) > 1
+    monkeypatch.setattr(trust._Estimation, "row_stride", lambda self: 1)
+    every = identify(record, Duffing1(), jobs=1)
+    assert strided.parameters == every.parameters
+    assert strided.assessment.status == every.assessment.status
+    for name, error in every.assessment.uncertainty.items():
+        assert 0.9 < strided.assessment.uncertainty[name] / error < 1.1, name
+
+
 def test_identify_is_the_same_with_deferred_solutions(case_b_exact, monkeypatch):
     """identify's re-runs (noisy copies, half rate, offsets) solve once per run: the same
     assessment, bit for bit, as with a solve at every sample."""
     from duffid import identify
 
+    from duffid.identification import trust
+
     record = measure(case_b_exact, snr_db=40, seed=5)
     granted = []
     original = CIdentifier.defer_solutions
-    monkeypatch.setattr(CIdentifier, "defer_solutions", lambda self, defer=True: granted.append(original(self, defer))
+    monkeypatch.setattr(trust, "BOOTSTRAP_ROWS_PER_WINDOW", 10**9)  # every sample's rows (no stride)
+    monkeypatch.setattr(CIdentifier, "defer_solutions",
+                        lambda self, defer=True, row_stride=1: granted.append(original(self, defer, row_stride))
                         or granted[-1])
     deferred = identify(record, Duffing1(), jobs=1)
     assert sum(granted) >= 10  # 8 noisy copies, half the rate, the force offset at least
-    monkeypatch.setattr(CIdentifier, "defer_solutions", lambda self, defer=True: False)
+    monkeypatch.setattr(CIdentifier, "defer_solutions", lambda self, defer=True, row_stride=1: False)
     every = identify(record, Duffing1(), jobs=1)
     assert deferred.parameters == every.parameters
     assert deferred.assessment.values == every.assessment.values

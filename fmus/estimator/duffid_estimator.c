@@ -250,7 +250,9 @@ struct duffid_estimator {
                                              * jumped in the interval that ends at the sample */
     duffid_real *jump_sum;                  /* (degree + 1) x n_forces: sum df ((n - k + 1/2) / N)^q */
     duffid_real *jump_J;                    /* the rows' error column of a block (workspace) */
-    int defer;                              /* duffid_defer_solutions: full windows only accumulate */
+    int defer;                              /* duffid_defer_solutions: full windows only accumulate, */
+    int row_phase;                          /* ... every defer-th one (0: this one adds its rows) */
+    int rows_skipped;                       /* ... this sample's window adds none (no moments) */
     long deferred;                          /* ... the window length whose solve is owed (0: none) */
     duffid_real lam_recent, sqrt_lam_recent; /* the change test's forgetting (follows target) */
     int64_t memory;                         /* ... its memory in samples (a drift lasts it) */
@@ -1422,7 +1424,8 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
         STATE_RANGE(est->regrow, 0, 1)
         STATE_RANGE(est->has_f_prev, 0, 1)
         STATE_RANGE(est->has_f_change, 0, 1)
-        STATE_RANGE(est->defer, 0, 1)
+        STATE_RANGE(est->defer, 0, DUFFID_MAX_ROW_STRIDE)
+        STATE_RANGE(est->row_phase, 0, est->defer > 1 ? est->defer - 1 : 0)
         STATE_RANGE(est->deferred, 0, N)
         STATE_RANGE(est->head, 0, N + 1)
         STATE_RANGE(est->start, 0, n + 1)
@@ -1611,6 +1614,7 @@ void duffid_reset(duffid_estimator *est)
     memset(est->f_change, 0, sizeof est->f_change);
     memset(est->f_peak, 0, sizeof est->f_peak);
     est->deferred = 0;
+    est->row_phase = 0;
     est->has_last_x = 0;
     memset(est->last_x, 0, sizeof est->last_x);
     memset(est->sgn, 0, sizeof est->sgn);
@@ -2142,6 +2146,15 @@ static long moments_push(duffid_estimator *est, long window)
     }
 #endif
     L = (long)(n - est->start);
+    est->rows_skipped = 0;
+    if (est->defer > 1 && L >= est->target) { /* a deferred run's rows every defer-th full window */
+        est->rows_skipped = est->row_phase != 0;
+        est->row_phase = est->row_phase + 1 == est->defer ? 0 : est->row_phase + 1;
+        if (est->rows_skipped) {
+            est->rate_ok = 0;
+            return L;
+        }
+    }
     corrections(est, L);
     { /* fact = acc + the quadrature's end corrections (those near the newest sample are short) */
         const duffid_real *sample[MAX_CORR];
@@ -3114,6 +3127,9 @@ static long robust_step(duffid_estimator *est)
         return 0;
     }
     est->last_L = (duffid_real)L;
+    if (est->rows_skipped) {
+        return L;
+    }
     kernel_entries(est, L);
     rated = est->rate_ok;
     if (rated) {
@@ -4022,13 +4038,19 @@ int duffid_defer_solutions(duffid_estimator *est, int defer)
                   (est->auto_window && !est->window_fixed))) {
         return DUFFID_ERR_CONFIG;
     }
+    if (defer < 0 || defer > DUFFID_MAX_ROW_STRIDE) {
+        return DUFFID_ERR_ARGUMENT;
+    }
+    if (defer && est->defer && defer != est->defer && est->n >= 0) {
+        return DUFFID_ERR_CONFIG; /* the rows' stride is the run's */
+    }
     if (!defer && est->defer && est->n >= 0) {
         /* a deferred run does not keep what per-sample solutions need (the alternating sums of
          * the half-rate rows, moments_push): its solution is the final one (duffid_reset starts afresh) */
         resolve(est);
         return DUFFID_ERR_CONFIG;
     }
-    est->defer = defer != 0;
+    est->defer = defer;
     return DUFFID_OK;
 }
 

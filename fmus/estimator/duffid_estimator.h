@@ -225,7 +225,11 @@ int duffid_flush(duffid_estimator *est, duffid_output *out);
  * noisy copies, at half the rate, with offsets): with defer = 1, a sample whose window is full
  * only adds its rows to the least squares; the solve and the publication wait for
  * duffid_flush, which gives the solution of all the rows accumulated, equal to what the last
- * sample would have given. The statuses and published values then rest on that one
+ * sample would have given. With defer = s > 1 (at most DUFFID_MAX_ROW_STRIDE), only every s-th
+ * sample whose window is full adds its rows (the first full one, then every s-th): a different
+ * estimator over the same samples, for the noisy copies that measure its spread
+ * (assessment.ROW_STRIDE); the samples between only move the window (DUFFID_ERR_CONFIG when
+ * the stride changes after the first sample). The statuses and published values then rest on that one
  * publication: for final solutions only, never for a sample-by-sample output. Robust method
  * without the change test (change_threshold = 0) and with a fixed window only (else
  * DUFFID_ERR_CONFIG: both need every sample's solution). Not for a real-time loop. defer = 0

@@ -20,6 +20,7 @@
 #define DUFFID_NAME_SIZE 24 /* bytes of a parameter name, with its terminating 0 */
 #define DUFFID_SIGNATURE_SIZE 40 /* bytes of a model's signature, with its terminating 0 */
 #define DUFFID_MAX_ROWS 17 /* rows per window of the robust method (n_rows) */
+#define DUFFID_MAX_ROW_STRIDE 4096 /* samples between the rows of a deferred run (duffid_defer_solutions) */
 
 /* Return codes: every function that can fail returns one of these. */
 #define DUFFID_OK 0 /* success */

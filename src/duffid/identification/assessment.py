@@ -34,6 +34,7 @@ __all__ = [
     "SIMULATION_TOLERANCE",
     "CONSISTENCY_EXCESS",
     "REPLICATES",
+    "BOOTSTRAP_ROWS_PER_WINDOW",
     "PROGRESS_SAMPLES",
     "UNCERTAINTY_FLOOR",
     "BALANCE_FLOOR",
@@ -63,6 +64,14 @@ CONSISTENCY_EXCESS = 1e-3
 
 #: Noisy replicates of the record behind each standard error.
 REPLICATES = 8
+
+#: The noisy replicates' runs on the C core take the rows of at least this many windows per
+#: window length (every ``window // BOOTSTRAP_ROWS_PER_WINDOW``-th sample's, not every
+#: sample's): their spread is that of the full estimator (measured on every record of
+#: ``benchmarks/trust.py`` with 32 common noise draws: each standard error within 0.99-1.005
+#: of the full rows' at 128, 0.95-1.07 at 64, 0.91-1.49 at 32, the damping's growing first),
+#: at a third to a half of the cost for windows of 400-700 samples.
+BOOTSTRAP_ROWS_PER_WINDOW = 128
 
 #: Records of at least this many samples show a progress bar while they are identified and
 #: checked (about a third of a second at the checked identification's 60,000 to 75,000
@@ -266,27 +275,32 @@ def _segment_response(simulator: Any, canonical: Mapping[str, float], segment: R
 
 def _bootstrap_uncertainty(record: Record, estimates: Mapping[str, float], noise: np.ndarray,
                            rerun: Callable[[Record], Mapping[str, float]], replicates: int,
-                           seed: int, progress: Any = None, pool: Pool | None = None) -> dict[str, float]:
+                           seed: int, progress: Any = None, pool: Pool | None = None,
+                           reference: Callable[[], Mapping[str, float]] | None = None) -> dict[str, float]:
     """Relative standard error of each estimate from ``replicates`` noisy copies of the record.
 
     The copies' noise is drawn in order from one generator (seeded by ``seed``) and the
     replicates run on ``pool`` (:class:`~duffid.identification.dispatch.Pool`: at most its
     jobs at a time, so at most that many copies exist), their values taken in order: the
-    result is the same for any number of jobs. ``progress``: called once per replicate done."""
+    result is the same for any number of jobs. ``progress``: called once per replicate done.
+    ``reference``: ``rerun``'s values for the record itself when ``rerun`` is not the
+    estimator that gave ``estimates`` (its rows strided, :data:`BOOTSTRAP_ROWS_PER_WINDOW`):
+    the deviations are taken from them."""
     pool = pool if pool is not None else Pool(1)
     rng = np.random.default_rng(seed)
-    deviations: dict[str, list[float]] = {k: [] for k in estimates}
+    replicate_values: list[Mapping[str, float]] = []
+    reference_run = pool.submit(reference) if reference is not None else None
 
     def noisy() -> Record:
         return Record(record.t, record.f, record.x + rng.standard_normal(record.x.shape) * noise,
                       source=record.source, sampling_rtol=record.sampling_rtol)
 
     for values in pool.ordered(rerun, (noisy for _ in range(replicates)), progress):
-        for k, v in estimates.items():
-            deviations[k].append(float(values.get(k, math.nan)) - float(v))
+        replicate_values.append(values)
+    centre = reference_run.result() if reference_run is not None else estimates
     out = {}
     for k, v in estimates.items():
-        d = np.array(deviations[k])
+        d = np.array([float(values.get(k, math.nan)) - float(centre.get(k, math.nan)) for values in replicate_values])
         if not np.all(np.isfinite(d)) or not np.isfinite(v) or v == 0:
             out[k] = math.inf
         else:
@@ -357,7 +371,8 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
            at_half_rate: Callable[[], Mapping[str, float]] | None = None,
            progress: bool | None | Callable[[str], Any] = None, displacement_offset: bool = False,
            refine: bool = True, pool: Pool | None = None, noise: np.ndarray | None = None,
-           content: float | None = None) -> Assessment:
+           content: float | None = None,
+           rerun_reference: Callable[[], Mapping[str, float]] | None = None) -> Assessment:
     """Decide which of ``estimates`` (public names) the record supports.
 
     Parameters
@@ -416,6 +431,10 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
     noise, content : optional
         :func:`noise_level` and :func:`content_frequency` of ``record`` when the caller has
         them already (computed once per record).
+    rerun_reference : callable, optional
+        ``rerun``'s values for the record itself, when ``rerun`` is a cheaper estimator than
+        the one that gave ``estimates`` (the C core's rows of every few windows,
+        :data:`BOOTSTRAP_ROWS_PER_WINDOW`): the replicates' deviations are taken from them.
 
     Offsets (``c1``, ... of a model with ``offset``, and ``x0``) are published when their
     relative standard error is at most ``max_uncertainty`` or their standard error at most
@@ -480,7 +499,8 @@ def assess(record: Record, model: Chain, estimates: Mapping[str, float],
     offset_run = pool.submit(with_offsets) if with_offsets is not None and varies else None
     step, bar = _progress(progress, record, replicates)
     try:
-        uncertainty = _bootstrap_uncertainty(record, values, noise, rerun, replicates, seed, step, pool)
+        uncertainty = _bootstrap_uncertainty(record, values, noise, rerun, replicates, seed, step, pool,
+                                             rerun_reference)
     finally:
         if bar is not None:
             bar.close()

@@ -86,6 +86,8 @@ CFLAGS = CBUILD_FLAGS + LIBRARY_FLAGS
 GENERATED_MODEL_FLAG = "-DDUFFID_GENERATED_MODEL"
 
 _MAX_PARAMS = limit("max_params")
+#: Most samples between the rows of a deferred run (:meth:`CIdentifier.defer_solutions`).
+MAX_ROW_STRIDE = limit("max_row_stride")
 #: Characters of a generated model's signature (duffid_model.h: below DUFFID_SIGNATURE_SIZE).
 _SIGNATURE_CHARS = 32
 _SIGNATURE_SLOT = "@DUFFID_SIGNATURE@"
@@ -583,15 +585,19 @@ class CIdentifier(Identifier):
         """The next sample does not follow the previous one (see ``OnlineIdentifier.hold``)."""
         self._lib.duffid_hold(self._live())
 
-    def defer_solutions(self, defer: bool = True) -> bool:
+    def defer_solutions(self, defer: bool = True, row_stride: int = 1) -> bool:
         """For a final solution only (``duffid_defer_solutions``): samples of full windows only
         add their rows; :meth:`flush` solves once, as the last sample would have. The
-        per-sample outputs and statuses are then not those of :meth:`update`. Returns False
+        per-sample outputs and statuses are then not those of :meth:`update`. ``row_stride``
+        s > 1: only every s-th sample of full windows adds its rows (a different estimator
+        over the same samples, for the spread of noisy copies). Returns False
         (nothing changed) where every sample's solution is needed: the paper method, the
         change test on, an automatic window not yet fixed. Turning it off after deferred
         samples solves as :meth:`flush` does and returns False (such a run does not keep what
         per-sample solutions need; :meth:`reset` starts afresh)."""
-        return self._lib.duffid_defer_solutions(self._live(), int(bool(defer))) == 0
+        if not 1 <= row_stride <= MAX_ROW_STRIDE:
+            raise ValueError(f"row_stride must be 1 to {MAX_ROW_STRIDE}, got {row_stride}")
+        return self._lib.duffid_defer_solutions(self._live(), int(row_stride) if defer else 0) == 0
 
     def flush(self) -> Estimate | None:
         """Process the samples held back as a suspect outlier (see ``OnlineIdentifier.flush``)

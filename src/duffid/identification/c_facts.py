@@ -47,6 +47,7 @@ LIMITS: dict[str, Fact] = {f.macro.removeprefix("DUFFID_").lower(): f for f in (
     Fact("DUFFID_NAME_SIZE", 24, "bytes of a parameter name, with its terminating 0"),
     Fact("DUFFID_SIGNATURE_SIZE", 40, "bytes of a model's signature, with its terminating 0"),
     Fact("DUFFID_MAX_ROWS", 17, "rows per window of the robust method (n_rows)"),
+    Fact("DUFFID_MAX_ROW_STRIDE", 4096, "samples between the rows of a deferred run (duffid_defer_solutions)"),
 )}
 
 #: Return codes of every core function that can fail, by short name.

@@ -159,11 +159,13 @@ def run_estimator(record: Record, model: Chain, method: str = "robust", *, engin
     return result if identifier.model is model else _renamed(result, model)
 
 def final_estimates(record: Record, model: Chain, method: str = "robust", *, engine: str = "auto",
-                    cancel: Any = None, **options: Any) -> dict[str, float]:
+                    cancel: Any = None, row_stride: int = 1, **options: Any) -> dict[str, float]:
     """The estimator's final solution over ``record`` (public names), as
     ``run_estimator(...).estimates``, without the history: on the C core block by block,
     no per-sample output written, and with a fixed window and no change test one solve at
-    the end instead of one per sample (``cancel`` as in :func:`run_estimator`)."""
+    the end instead of one per sample (``cancel`` as in :func:`run_estimator`).
+    ``row_stride`` s > 1: the rows of every s-th window only (the C core's deferred run; the
+    Python identifier ignores it and gives the full solution)."""
     record.require_displacement("the algebraic estimator")
     identifier = _c_identifier(record, model, method, engine, options)
     if identifier is None:
@@ -171,7 +173,7 @@ def final_estimates(record: Record, model: Chain, method: str = "robust", *, eng
     with identifier:
         check_record(record, identifier.model, identifier.dt)
         identifier.reset()
-        identifier.defer_solutions()  # one solve at the end where the options allow it (flush)
+        identifier.defer_solutions(row_stride=row_stride)  # one solve at the end where the options allow it (flush)
         for start, stop in _blocks(record.n_samples, cancel):
             identifier.consume(record.x[start:stop], record.f[start:stop])
         flushed = identifier.flush()

@@ -88,7 +88,8 @@ from tqdm import tqdm
 from ..data.record import Record
 from ..errors import InputError
 from ..models.chain import Chain
-from .assessment import ASSESSMENT_UNCERTAINTY, PROGRESS_SAMPLES, assess
+from .assessment import ASSESSMENT_UNCERTAINTY, BOOTSTRAP_ROWS_PER_WINDOW, PROGRESS_SAMPLES, assess
+from .c_facts import limit
 from .dispatch import Pool, data_window, final_estimates, on_c_core, run_estimator
 from .engine import MIN_SHARE, Identification, check_record
 from .motion import identify_motion
@@ -302,7 +303,8 @@ def _checked(record: Record, method: str, kind: str | None, physical: Chain, est
     provisional = isinstance(first_window, float) and first_window < record.duration and \
         estimation.final_is_cheaper()
     result = None if provisional else estimation.run(estimation.sampled(), opts)
-    first = estimation.final(estimation.sampled()) if result is None else result.estimates
+    # (its rows strided as the replicates': it decides the window only)
+    first = estimation.final(estimation.sampled(), estimation.row_stride()) if result is None else result.estimates
     step("estimator")
     slowest = natural_frequency(physical, canonical_of(physical, first) or {}, lowest=True)
     again = upsampling_needed(record, first, physical, content=content)
@@ -327,7 +329,7 @@ def _checked(record: Record, method: str, kind: str | None, physical: Chain, est
                                max_uncertainty=max_uncertainty, upsampled=estimation.factor,
                                with_offsets=estimation.offset_check(), at_half_rate=estimation.at_half_rate,
                                progress=step, displacement_offset=estimation.shifted, refine=refine, pool=pool,
-                               noise=noise, content=content)
+                               noise=noise, content=content, rerun_reference=estimation.reference())
     if kind in ("displacement", "both"):
         report_displacement_offset(result, kind, separable=estimation.shifted, cubic_share=cubic_share)
     if outliers:
@@ -380,14 +382,33 @@ class _Estimation:
             return mapped_to(raw, self.physical)
         return run_estimator(record, self.physical, self.method, engine=self.engine, cancel=self.cancel, **options)
 
-    def final(self, record: Record) -> Mapping[str, float]:
+    def final(self, record: Record, row_stride: int = 1) -> Mapping[str, float]:
         """The final estimates of :meth:`run` on ``record`` with the decided options, without
-        the history (a re-run of the checks; safe to call from several threads)."""
+        the history (a re-run of the checks; safe to call from several threads);
+        ``row_stride`` as :func:`~duffid.identification.dispatch.final_estimates`'s."""
         if self.shifted and self.extended is not None:
             raw = run_estimator(record, self.extended, self.method, engine="python", **self.options)
             return mapped_to(raw, self.physical).estimates
         return final_estimates(record, self.physical, self.method, engine=self.engine, cancel=self.cancel,
-                               **self.options)
+                               row_stride=row_stride, **self.options)
+
+    def row_stride(self) -> int:
+        """Samples between the rows of the noisy replicates' runs: at least
+        :data:`~duffid.identification.assessment.BOOTSTRAP_ROWS_PER_WINDOW` per window length
+        where the C core runs them with a fixed window (1: every sample's)."""
+        window = self.options.get("window")
+        if not isinstance(window, float) or self.method != "robust" or not self.final_is_cheaper():
+            return 1
+        samples = window * self.record.fs * self.factor
+        return int(min(max(samples // BOOTSTRAP_ROWS_PER_WINDOW, 1), limit("max_row_stride")))
+
+    def reference(self) -> Callable[[], Mapping[str, float]] | None:
+        """The noisy replicates' estimator on the record itself, when it is not :meth:`run`'s
+        (rows strided, :meth:`row_stride`); else None."""
+        stride = self.row_stride()
+        if stride == 1:
+            return None
+        return lambda: self.final(self.sampled(), stride)
 
     def final_is_cheaper(self) -> bool:
         """Whether :meth:`final` costs less than :meth:`run` on the record (the C core, which
@@ -401,8 +422,9 @@ class _Estimation:
         return self._sampled[1]
 
     def estimates(self, noisy: Record) -> Mapping[str, float]:
-        """The final estimates from a noisy copy of the record, identified as the record was."""
-        return self.final(upsampled(noisy, self.factor))
+        """The final estimates from a noisy copy of the record, identified as the record was
+        (the rows of every :meth:`row_stride`-th sample)."""
+        return self.final(upsampled(noisy, self.factor), self.row_stride())
 
     def at_half_rate(self) -> Mapping[str, float]:
         """The final estimates from every second sample."""
