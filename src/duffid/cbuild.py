@@ -26,7 +26,7 @@ import subprocess
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Any, Iterable, Sequence
 
 import fmpy
 
@@ -254,6 +254,30 @@ def default_build_dir(source_dir: str | os.PathLike[str], component: str) -> Pat
     return Path(cache) / "duffid" / component
 
 
+_DIGESTS: dict[tuple[Any, ...], str] = {}
+
+
+def _source_digest(src: Path, names: Sequence[str], extra: Sequence[Path], flags: Sequence[str]) -> str:
+    """The first 16 hex digits of the SHA-256 of the files (name and content) and the flags;
+    remembered in this process while no file's size or modification time changes."""
+    files = [*((name, src / name) for name in names), *((path.name, path) for path in extra)]
+    key = (tuple((label, str(path), *_stamp(path)) for label, path in files), tuple(flags))
+    known = _DIGESTS.get(key)
+    if known is not None:
+        return known
+    digest = hashlib.sha256()
+    for label, path in files:
+        digest.update(label.encode() + b"\0" + path.read_bytes())
+    digest.update(" ".join((*CFLAGS, *flags)).encode())
+    _DIGESTS[key] = digest.hexdigest()[:16]
+    return _DIGESTS[key]
+
+
+def _stamp(path: Path) -> tuple[int, int]:
+    status = path.stat()
+    return status.st_mtime_ns, status.st_size
+
+
 def cached_library(stem: str, source_dir: str | os.PathLike[str], sources: Sequence[str],
                    headers: Sequence[str] = (), *, flags: Sequence[str] = LIBRARY_FLAGS,
                    build_dir: str | os.PathLike[str] | None = None, compiler: str | None = None,
@@ -283,14 +307,8 @@ def cached_library(stem: str, source_dir: str | os.PathLike[str], sources: Seque
     missing = [str(p) for p in extra if not p.is_file()]
     if missing:
         raise AssetError(f"C sources of {stem} not found: {missing}")
-    digest = hashlib.sha256()
-    for name in (*sources, *headers):
-        digest.update(name.encode() + b"\0" + (src / name).read_bytes())
-    for path in extra:
-        digest.update(path.name.encode() + b"\0" + path.read_bytes())
-    digest.update(" ".join((*CFLAGS, *flags)).encode())
     out_dir = Path(build_dir) if build_dir is not None else default_build_dir(src, src.name)
-    target = out_dir / f"{stem}-{digest.hexdigest()[:16]}{SHARED_LIBRARY_SUFFIX}"
+    target = out_dir / f"{stem}-{_source_digest(src, (*sources, *headers), extra, flags)}{SHARED_LIBRARY_SUFFIX}"
     if target.is_file() and not force:
         return target
     out_dir.mkdir(parents=True, exist_ok=True)

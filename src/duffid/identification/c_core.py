@@ -249,13 +249,43 @@ def build_library(build_dir: str | os.PathLike[str] | None = None, *, compiler: 
 
 
 _LIBRARIES: dict[str, ctypes.CDLL] = {}
+#: :func:`build_library`'s answers in this process, by precision and the two folders' variables:
+#: the sources' paths, their (modification time, size) and the library.
+_BUILT: dict[tuple[str, str | None, str | None], tuple[list[str], list[tuple[int, int]], Path]] = {}
+
+
+def _stamps(paths: list[str]) -> list[tuple[int, int]]:
+    out = []
+    for path in paths:
+        status = os.stat(path)
+        out.append((status.st_mtime_ns, status.st_size))
+    return out
+
+
+def _default_library(precision: str) -> Path:
+    """:func:`build_library` with its defaults, remembered while no source changes (an
+    identification creates a dozen identifiers: the sources' hash is not taken each time)."""
+    key = (precision, os.environ.get("DUFFID_C_SOURCES"), os.environ.get("DUFFID_BUILD_DIR"))
+    known = _BUILT.get(key)
+    if known is not None:
+        paths, stamps, library = known
+        try:
+            if _stamps(paths) == stamps and library.is_file():
+                return library
+        except OSError:
+            pass
+    library = build_library(precision=precision)
+    src = source_dir()
+    paths = [str(src / name) for name in SOURCES + HEADERS]
+    _BUILT[key] = (paths, _stamps(paths), library)
+    return library
 
 
 def load_library(path: str | os.PathLike[str] | None = None, precision: str = "double") -> ctypes.CDLL:
     """Load (building if needed) the shared library of the core of ``precision`` and declare
     its functions."""
     check_precision(precision)
-    path = str(path if path is not None else build_library(precision=precision))
+    path = str(path if path is not None else _default_library(precision))
     lib = _LIBRARIES.get(path)
     if lib is not None:
         return lib

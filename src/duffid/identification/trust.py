@@ -79,6 +79,7 @@ from __future__ import annotations
 
 import math
 import sys
+import threading
 import time
 from typing import Any, Callable, Mapping
 
@@ -371,6 +372,9 @@ class _Estimation:
         self.factor = 1
         self.result: Identification | None = None
         self._sampled: tuple[int, Record] | None = None
+        self._stride: tuple[Any, int] | None = None  # row_stride's, for the window, factor and offset it was for
+        self._reference: tuple[Any, Mapping[str, float]] | None = None  # reference_values', likewise
+        self._reference_lock = threading.Lock()
         self.cancel: Any = None  # the pool's event: runs stop at their next block once it is set
 
     def run(self, record: Record, options: Mapping[str, Any]) -> Identification:
@@ -397,18 +401,28 @@ class _Estimation:
         :data:`~duffid.identification.assessment.BOOTSTRAP_ROWS_PER_WINDOW` per window length
         where the C core runs them with a fixed window (1: every sample's)."""
         window = self.options.get("window")
-        if not isinstance(window, float) or self.method != "robust" or not self.final_is_cheaper():
-            return 1
-        samples = window * self.record.fs * self.factor
-        return int(min(max(samples // BOOTSTRAP_ROWS_PER_WINDOW, 1), limit("max_row_stride")))
+        key = (window, self.factor, self.shifted)
+        if self._stride is None or self._stride[0] != key:
+            stride = 1
+            if isinstance(window, float) and self.method == "robust" and self.final_is_cheaper():
+                samples = window * self.record.fs * self.factor
+                stride = int(min(max(samples // BOOTSTRAP_ROWS_PER_WINDOW, 1), limit("max_row_stride")))
+            self._stride = (key, stride)
+        return self._stride[1]
 
     def reference(self) -> Callable[[], Mapping[str, float]] | None:
         """The noisy replicates' estimator on the record itself, when it is not :meth:`run`'s
         (rows strided, :meth:`row_stride`); else None."""
-        stride = self.row_stride()
-        if stride == 1:
-            return None
-        return lambda: self.final(self.sampled(), stride)
+        return self.reference_values if self.row_stride() > 1 else None
+
+    def reference_values(self) -> Mapping[str, float]:
+        """The final estimates of the record with the rows of every :meth:`row_stride`-th
+        window (computed once for the current window and factor; safe from several threads)."""
+        with self._reference_lock:
+            key = (self.options.get("window"), self.factor, self.row_stride())
+            if self._reference is None or self._reference[0] != key:
+                self._reference = (key, self.final(self.sampled(), key[2]))
+            return self._reference[1]
 
     def final_is_cheaper(self) -> bool:
         """Whether :meth:`final` costs less than :meth:`run` on the record (the C core, which
@@ -438,8 +452,17 @@ class _Estimation:
             offset_model = with_force_offsets(self.model)
 
             def with_offsets() -> Mapping[str, float]:
-                return final_estimates(self.sampled(), offset_model, self.method, engine=self.engine,
-                                       cancel=self.cancel, **self.options)
+                stride = self.row_stride()
+                if stride > 1 and not on_c_core(self.sampled(), offset_model, self.method, self.engine, self.options):
+                    stride = 1
+                values = final_estimates(self.sampled(), offset_model, self.method, engine=self.engine,
+                                         cancel=self.cancel, row_stride=stride, **self.options)
+                if stride == 1:
+                    return values
+                # rows strided as the replicates': its change is the one from the same strided
+                # estimator without the offsets (the reference), carried to the values
+                base = self.reference_values()
+                return {k: v - base[k] + self.result.estimates[k] if k in base else v for k, v in values.items()}
             return with_offsets
         if self.kind == "force" and carries_displacement_offset(self.physical):
             def with_displacement_offset() -> Mapping[str, float]:
