@@ -3169,6 +3169,9 @@ static long robust_step(duffid_estimator *est)
                 for (i = 0; i < n; i++) {
                     eq->jump_shift[i] = eq->rate_shift[i] = RC(0.0);
                 }
+                if (eq->rows == RC(0.0)) { /* R held the growing window's factor (below) */
+                    memset(eq->R, 0, (size_t)(p * p) * sizeof(duffid_real));
+                }
                 duffid_la_qr_accumulate(eq->R, n + 1, est->sqrt_lam, est->B, m);
                 eq->rows = est->lam * eq->rows + (duffid_real)m;
                 continue;
@@ -3218,6 +3221,12 @@ static long robust_step(duffid_estimator *est)
             if (est->change_threshold > RC(0.0) && !drift_probe(est, e, m, t, (duffid_real)L)) {
                 change_test(est, e, m, fit, t);
             }
+        } else if (est->defer) { /* a growing window's factor, solved once asked (resolve) */
+            for (i = 0; i < n; i++) {
+                eq->jump_shift[i] = eq->rate_shift[i] = RC(0.0);
+            }
+            memset(eq->R, 0, (size_t)(p * p) * sizeof(duffid_real));
+            duffid_la_qr_accumulate(eq->R, p, RC(1.0), est->B, m);
         } else {
             for (i = 0; i < p * p; i++) {
                 est->W[i] = RC(0.0);
@@ -4000,7 +4009,7 @@ static void process(duffid_estimator *est, const duffid_real *x, const duffid_re
 #else
     window = est->cfg.method == DUFFID_ROBUST ? robust_step(est) : paper_step(est);
 #endif
-    if (window >= 0 && est->defer && window >= est->target) { /* solved once asked (resolve) */
+    if (window > 0 && est->defer) { /* solved once asked (resolve) */
         est->deferred = window;
     } else if (window >= 0) { /* else held (duffid_hold): est->last stays */
         est->deferred = 0;
@@ -4018,8 +4027,10 @@ static int resolve(duffid_estimator *est)
     }
     for (e = 0; e < est->n_eq; e++) {
         equation_t *eq = &est->eq[e];
-        if (eq->rows > RC(0.0)) {
-            const int n = est->m.blocks[e].n_unknowns, m = est->m.blocks[e].n_parts * est->n_rows;
+        const int n = est->m.blocks[e].n_unknowns, m = est->m.blocks[e].n_parts * est->n_rows;
+        if (est->deferred < est->target) { /* a growing window: R is its rows' factor alone */
+            solve_factor(est, eq, n, eq->R, (duffid_real)m, RC(1.0));
+        } else if (eq->rows > RC(0.0)) {
             solve_factor(est, eq, n, eq->R, accumulated_rows(eq->rows, n, m, (duffid_real)est->deferred),
                          (duffid_real)est->deferred);
         }
