@@ -191,3 +191,25 @@ def test_the_c_engine_runs_an_equation_model():
     c = identify_equation(record, NONLINEAR_DAMPING, check=False, engine="c")
     py = identify_equation(record, NONLINEAR_DAMPING, check=False, engine="python")
     assert c.online_status == py.online_status and np.array_equal(c.identified, py.identified)
+
+@pytest.mark.parametrize("n", [5, 20, 21, 47])
+def test_records_are_evaluated_in_chunks_as_in_one_map(monkeypatch, n):
+    """term_shares and equation_residuals evaluate a record with maps of MAP_CHUNK samples
+    (the last chunk padded): the same values, bit for bit, as one map of the whole record."""
+    from duffid.models import equation_model
+
+    model = EquationModel("m*der(x,2) + b*der(x) + c*x^2*der(x) + k*x + kp*x^3 = f",
+                          values={"m": 1.2, "b": 3.0, "c": 4e4, "k": 1784.0, "kp": 5e5})
+    rng = np.random.default_rng(n)
+    x, f = rng.standard_normal((n, 1)) * 1e-3, rng.standard_normal((n, 1))
+    t = np.arange(n) * 1e-3
+    values = model.canonical_parameters()
+
+    def evaluate(chunk: int) -> tuple:
+        monkeypatch.setattr(equation_model, "MAP_CHUNK", chunk)
+        model._maps.clear()
+        return model.term_shares(values, x, f, 1e-3), model.equation_residuals(values, x, x, x, f, t)
+
+    (shares, residuals), (whole_shares, whole_residuals) = evaluate(10), evaluate(10**9)
+    assert shares == whole_shares
+    assert np.array_equal(residuals, whole_residuals) and residuals.shape == (n, 1)

@@ -39,6 +39,32 @@ __all__ = ["EquationModel"]
 #: odd, increasing function of one displacement (a dissipative term's antiderivative).
 _PROBES = (0.25, 0.5, 1.0, 2.0, 3.0)
 
+#: Samples per call of a CasADi map over a record (one map of this size is built per
+#: function and reused; a map of a million samples takes seconds to build).
+MAP_CHUNK = 8192
+
+
+def _mapped(fn: ca.Function, maps: dict[tuple[int, int], ca.Function], n: int, *args: np.ndarray) -> list[np.ndarray]:
+    """``fn`` over ``n`` samples, each argument rows x ``n``: ``fn.map`` of at most
+    :data:`MAP_CHUNK` samples (kept in ``maps``), its outputs' sample blocks side by side as
+    ``fn.map(n)`` gives them."""
+    size = min(n, MAP_CHUNK)
+    key = (id(fn), size)
+    if key not in maps:
+        maps[key] = fn.map(size)
+    mapped = maps[key]
+    parts: list[list[np.ndarray]] = [[] for _ in range(fn.n_out())]
+    for start in range(0, n, size):
+        count = min(size, n - start)
+        chunk = [np.asarray(a, dtype=float)[:, start:start + count] for a in args]
+        if count < size:  # the last chunk, padded (the padding's values are dropped)
+            chunk = [np.pad(c, ((0, 0), (0, size - count))) for c in chunk]
+        out = mapped(*chunk)
+        for i, value in enumerate(out if isinstance(out, (tuple, list)) else (out,)):
+            value = np.asarray(value, dtype=float)
+            parts[i].append(value[:, :value.shape[1] // size * count])
+    return [np.concatenate(p, axis=1) for p in parts]
+
 
 class EquationModel:
     """The user's equations as a model for identification.
@@ -88,6 +114,7 @@ class EquationModel:
                          ca.vertcat(*sig.f) if sig.f else ca.SX(0, 1), ca.vertcat(*sig.sgn), sig.t]
         self._theta = theta
         self._residual = ca.Function("residual", self._signals + [theta], [res])
+        self._maps: dict[tuple[int, int], ca.Function] = {}  # _mapped's
         self._regressors = ca.Function("regressors", self._signals, [ca.jacobian(res, theta),
                                                                       ca.substitute(res, theta, ca.DM.zeros(theta.numel()))])
         self.uses_time = bool(ca.depends_on(res, sig.t))
@@ -310,8 +337,8 @@ class EquationModel:
         v = np.gradient(x, dt, axis=0, edge_order=2)
         a = np.gradient(v, dt, axis=0, edge_order=2)
         t = np.arange(n) * dt
-        J, known = self._regressors.map(n)(x.T, v.T, a.T, f.T if self.n_forces else np.zeros((0, n)),
-                                           np.sign(v).T, t[None, :])
+        J, known = _mapped(self._regressors, self._maps, n, x.T, v.T, a.T,
+                           f.T if self.n_forces else np.zeros((0, n)), np.sign(v).T, t[None, :])
         n_eq, n_p = len(self.texts), len(self._values)
         J = np.asarray(J, dtype=float).reshape(n_eq, n, n_p)  # the map puts the samples' blocks side by side
         known = np.asarray(known, dtype=float)                 # (equations, samples)
@@ -341,9 +368,9 @@ class EquationModel:
         a = np.asarray(a, dtype=float).reshape(n, -1)
         f = np.asarray(f, dtype=float).reshape(n, -1)
         theta = self._theta_vector(values)
-        out = self._residual.map(n)(x.T, v.T, a.T, f.T if self.n_forces else np.zeros((0, n)), np.sign(v).T,
-                                    np.asarray(t, dtype=float)[None, :], np.tile(theta[:, None], (1, n)))
-        return np.asarray(out, dtype=float).T
+        out, = _mapped(self._residual, self._maps, n, x.T, v.T, a.T, f.T if self.n_forces else np.zeros((0, n)),
+                       np.sign(v).T, np.asarray(t, dtype=float)[None, :], np.tile(theta[:, None], (1, n)))
+        return out.T
 
     # ------------------------------------------------------------------ construction
     def _check_scales(self) -> None:
