@@ -193,7 +193,7 @@ def test_the_cli_identifies_an_accelerometer_record_and_refuses_what_does_not_ap
     columns += ["--scale", "a=9.80665"]
     assert main(["identify", str(path), *columns]) == 0
     out = capsys.readouterr().out
-    assert "acceleration measured" in out and "sensor bias (fitted)" in out
+    assert "acceleration measured" in out and "sensor bias (fitted)" in out and "m/s^2 (standard error" in out
     assert out.count("published") >= 4
     assert main(["identify", str(path), *columns, "--json"]) == 0
     data = json.loads(capsys.readouterr().out)

@@ -10,6 +10,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ..data.units import si_unit
 from ..errors import InputError
 from ..identification.changes import change_test_options, find_changes, identify_segments
 from ..identification.engine import METHODS
@@ -234,7 +235,8 @@ def result_text(result: Any) -> str:
     bias = fit.get("bias")
     if bias:
         errors = fit.get("bias_std") or [math.nan] * len(bias)
-        lines.append("  sensor bias (fitted): " + ", ".join(f"{b:.4g} (standard error {e:.2g})"
+        unit = fit.get("bias_unit") or si_unit(fit.get("signal", "displacement"))
+        lines.append("  sensor bias (fitted): " + ", ".join(f"{b:.4g} {unit} (standard error {e:.2g} {unit})"
                                                           for b, e in zip(bias, errors)))
     offsets = fit.get("offsets") or {}
     if offsets:

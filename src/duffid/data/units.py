@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 from ..errors import RecordError
 
-__all__ = ["Unit", "UNITS", "ROLE_QUANTITIES", "QUANTITY_OF_ROLE", "STANDARD_GRAVITY", "lookup", "si_factor"]
+__all__ = ["Unit", "UNITS", "ROLE_QUANTITIES", "QUANTITY_OF_ROLE", "STANDARD_GRAVITY", "lookup", "si_factor",
+           "si_unit"]
 
 #: Standard acceleration of gravity [m/s^2] (the ``g`` of accelerometers).
 STANDARD_GRAVITY = 9.80665
@@ -44,6 +45,11 @@ class Unit:
 
 _SI = {"time": "s", "force": "N", "voltage": "V", "displacement": "m", "charge": "C", "velocity": "m/s",
        "acceleration": "m/s^2"}
+
+
+def si_unit(quantity: str) -> str:
+    """The SI unit duffid uses for ``quantity`` (``"acceleration"``: ``"m/s^2"``)."""
+    return _SI[quantity]
 
 
 def _table() -> dict[str, Unit]:

@@ -40,6 +40,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from ..data.record import Record
+from ..data.units import si_unit
 from ..errors import InputError, RecordError
 from ..models.chain import Chain
 from ..models.equation_model import EquationModel
@@ -279,7 +280,7 @@ def identify_motion(record: Record, model: Chain | EquationModel, motion: str | 
         values; ``assessment``: per parameter status and relative standard error, ``fit``
         (``signal``, ``simulation_nrmse`` and ``noise_nrmse`` of the measured motion, the
         worst of its parts (:data:`FIT_PARTS`) ``worst_part_nrmse``, ``explained``, ``bias`` and
-        ``bias_std`` per DOF, ``start`` and ``cutoff_hz``), and notes in words.
+        ``bias_std`` per DOF (in ``bias_unit``, SI), ``start`` and ``cutoff_hz``), and notes in words.
     """
     motion = record.motion if motion is None else motion
     if motion not in MOTIONS:
@@ -350,7 +351,7 @@ def identify_motion(record: Record, model: Chain | EquationModel, motion: str | 
         fit={"signal": word, "simulation_nrmse": fit.rms / spread, "noise_nrmse": noise / spread,
              "worst_part_nrmse": worst_part / spread,
              "explained": explained, "bias": list(fit.bias), "bias_std": list(fit.bias_std),
-             "start": dict(start), "cutoff_hz": cutoff, "stretches": fit.options["stretches"],
+             "bias_unit": si_unit(word), "start": dict(start), "cutoff_hz": cutoff, "stretches": fit.options["stretches"],
              "evaluations": fit.nfev},
         notes=notes, values=dict(fit.parameters))
     return _result(record, model, motion, published, dict(fit.parameters), assessment)
