@@ -74,8 +74,8 @@ REPLICATES = 8
 BOOTSTRAP_ROWS_PER_WINDOW = 128
 
 #: Records of at least this many samples show a progress bar while they are identified and
-#: checked (about a third of a second at the checked identification's 60,000 to 75,000
-#: samples/s on one core, 1-DOF).
+#: checked (about a seventh of a second at the checked identification's 140,000 to 170,000
+#: samples/s on one core, 1-DOF, docs/guide/identify.md; slower models take longer).
 PROGRESS_SAMPLES = 20_000
 
 #: The relative standard error is never stated below this (rounding).
