@@ -35,7 +35,7 @@ from .errors import AssetError, BuildError, CompilerNotFoundError, InputError
 __all__ = ["CFLAGS", "LIBRARY_FLAGS", "FMU_FLAGS", "find_compiler", "compile_shared_library",
            "FMI2_PLATFORM", "FMI3_PLATFORM", "SHARED_LIBRARY_SUFFIX", "fmu_binary_path",
            "Platform", "PLATFORMS", "HOST_PLATFORM", "resolve_platforms", "platform_compiler",
-           "cached_library", "default_build_dir"]
+           "cached_library", "default_build_dir", "file_stamp"]
 
 #: Flags of every C build: optimised, position independent, warnings are errors, and no
 #: fused multiply-adds, so the C code computes what its Python reference computes,
@@ -261,7 +261,7 @@ def _source_digest(src: Path, names: Sequence[str], extra: Sequence[Path], flags
     """The first 16 hex digits of the SHA-256 of the files (name and content) and the flags;
     remembered in this process while no file's size or modification time changes."""
     files = [*((name, src / name) for name in names), *((path.name, path) for path in extra)]
-    key = (tuple((label, str(path), *_stamp(path)) for label, path in files), tuple(flags))
+    key = (tuple((label, str(path), *file_stamp(path)) for label, path in files), tuple(flags))
     known = _DIGESTS.get(key)
     if known is not None:
         return known
@@ -273,8 +273,9 @@ def _source_digest(src: Path, names: Sequence[str], extra: Sequence[Path], flags
     return _DIGESTS[key]
 
 
-def _stamp(path: Path) -> tuple[int, int]:
-    status = path.stat()
+def file_stamp(path: str | os.PathLike[str]) -> tuple[int, int]:
+    """A file's modification time [ns] and size: what tells a remembered digest is stale."""
+    status = os.stat(path)
     return status.st_mtime_ns, status.st_size
 
 

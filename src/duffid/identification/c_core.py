@@ -32,7 +32,7 @@ import numpy as np
 
 from ..assets import fmu_sources
 from ..cbuild import CFLAGS as CBUILD_FLAGS
-from ..cbuild import LIBRARY_FLAGS, cached_library, default_build_dir
+from ..cbuild import LIBRARY_FLAGS, cached_library, default_build_dir, file_stamp
 from ..data.record import Record
 from ..errors import AssetError, InputError
 from ..models.registry import GENERATED_MODEL_CODE, REGISTRY, IdentifiableModel, model_from_name
@@ -254,14 +254,6 @@ _LIBRARIES: dict[str, ctypes.CDLL] = {}
 _BUILT: dict[tuple[str, str | None, str | None], tuple[list[str], list[tuple[int, int]], Path]] = {}
 
 
-def _stamps(paths: list[str]) -> list[tuple[int, int]]:
-    out = []
-    for path in paths:
-        status = os.stat(path)
-        out.append((status.st_mtime_ns, status.st_size))
-    return out
-
-
 def _default_library(precision: str) -> Path:
     """:func:`build_library` with its defaults, remembered while no source changes (an
     identification creates a dozen identifiers: the sources' hash is not taken each time)."""
@@ -270,14 +262,14 @@ def _default_library(precision: str) -> Path:
     if known is not None:
         paths, stamps, library = known
         try:
-            if _stamps(paths) == stamps and library.is_file():
+            if [file_stamp(p) for p in paths] == stamps and library.is_file():
                 return library
         except OSError:
             pass
     library = build_library(precision=precision)
     src = source_dir()
     paths = [str(src / name) for name in SOURCES + HEADERS]
-    _BUILT[key] = (paths, _stamps(paths), library)
+    _BUILT[key] = (paths, [file_stamp(p) for p in paths], library)
     return library
 
 

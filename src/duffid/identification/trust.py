@@ -401,10 +401,13 @@ class _Estimation:
         :data:`~duffid.identification.assessment.BOOTSTRAP_ROWS_PER_WINDOW` per window length
         where the C core runs them with a fixed window (1: every sample's)."""
         window = self.options.get("window")
-        key = (window, self.factor, self.shifted)
+        key = (window, self.factor, self.shifted, self.options.get("change_threshold"))
         if self._stride is None or self._stride[0] != key:
             stride = 1
-            if isinstance(window, float) and self.method == "robust" and self.final_is_cheaper():
+            # only where the C core defers the solutions (a fixed window, no change test): else the
+            # replicates keep every row, and a strided reference would be a wasted pass
+            if isinstance(window, float) and self.method == "robust" and not self.options.get("change_threshold") \
+                    and self.final_is_cheaper():
                 samples = window * self.record.fs * self.factor
                 stride = int(min(max(samples // BOOTSTRAP_ROWS_PER_WINDOW, 1), limit("max_row_stride")))
             self._stride = (key, stride)
