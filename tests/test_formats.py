@@ -288,6 +288,17 @@ def _tdms(tmp_path, record, name="r.tdms", **kwargs):
     ({}, {"f": "Data/force", "x": "Data/displacement"},
      r"r\.tdms: no channel 'Data/displacement' for x \(channels: 1: 'Data/force' \[N, 1000 Hz, 1001 samples\]; "
      r"2: 'Data/disp' \[mm, 1000 Hz, 1001 samples\]\)"),
+    ({"disp": {"wf_start_time": np.datetime64("2026-11-29T10:00:00.0005")},
+      "force": {"wf_start_time": np.datetime64("2026-11-29T10:00:00")}}, None,
+     r"r\.tdms: channel 'Data/force' starts at 0 s but 'Data/disp' at 0\.0005 s; duffid never shifts or clips"),
+    ({"force": {"unit_string": "V"}}, None,
+     r"r\.tdms: channel 'Data/force' is in 'V' but 'Data/disp' is in 'mm', not a charge \(C\): a force in volts is a "
+     r"sensor's output; give its sensitivity as --scale f=FACTOR \(N per V\)"),
+    ({"disp": {"wf_increment": "0.5 ms"}}, None,
+     r"r\.tdms, channel 'Data/disp': its wf_increment '0\.5 ms' is not a number of seconds"),
+    ({"disp": {"wf_increment": -1e-3}}, None, r"r\.tdms, channel 'Data/disp': its wf_increment -0\.001 is not a positive step"),
+    ({"force": {"wf_start_offset": "n/a"}}, None,
+     r"r\.tdms, channel 'Data/force': its wf_start_offset 'n/a' is not a number of seconds"),
     ({}, {"f": "Data/force", "x": 3}, r"r\.tdms: no channel 3 for x: the file has 2"),
     ({}, {"f": "Data/force", "x": "Data/force"}, r"channel 'Data/force' is selected for two roles \(f, x\)"),
 ])
@@ -295,6 +306,83 @@ def test_tdms_errors_name_channels_units_rates_and_starts(tmp_path, record, kwar
     path = _tdms(tmp_path, record, **kwargs)
     with pytest.raises(RecordError, match=message):
         Record.read(path, columns=columns)
+
+
+def test_volts_are_the_circuits_source_only_with_a_charge(tmp_path, record):
+    got = Record.read(_tdms(tmp_path, record, force={"unit_string": "V"}, disp={"unit_string": "mC"}))
+    np.testing.assert_allclose(got.x, record.x, rtol=1e-12)  # mC -> C: the values written are x * 1e3
+    path = tmp_path / "volts.csv"
+    path.write_text("time,u,x\ns,V,m\n" + "".join(f"{t:.17g},{f:.17g},{x:.17g}\n" for t, f, x in
+                                                zip(record.t, record.f[:, 0], record.x[:, 0])))
+    columns = {"t": "time", "f": "u", "x": "x"}
+    with pytest.raises(RecordError, match=r"volts\.csv: channel 'u' is in 'V' but 'x' is in 'm', not a charge"):
+        Record.read(path, columns=columns)
+    assert Record.read(path, columns=columns, scale={"f": 2.0}).f[3, 0] == 2.0 * record.f[3, 0]
+
+
+def test_channels_that_started_together_by_their_time_stamps_are_read(tmp_path, record):
+    stamp = {"wf_start_time": np.datetime64("2026-11-29T10:00:00")}
+    got = Record.read(_tdms(tmp_path, record, force=stamp, disp=stamp))
+    np.testing.assert_allclose(got.x, record.x, rtol=1e-12)
+    assert got.t[0] == 0.0
+
+
+def test_a_unit_in_the_channel_name_is_the_channel_unit(tmp_path, record):
+    """Channels named 'force (kN)' and 'disp [mm]' without unit metadata: converted (TDMS, HDF5),
+    or refused until scaled (CSV), never read as SI."""
+    props = {"wf_increment": record.dt}
+    path = tmp_path / "named.tdms"
+    with nptdms.TdmsWriter(path) as writer:
+        writer.write_segment([nptdms.GroupObject("Data"),
+                              nptdms.ChannelObject("Data", "force (kN)", record.f[:, 0] / 1e3, props),
+                              nptdms.ChannelObject("Data", "disp [mm]", record.x[:, 0] * 1e3, props)])
+    got = Record.read(path)
+    np.testing.assert_allclose(got.f, record.f, rtol=1e-12)
+    np.testing.assert_allclose(got.x, record.x, rtol=1e-12)
+    assert [c.unit for c in list_channels(path)] == ["kN", "mm"]
+    path = tmp_path / "named.h5"
+    with h5py.File(path, "w") as fh:
+        fh.attrs["dt"] = record.dt
+        fh.create_dataset("force (N)", data=record.f[:, 0])
+        fh.create_dataset("disp (um)", data=record.x[:, 0] * 1e6)
+        fh.create_dataset("accel (X)", data=record.x[:, 0])  # an axis label, not a unit
+    assert {c.name: c.unit for c in list_channels(path)} == {"force (N)": "N", "disp (um)": "um",
+                                                           "accel (X)": None}
+    np.testing.assert_allclose(Record.read(path, columns={"f": "force (N)", "x": "disp (um)"}).x, record.x,
+                               rtol=1e-12)
+    path = tmp_path / "named.csv"
+    np.savetxt(path, np.column_stack([record.t, record.f[:, 0] / 1e3, record.x[:, 0]]), delimiter=",",
+               header="time (s),force (kN),disp (m)", comments="")
+    columns = {"t": "time (s)", "f": "force (kN)", "x": "disp (m)"}
+    with pytest.raises(RecordError, match=r"column 'force \(kN\)' \(f\) is in 'kN' \(in its name\): duffid needs "
+                                          r"SI units \(N or V\); scale it into N \(multiply f by 1000\)"):
+        Record.read(path, columns=columns)
+    np.testing.assert_allclose(Record.read(path, columns=columns, scale={"f": 1e3}).f, record.f, rtol=1e-9)
+
+
+def test_hdf5_packed_datasets_need_a_scale_and_latin1_units_are_read(tmp_path, record):
+    path = tmp_path / "packed.h5"
+    counts = np.round(record.x[:, 0] / 0.05 * 32767).astype(np.int16)
+    with h5py.File(path, "w") as fh:
+        fh.attrs["fs"] = 1 / record.dt
+        fh.create_dataset("force", data=record.f[:, 0]).attrs["unit"] = "N"
+        fh.create_dataset("disp", data=counts).attrs.update({"unit": "m", "scale_factor": 0.05 / 32767})
+        fh.create_dataset("shifted", data=counts).attrs.update({"unit": "m", "scale_factor": 1.0, "add_offset": 0.5})
+    with pytest.raises(RecordError, match=r"packed\.h5, channel 'disp': is stored packed \(scale_factor 1\.52.*\), "
+                                          r"which duffid does not apply: give the SI value of one stored unit; give "
+                                          r"--scale x=FACTOR"):
+        Record.read(path, columns={"f": "force", "x": "disp"})
+    got = Record.read(path, columns={"f": "force", "x": "disp"}, scale={"x": 0.05 / 32767})
+    np.testing.assert_allclose(got.x[:, 0], counts * (0.05 / 32767), rtol=1e-12)
+    with pytest.raises(RecordError, match=r"channel 'shifted': is stored packed \(scale_factor 1\.0, add_offset 0\.5\); "
+                                          r"duffid does not unpack values"):
+        Record.read(path, columns={"f": "force", "x": "shifted"}, scale={"x": 1.0})
+    path = tmp_path / "latin1.h5"
+    with h5py.File(path, "w") as fh:
+        fh.attrs["fs"] = 1 / record.dt
+        fh.create_dataset("force", data=record.f[:, 0]).attrs["unit"] = np.bytes_(b"N")
+        fh.create_dataset("disp", data=record.x[:, 0] * 1e6).attrs["unit"] = np.bytes_(b"\xb5m")
+    np.testing.assert_allclose(Record.read(path).x, record.x, rtol=1e-12)
 
 
 def test_a_third_channel_needs_a_selection_and_the_error_lists_units(tmp_path, record):

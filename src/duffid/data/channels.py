@@ -21,8 +21,8 @@ import numpy as np
 from ..errors import RecordError
 from .units import QUANTITY_OF_ROLE, lookup, si_factor
 
-__all__ = ["Channel", "READ_PART", "ROLE_PATTERN", "MOTION_NOT_YET", "MOTION_FAMILIES", "FAMILY_WORDS", "numeric", "check_roles",
-           "channel_table", "select", "motion_of", "assemble"]
+__all__ = ["Channel", "READ_PART", "UNIT_IN_NAME", "unit_in_name", "ROLE_PATTERN", "MOTION_NOT_YET", "MOTION_FAMILIES", "FAMILY_WORDS", "numeric", "check_roles",
+           "channel_table", "select", "motion_of", "assemble", "check_source_voltage"]
 
 #: A role of the selection syntax: ``t``, ``f``, ``x``, ``v``, ``a`` or numbered ``f1``, ``x2``, ...
 #: Samples a streaming reader delivers at a time (8 MB of float64).
@@ -43,6 +43,17 @@ _NAME_HINTS = {
 }
 #: What a role family holds, in words (plural).
 FAMILY_WORDS = {"f": "forces", "x": "displacements", "v": "velocities", "a": "accelerations"}
+#: A unit at the end of a channel's name, ``force (kN)`` or ``x [mm]``: read as the channel's unit
+#: when its metadata give none (a text with a letter; not an axis letter X, Y, Z, nor a MATLAB
+#: column ``data(:,2)``).
+UNIT_IN_NAME = re.compile(r"[(\[]\s*([^()\[\]:,]*[^\W\d_][^()\[\]:,]*?)\s*[)\]]\s*$")
+_AXIS_LABELS = frozenset("xyzXYZ")
+
+
+def unit_in_name(name: str) -> str | None:
+    """The unit closing ``name`` in brackets (:data:`UNIT_IN_NAME`; None: none)."""
+    found = UNIT_IN_NAME.search(name)
+    return found.group(1) if found and found.group(1) not in _AXIS_LABELS else None
 
 
 def numeric(dtype: np.dtype) -> bool:
@@ -60,7 +71,8 @@ class Channel:
         How the user selects it: ``group/channel`` (TDMS), a dataset path (HDF5, MATLAB v7.3),
         a channel number (WAV), a data set's name (UFF), a column or variable name.
     unit : str or None
-        The unit the file names (None: none; the values are then taken as SI).
+        The unit the file names (None: none; the values are then taken as SI). Without one, a
+        unit closing the name in brackets (:data:`UNIT_IN_NAME`) is the channel's.
     length : int
         Number of samples.
     rate : float or None, optional
@@ -92,6 +104,10 @@ class Channel:
     problem: str = ""
     read: Callable[[], np.ndarray] = field(default=lambda: np.empty(0), repr=False, compare=False)
     read_part: Callable[[int, int], np.ndarray] | None = field(default=None, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if self.unit is None or not self.unit.strip():  # none in the metadata: one in the name?
+            object.__setattr__(self, "unit", unit_in_name(self.name))
 
     @property
     def quantity(self) -> str | None:
@@ -265,6 +281,24 @@ def select(channels: Sequence[Channel], columns: Mapping[str, str | int] | None,
                       f"select them, e.g. --columns f=NAME,x=NAME (channels: {_listing(channels)})")
 
 
+def _quantity(unit: str | None) -> str | None:
+    known = lookup(unit)
+    return known.quantity if known is not None else None
+
+
+def check_source_voltage(source: str, force: str, unit: str, motion: Mapping[str, str | None]) -> None:
+    """A force role in volts is the circuit's source voltage: its motion must then be a charge (C).
+    With a displacement, velocity, acceleration or no unit it is a sensor's output voltage, which
+    needs its sensitivity: RecordError naming the channels (``motion``: name -> unit)."""
+    others = {name: unit_ for name, unit_ in motion.items() if _quantity(unit_) != "charge"}
+    if others:
+        name, other = next(iter(others.items()))
+        raise RecordError(f"{source}: channel {force!r} is in {unit!r} but {name!r} is "
+                          f"{'in ' + repr(other) if other else 'without a unit'}, not a charge (C): a force in volts is "
+                          "a sensor's output; give its sensitivity as --scale f=FACTOR (N per V), or, for the "
+                          "circuit, the charge's unit C")
+
+
 def _same(a: float, b: float) -> bool:
     return math.isclose(a, b, rel_tol=1e-9, abs_tol=0.0)
 
@@ -302,6 +336,9 @@ def assemble(chosen: Mapping[str, Channel], source: str, *, scale: Mapping[str, 
     unknown = sorted(set(scale) - set(roles) - {r[0] for r in roles})
     if unknown:
         raise RecordError(f"{source}: a scale for {', '.join(unknown)}, which selects no channel")
+    for role in roles:  # a channel that cannot be part of a record, before anything else about it
+        if chosen[role].problem:
+            raise RecordError(f"{source}, channel {chosen[role].name!r}: {chosen[role].problem}")
     first = chosen[roles[0]]
     for role in roles[1:]:
         other = chosen[role]
@@ -337,12 +374,15 @@ def assemble(chosen: Mapping[str, Channel], source: str, *, scale: Mapping[str, 
     for role in roles:
         channel = chosen[role]
         where = f"{source}, channel {channel.name!r}"
-        if channel.problem:
-            raise RecordError(f"{where}: {channel.problem}")
         given = scale.get(role, scale.get(role[0]))
         if channel.needs_scale and given is None:
             raise RecordError(f"{where}: {channel.needs_scale}; give --scale {role}=FACTOR")
         factors[role] = si_factor(channel.unit, role, where, given)
+    voltages = [r for r in data_roles if r[0] == "f" and scale.get(r, scale.get("f")) is None
+                and _quantity(chosen[r].unit) == "voltage"]
+    if voltages:  # the circuit's source voltage, never a force sensor's output
+        check_source_voltage(source, chosen[voltages[0]].name, chosen[voltages[0]].unit or "V",
+                             {chosen[r].name: chosen[r].unit for r in data_roles if r[0] != "f"})
 
     def values(role: str, out: np.ndarray | None = None) -> np.ndarray:
         channel = chosen[role]

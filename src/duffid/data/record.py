@@ -31,7 +31,8 @@ import scipy.io
 from scipy.io.matlab import MatReadError
 
 from ..errors import InputError, OptionError, RecordError
-from .channels import FAMILY_WORDS, MOTION_FAMILIES, Channel, assemble, check_roles, motion_of, select
+from .channels import (FAMILY_WORDS, MOTION_FAMILIES, Channel, assemble, check_roles, check_source_voltage, motion_of,
+                       select, unit_in_name)
 from .formats import detect_format, read_arrays
 from .readers.matlab import is_v73
 from .readers.matlab import open_channels as open_mat_channels
@@ -1233,6 +1234,7 @@ def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Map
         raise RecordError(f"{where}: one column is given for two signals ({', '.join(roles)})")
     pos += 1
     units: dict[str, str] = {}
+    said: dict[str, str] = {}  # where each unit was found
     while pos < len(lines) and not lines[pos].strip():
         pos += 1
     if pos < len(lines):
@@ -1242,18 +1244,26 @@ def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Map
 
         if len(fields) == len(names) and all(f and not number(f) for f in (fields[i] for i in used)):
             units = {role: fields[index[role]] for role in roles}
-            units_line = pos + 1
-            for role, unit in units.items():
-                fam = role[0]
-                factor = scale.get(role, scale.get(fam))
-                if factor is None and unit not in SI_UNITS[fam]:
-                    listed = lookup(unit)  # a unit of the role's quantity: say its factor (never applied)
-                    known = listed.factor if listed is not None and listed.quantity in ROLE_QUANTITIES[fam] else None
-                    raise RecordError(
-                        f"{source}: column {names[index[role]]!r} ({role}) is in {unit!r} (units row, line "
-                        f"{units_line}): duffid needs SI units ({' or '.join(SI_UNITS[fam])}); scale it "
-                        f"into {SI_UNITS[fam][0]}" + (f" (multiply {role} by {known:g})" if known else ""))
+            said = {role: f"units row, line {pos + 1}" for role in roles}
             pos += 1
+    for role in roles:  # else a unit closing the column's name: "x (mm)", "f [kN]"
+        named = unit_in_name(names[index[role]])
+        if role not in units and named:
+            units[role], said[role] = named, "in its name"
+    volts = [r for r in f_roles if units.get(r) == "V" and scale.get(r, scale.get("f")) is None]
+    if volts:  # the circuit's source voltage, never a force sensor's output
+        check_source_voltage(source, names[index[volts[0]]], "V",
+                             {names[index[r]]: units.get(r) for r in x_roles})
+    for role, unit in units.items():
+        fam = role[0]
+        factor = scale.get(role, scale.get(fam))
+        if factor is None and unit not in SI_UNITS[fam]:
+            listed = lookup(unit)  # a unit of the role's quantity: say its factor (never applied)
+            known = listed.factor if listed is not None and listed.quantity in ROLE_QUANTITIES[fam] else None
+            raise RecordError(
+                f"{source}: column {names[index[role]]!r} ({role}) is in {unit!r} ({said[role]}): duffid needs SI "
+                f"units ({' or '.join(SI_UNITS[fam])}); scale it into {SI_UNITS[fam][0]}"
+                + (f" (multiply {role} by {known:g})" if known else ""))
     rows: list[list[float]] = []
     linenos: list[int] = []
     blank_at: int | None = None

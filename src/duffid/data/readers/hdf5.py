@@ -4,7 +4,8 @@ Every numeric dataset that is a vector (shape ``(N,)``, ``(N, 1)`` or ``(1, N)``
 named by its path (``run1/force``). Its rate, start and unit come from attributes of the
 dataset or, failing that, of the groups above it: a rate in Hz (:data:`RATE_ATTRIBUTES`) or a
 step in s (:data:`STEP_ATTRIBUTES`), a start time (:data:`START_ATTRIBUTES`) and a unit
-(:data:`UNIT_ATTRIBUTES`).
+(:data:`UNIT_ATTRIBUTES`; a byte string that is not UTF-8 is read as Latin-1). A packed
+dataset (:data:`PACKING_ATTRIBUTES`) needs the user's scale.
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from ...errors import RecordError
 from ..channels import Channel, numeric
 from . import optional_import
 
-__all__ = ["EXTENSIONS", "RATE_ATTRIBUTES", "STEP_ATTRIBUTES", "START_ATTRIBUTES", "UNIT_ATTRIBUTES",
+__all__ = ["EXTENSIONS", "RATE_ATTRIBUTES", "STEP_ATTRIBUTES", "START_ATTRIBUTES", "UNIT_ATTRIBUTES", "PACKING_ATTRIBUTES",
            "open_file", "open_channels"]
 
 EXTENSIONS = (".h5", ".hdf5", ".hdf", ".he5")
@@ -30,6 +31,8 @@ STEP_ATTRIBUTES = ("dt", "wf_increment", "increment", "sample_interval")
 START_ATTRIBUTES = ("t0", "start_time", "wf_start_offset", "start")
 #: Attributes holding a unit string.
 UNIT_ATTRIBUTES = ("unit", "units", "unit_string", "unit_str")
+#: A dataset's packing attributes (netCDF/CF: stored value x scale_factor + add_offset).
+PACKING_ATTRIBUTES = ("scale_factor", "add_offset")
 
 
 @contextmanager
@@ -56,10 +59,32 @@ def _attribute(node: Any, names: tuple[str, ...]) -> Any:
                 value = node.attrs[name]
                 if isinstance(value, np.ndarray) and value.size == 1:
                     value = value.reshape(-1)[0]
-                return value.decode() if isinstance(value, bytes) else value
+                return _text(value) if isinstance(value, bytes) else value
         if node.name == "/":
             return None
         node = node.parent
+
+
+def _text(value: bytes) -> str:
+    """A byte-string attribute as text: UTF-8, else Latin-1 (older DAQ software's ``b'\\xb5m'``)."""
+    try:
+        return value.decode("utf-8")
+    except UnicodeDecodeError:
+        return value.decode("latin-1")
+
+
+def _packing(ds: Any) -> tuple[str, str]:
+    """``(needs_scale, problem)`` of a dataset stored packed (netCDF/CF ``scale_factor`` and
+    ``add_offset`` attributes): duffid does not unpack, so the user gives the SI value of one
+    stored unit (``--scale``); an offset cannot be given that way."""
+    factor, offset = (ds.attrs.get(key) for key in PACKING_ATTRIBUTES)
+    said = ", ".join(f"{key} {np.asarray(value).tolist()}" for key, value in zip(PACKING_ATTRIBUTES, (factor, offset))
+                     if value is not None)
+    if offset is not None and np.any(np.asarray(offset) != 0):
+        return "", f"is stored packed ({said}); duffid does not unpack values: store them unpacked"
+    if factor is not None:
+        return f"is stored packed ({said}), which duffid does not apply: give the SI value of one stored unit", ""
+    return "", ""
 
 
 def _number(path: str, node: Any, names: tuple[str, ...]) -> float | None:
@@ -108,9 +133,10 @@ def open_channels(path: str) -> Iterator[list[Channel]]:
                 raise RecordError(f"{path}, dataset {ds.name.lstrip('/')!r}: its rate {rate:g} Hz and step {step:g} s "
                                   "disagree")
             unit = _attribute(ds, UNIT_ATTRIBUTES)
+            needs_scale, problem = _packing(ds)
             channels.append(Channel(ds.name.lstrip("/"), str(unit).strip() or None if unit is not None else None,
                                     int(max(ds.shape)) if ds.size else 0,
                                     rate if rate is not None else (1.0 / step if step is not None else None),
                                     _number(path, ds, START_ATTRIBUTES) or 0.0, str(ds.dtype),
-                                    read_part=_vector_reader(ds)))
+                                    needs_scale=needs_scale, problem=problem, read_part=_vector_reader(ds)))
         yield channels
