@@ -7,6 +7,8 @@ whose full scale is 500 N).
 """
 from __future__ import annotations
 
+import re
+import warnings
 import wave
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -49,19 +51,46 @@ def _bits(path: str) -> str:
         return ""
 
 
+def _read(path: str, mmap: bool) -> tuple[int, np.ndarray]:
+    """scipy's ``(rate, data)``; a file shorter than its header says is refused, not cut."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", scipy.io.wavfile.WavFileWarning)
+        failure: ValueError | None = None
+        try:
+            rate, data = scipy.io.wavfile.read(path, mmap=mmap)
+        except ValueError as exc:  # scipy fails on a part frame, after its warning
+            failure, data = exc, None
+    for warning in caught:
+        text = str(warning.message)
+        if "EOF" not in text:
+            warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
+            continue
+        sizes = [int(n) for n in re.findall(r"(\d+) bytes", text)[:2]]
+        if data is None or len(sizes) != 2:  # scipy's message as it is
+            raise RecordError(f"{path}: the WAV file is cut short ({text}); duffid never reads part of a record")
+        finished, expected = sizes
+        frame = data.itemsize * (data.shape[1] if data.ndim == 2 else 1)
+        declared = -(-(data.shape[0] * frame + expected - finished) // frame)  # the part frame rounds up
+        raise RecordError(f"{path}: the WAV file is cut short: its header declares {declared} frames, the file "
+                          f"holds {data.shape[0]}; duffid never reads part of a record")
+    if failure is not None:
+        raise failure  # for :func:`reading`, or the caller's second try without mmap
+    return rate, data
+
+
 @contextmanager
 def open_channels(path: str) -> Iterator[list[Channel]]:
     """The channels of the WAV file ``path``.
 
-    Errors as :mod:`duffid.data.readers` says.
+    Errors as :mod:`duffid.data.readers` says; a file shorter than its header declares too.
     """
     with reading(path, "WAV file"):
         try:
-            rate, data = scipy.io.wavfile.read(path, mmap=True)
+            rate, data = _read(path, mmap=True)
         except ValueError as exc:  # 24-bit and a few other layouts cannot be memory-mapped
             if "mmap" not in str(exc):
                 raise
-            rate, data = scipy.io.wavfile.read(path)
+            rate, data = _read(path, mmap=False)
     integer = data.dtype in _FULL_SCALE
     if not integer and not np.issubdtype(data.dtype, np.floating):
         raise RecordError(f"{path}: WAV samples of type {data.dtype} are not supported")
