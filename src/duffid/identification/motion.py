@@ -25,7 +25,9 @@ gives a starting point, never a published value:
    :data:`SEGMENT_PERIODS` natural periods started from its own fitted state (multiple
    shooting: a lightly damped nonlinear plant does not follow a long record from one state);
 4. a value is published only when the fit explains the measured signal down to its white
-   noise (:func:`~duffid.identification.sampling.noise_level`; within :data:`FIT_TOLERANCE`)
+   noise (:func:`~duffid.identification.sampling.noise_level`; within :data:`FIT_TOLERANCE`;
+   and only where that figure is white noise, not signal:
+   :func:`~duffid.identification.sampling.noise_is_white`)
    and its stated relative standard error (inflated for the residual's autocorrelation) is
    at most ``max_uncertainty``.
 
@@ -50,7 +52,7 @@ from .engine import STATUSES, Identification
 from .offsets import with_force_offsets
 from .options import default_options
 from .refine import OUTPUTS, canonical_from_public, refine
-from .sampling import natural_frequency, noise_level
+from .sampling import natural_frequency, noise_is_white, noise_level
 
 __all__ = ["displacement_columns", "measured_motion", "band_limited_motion", "MOTIONS", "SEGMENT_PERIODS", "FIT_TOLERANCE", "FIT_PARTS", "PART_SAMPLES", "MAX_UNCERTAINTY", "START_POWER", "START_NONLINEAR", "START_BINS",
            "integrated_displacement", "identify_motion"]
@@ -317,10 +319,11 @@ def identify_motion(record: Record, model: Chain | EquationModel, motion: str | 
     except (InputError, RecordError) as exc:
         return _refused(record, model, motion, start, cutoff, f"the output-error fit of the {word} failed: {exc}")
     noise = float(np.max(noise_level(record.x)))
+    white, sigma4, sigma6 = noise_is_white(record.x)
     spread = float(np.max(np.std(record.x, axis=0)))
     parts = max(1, min(FIT_PARTS, len(fit.residuals) // PART_SAMPLES))
     worst_part = max(float(np.sqrt(np.mean(part**2))) for part in np.array_split(fit.residuals, parts))
-    explained = bool(fit.success and max(fit.rms, worst_part) <= FIT_TOLERANCE * noise)
+    explained = bool(fit.success and white and max(fit.rms, worst_part) <= FIT_TOLERANCE * noise)
     status, uncertainty = {}, {}
     for name in fit.parameters:
         canonical = model.canonical_name(name)
@@ -328,7 +331,13 @@ def identify_motion(record: Record, model: Chain | EquationModel, motion: str | 
         uncertainty[name] = relative
         ok = explained and model.is_physical(canonical, fit.canonical[canonical]) and relative <= max_uncertainty
         status[name] = STATUSES[1] if ok else STATUSES[0]
-    if explained:
+    if not white:
+        notes.append(f"the measured {word}'s noise cannot be told from its signal: its 4th and 6th differences give "
+                     f"noise levels {sigma4:.3g} and {sigma6:.3g}, which white noise would make equal (the signal "
+                     "reaches the upper part of the sampled band, e.g. a broadband force), so the fit cannot be "
+                     "checked against the noise: nothing is published; a force band-limited well below the Nyquist "
+                     "frequency, or a higher sampling rate, lets it be checked")
+    elif explained:
         notes.append(f"the model simulated under the measured force follows the measured {word} to its noise "
                      f"({fit.rms:.3g} RMS against noise {noise:.3g})")
     elif fit.success and fit.rms <= FIT_TOLERANCE * noise:
