@@ -320,6 +320,19 @@ def test_volts_are_the_circuits_source_only_with_a_charge(tmp_path, record):
     assert Record.read(path, columns=columns, scale={"f": 2.0}).f[3, 0] == 2.0 * record.f[3, 0]
 
 
+def test_a_gap_is_named_by_channel_and_sample(tmp_path, record):
+    path = tmp_path / "gap.h5"
+    x = record.x[:, 0].copy()
+    x[[41, 99]] = np.nan
+    with h5py.File(path, "w") as fh:
+        fh.attrs["fs"] = 1 / record.dt
+        fh.create_dataset("force", data=record.f[:, 0]).attrs["unit"] = "N"
+        fh.create_dataset("run/disp", data=x).attrs["unit"] = "m"
+    with pytest.raises(RecordError, match=r"gap\.h5, channel 'run/disp': sample 42 of 1001 is nan \(2 such samples\); "
+                                          r"duffid never drops or fills samples"):
+        Record.read(path)
+
+
 def test_channels_that_started_together_by_their_time_stamps_are_read(tmp_path, record):
     stamp = {"wf_start_time": np.datetime64("2026-11-29T10:00:00")}
     got = Record.read(_tdms(tmp_path, record, force=stamp, disp=stamp))

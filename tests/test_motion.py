@@ -105,6 +105,7 @@ def test_acceleration_under_random_force_is_published_within_one_percent(random_
     result = identify_motion(Record(t, f, a_meas, source="accelerometer"), Duffing1(), "a")
     assert result.is_identified, result.assessment.notes
     assert max(errors(result).values()) <= 0.01
+    assert result.to_dict()["samples"] == len(t)  # the record's, not the one final value's
     # honest: each value within 4 of its stated standard errors, the bias found
     for name, error in errors(result).items():
         assert error <= 4 * result.assessment.uncertainty[name] + 1e-12, name

@@ -409,6 +409,11 @@ def assemble(chosen: Mapping[str, Channel], source: str, *, scale: Mapping[str, 
             else:
                 out[:] = raw
             del raw
+        bad = np.flatnonzero(~np.isfinite(out))
+        if bad.size:  # named here, where the channel is known (the record's own check knows its role only)
+            raise RecordError(f"{source}, channel {channel.name!r}: sample {int(bad[0]) + 1} of {channel.length} is "
+                              f"{float(out[bad[0]])}{f' ({bad.size} such samples)' if bad.size > 1 else ''}; duffid never "
+                              "drops or fills samples: give a record without gaps")
         if factors[role] != 1.0:
             out *= factors[role]
         return out

@@ -1843,6 +1843,9 @@ class Identification:
     outliers : list of dict
         Displacement samples the online estimator excluded as isolated outliers
         (:attr:`OnlineIdentifier.outliers`).
+    samples : int or None
+        Samples of the record (None: one per entry of ``t``; a fit of the whole record keeps
+        only its final value there).
     """
 
     model: str
@@ -1860,6 +1863,7 @@ class Identification:
     assessment: Any = None
     online_status: dict[str, str] = field(default_factory=dict)
     outliers: list[dict[str, Any]] = field(default_factory=list)
+    samples: int | None = None
 
     @property
     def status(self) -> dict[str, str]:
@@ -1931,7 +1935,7 @@ class Identification:
             "t_identified": self.t_identified if self.is_identified else None,
             "condition": clean(self.condition[-1]) if len(self.condition) else None,
             "window": self.window,
-            "samples": int(len(self.t)),
+            "samples": int(len(self.t)) if self.samples is None else int(self.samples),
             "source": self.source,
             "options": {k: v for k, v in self.options.items()},
         })

@@ -385,4 +385,4 @@ def _result(record: Record, model: Chain, motion: str, published: dict[str, floa
         t=np.array([end]), history={k: np.array([v]) for k, v in published.items()},
         condition=np.array([math.nan]), identified=np.array([done]), t_identified=end if done else None,
         window=end - float(record.t[0]), options={"motion": motion}, source=record.source,
-        estimates=values, assessment=assessment)
+        estimates=values, assessment=assessment, samples=len(record.t))
