@@ -320,6 +320,22 @@ def test_volts_are_the_circuits_source_only_with_a_charge(tmp_path, record):
     assert Record.read(path, columns=columns, scale={"f": 2.0}).f[3, 0] == 2.0 * record.f[3, 0]
 
 
+def test_a_csv_header_names_its_roles_for_inspect_and_identify(tmp_path, record, capsys):
+    path = tmp_path / "acc.csv"
+    path.write_text("t,f,a\n" + "".join(f"{t:.17g},{f:.17g},{x:.17g}\n" for t, f, x in
+                                         zip(record.t, record.f[:, 0], record.x[:, 0])))
+    got = Record.read(path, motion=True)  # duffid identify's reading: the header's a
+    assert got.motion == "a" and got.x[7, 0] == record.x[7, 0]
+    with pytest.raises(RecordError, match=r"unknown column 'a'"):
+        Record.read(path)  # a displacement's user
+    assert main(["inspect", str(path)]) == 0
+    assert "without --columns: t=t, f=f, a=a (an acceleration: duffid identify only)" in capsys.readouterr().out
+    named = tmp_path / "named.csv"
+    named.write_text(path.read_text().replace("t,f,a", "time,force,acc", 1))
+    assert main(["inspect", str(named)]) == 0
+    assert "without --columns: a CSV file is read by its header t,f,x" in capsys.readouterr().out
+
+
 def test_a_gap_is_named_by_channel_and_sample(tmp_path, record):
     path = tmp_path / "gap.h5"
     x = record.x[:, 0].copy()

@@ -7,8 +7,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from ..data.channels import channel_table, select
-from ..data.formats import FORMATS, list_channels
+from ..data.channels import ROLE_PATTERN, channel_table, select
+from ..data.formats import FORMATS, detect_format, list_channels
 from ..errors import RecordError
 
 __all__ = ["add_parser", "run"]
@@ -27,12 +27,26 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     return p
 
 
+def _plain_header(names: list[str]) -> bool:
+    """Whether a CSV header is one ``duffid identify`` reads without ``--columns``."""
+    families = {n[0] for n in names[1:]}
+    return (len(names) >= 3 and names[0] == "t" and all(ROLE_PATTERN.fullmatch(n) for n in names[1:])
+            and "f" in families and len(families) == 2 and "t" not in families)
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``duffid inspect``: one line per channel, then the channels read by default (or why none)."""
     channels = list_channels(args.file, args.format)
     rows = channel_table(channels)
     try:  # identify also takes a velocity or acceleration; the other commands a displacement only
-        chosen = {role: c.name for role, c in select(channels, None, str(args.file), motion=True).items()}
+        if detect_format(args.file, args.format) == "csv":  # read by its header's names alone
+            names = [c.name for c in channels]
+            if not _plain_header(names):
+                raise RecordError(f"{args.file}: a CSV file is read by its header t,f,x (t,f1..,x1..; a or v for "
+                                  "an acceleration or a velocity); give --columns t=NAME,f=NAME,x=NAME")
+            chosen = {name: name for name in names}
+        else:
+            chosen = {role: c.name for role, c in select(channels, None, str(args.file), motion=True).items()}
         default = "without --columns: " + ", ".join(f"{role}={name}" for role, name in chosen.items())
         if not {"v", "a"}.isdisjoint(chosen):
             default += " (" + ("a velocity" if "v" in chosen else "an acceleration") + ": duffid identify only)"

@@ -31,8 +31,8 @@ import scipy.io
 from scipy.io.matlab import MatReadError
 
 from ..errors import InputError, OptionError, RecordError
-from .channels import (FAMILY_WORDS, MOTION_FAMILIES, Channel, assemble, check_roles, check_source_voltage, motion_of,
-                       select, unit_in_name)
+from .channels import (FAMILY_WORDS, MOTION_FAMILIES, ROLE_PATTERN, Channel, assemble, check_roles,
+                       check_source_voltage, motion_of, select, unit_in_name)
 from .formats import detect_format, read_arrays
 from .readers.matlab import is_v73
 from .readers.matlab import open_channels as open_mat_channels
@@ -539,6 +539,12 @@ class Record:
         if decimal == delimiter:
             raise InputError(f"the decimal mark and the delimiter are both {decimal!r}: a file with decimal commas "
                              "separates its columns with something else (';' or a tab, say)")
+        if columns is None and motion:  # a header t,f,a (t,f1,v1,v2, ...): those roles by name
+            header = next((line for line in lines if line.strip() and not line.lstrip().startswith("#")), "")
+            names = [n.strip() for n in next(csv.reader([header], delimiter=delimiter))] if header else []
+            if names[:1] == ["t"] and {n[0] for n in names[1:]} in ({"f", "v"}, {"f", "a"}) and \
+                    all(ROLE_PATTERN.fullmatch(n) for n in names[1:]):
+                columns = {n: n for n in names}
         if columns is None and delimiter == "," and fs is None and decimal == ".":
             record = _parse_csv_lines(lines, source, rtol)
             return record if not scale else record.scaled(scale)

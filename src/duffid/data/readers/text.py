@@ -10,7 +10,8 @@ from contextlib import contextmanager
 import numpy as np
 
 from ...errors import RecordError
-from ..channels import Channel
+from ..channels import Channel, unit_in_name
+from ..units import lookup
 from . import reading
 
 __all__ = ["EXTENSIONS", "open_channels"]
@@ -47,10 +48,12 @@ def open_channels(path: str) -> Iterator[list[Channel]]:
     if data and all(number(f) is None for f in data[0]):
         units, data = [u.strip() for u in data[0]], data[1:]
     rate = None
-    if names and names[0].lower() in ("t", "time", "time_s") and len(data) > 1:
+    time_unit = lookup(units[0] or unit_in_name(names[0])) if names else None
+    seconds = time_unit.factor if time_unit is not None and time_unit.quantity == "time" else 1.0
+    if names and (names[0].lower() in ("t", "time", "time_s") or time_unit is not None) and len(data) > 1:
         t0, t1 = number(data[0][0]), number(data[1][0])
         if t0 is not None and t1 is not None and t1 > t0:
-            rate = 1.0 / (t1 - t0)
+            rate = 1.0 / ((t1 - t0) * seconds)
     def not_here() -> np.ndarray:
         raise RecordError(f"{path}: a text file's columns are read by Record.read_csv")
 
