@@ -115,6 +115,26 @@ def test_acceleration_under_random_force_is_published_within_one_percent(random_
     assert result.method == "output-error (acceleration)"
 
 
+def test_an_algebraic_start_that_escapes_falls_back_to_the_linear_start(random_force_acceleration, monkeypatch):
+    """The integration's drift can give the algebraic start a softening kp on a hardening plant
+    (5 of 9 seeds of the issue's record published nothing): its simulation escapes, and the fit
+    starts from the frequency response's linear matrices instead."""
+    import duffid.identification.motion as motion
+
+    t, f, _, a_meas, _ = random_force_acceleration
+    real = motion._start
+
+    def softening(*args, **kwargs):
+        start, cutoff, states = real(*args, **kwargs)
+        return {**start, "kp": -30 * KP}, cutoff, states
+
+    monkeypatch.setattr(motion, "_start", softening)
+    result = identify_motion(Record(t, f, a_meas, source="accelerometer"), Duffing1(), "a")
+    assert result.is_identified, result.assessment.notes
+    assert max(errors(result).values()) <= 0.01
+    assert any("the algebraic start did not simulate" in note for note in result.assessment.notes)
+
+
 def test_the_integrated_acceleration_alone_is_no_displacement_to_trust(random_force_acceleration):
     """Why the integration is only a start: the noise's drift stays in the pass band."""
     t, _, x, a_meas, _ = random_force_acceleration

@@ -51,7 +51,7 @@ from .dispatch import final_estimates
 from .engine import STATUSES, Identification
 from .offsets import with_force_offsets
 from .options import default_options
-from .refine import OUTPUTS, canonical_from_public, refine
+from .refine import OUTPUTS, EscapingStart, canonical_from_public, refine
 from .sampling import natural_frequency, noise_is_white, noise_level
 
 __all__ = ["displacement_columns", "measured_motion", "band_limited_motion", "MOTIONS", "SEGMENT_PERIODS", "FIT_TOLERANCE", "FIT_PARTS", "PART_SAMPLES", "MAX_UNCERTAINTY", "START_POWER", "START_NONLINEAR", "START_BINS",
@@ -315,7 +315,17 @@ def identify_motion(record: Record, model: Chain | EquationModel, motion: str | 
         hz = natural_frequency(model, canonical_from_public(model, start), lowest=True)
         segment = max(8, int(round(SEGMENT_PERIODS / hz / record.dt))) if math.isfinite(hz) and hz > 0 else None
     try:
-        fit = refine(record, model, start, output=motion, segment=segment, progress=progress, state_guess=states)
+        try:
+            fit = refine(record, model, start, output=motion, segment=segment, progress=progress, state_guess=states)
+        except EscapingStart:
+            if given is not None or not isinstance(model, Chain):
+                raise
+            # the algebraic start (e.g. a softening kp on a hardening plant, from the integration's drift) does
+            # not simulate: the chain's linear matrices from the frequency response give another
+            start = _linear_start(record, model, states[0])
+            notes.append("the algebraic start did not simulate (it escapes); the fit started from the frequency "
+                         "response's linear matrices")
+            fit = refine(record, model, start, output=motion, segment=segment, progress=progress, state_guess=states)
     except (InputError, RecordError) as exc:
         return _refused(record, model, motion, start, cutoff, f"the output-error fit of the {word} failed: {exc}")
     noise = float(np.max(noise_level(record.x)))

@@ -67,6 +67,7 @@ from ..models.chain import Chain
 BLAS_THREADS = 1
 
 __all__ = [
+    "EscapingStart",
     "upsample",
     "INTERPOLATION_MARGIN",
     "OUTPUTS",
@@ -90,6 +91,10 @@ __all__ = [
     "ESCAPED",
     "BLOCK_SAMPLES",
 ]
+
+
+class EscapingStart(InputError):
+    """The output-error fit's starting model does not simulate the record (non-finite output)."""
 
 INTERPOLATIONS = ("bandlimited", "linear")
 #: What a simulation outputs at the samples (:meth:`OdeSimulator.simulate`): displacements,
@@ -851,8 +856,8 @@ def refine(record: Record, model: Chain, start: Mapping[str, float], *, free: Se
     r0 = residual(start_vec)
     if not np.all(np.isfinite(r0)):
         bar.close()
-        raise InputError(f"{record.source}: the starting model {model.name} escapes (non-finite simulated "
-                         "output); refinement needs a start that simulates")
+        raise EscapingStart(f"{record.source}: the starting model {model.name} escapes (non-finite simulated "
+                            "output); refinement needs a start that simulates")
     options = {"method": "trf", "x_scale": 1.0, "max_nfev": max_nfev, **lsq_options}
     try:
         with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
@@ -897,8 +902,8 @@ def _state_scales(sim: OdeSimulator, canonical: Mapping[str, float], stages: np.
     x = sim.simulate_stages(canonical, stages, np.zeros(n), np.zeros(n))
     v = sim.simulate_stages(canonical, stages, np.zeros(n), np.zeros(n), output="v")
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
-        raise InputError(f"{record.source}: the starting model {sim.model.name} escapes (non-finite simulated "
-                         "output); refinement needs a start that simulates")
+        raise EscapingStart(f"{record.source}: the starting model {sim.model.name} escapes (non-finite simulated "
+                            "output); refinement needs a start that simulates")
     return np.concatenate([np.maximum(np.std(x, axis=0), 1e-300), np.maximum(np.std(v, axis=0), 1e-300)])
 
 
