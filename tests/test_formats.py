@@ -336,6 +336,15 @@ def test_a_csv_header_names_its_roles_for_inspect_and_identify(tmp_path, record,
     assert "without --columns: a CSV file is read by its header t,f,x" in capsys.readouterr().out
 
 
+def test_a_datasets_own_rate_overrides_its_files_step(tmp_path, record):
+    path = tmp_path / "override.h5"
+    with h5py.File(path, "w") as fh:
+        fh.attrs["dt"] = 2 * record.dt  # the file's default, which these datasets override
+        for name, data, unit in (("force", record.f[:, 0], "N"), ("disp", record.x[:, 0], "m")):
+            fh.create_dataset(name, data=data).attrs.update({"unit": unit, "fs": 1 / record.dt})
+    assert Record.read(path).dt == pytest.approx(record.dt, rel=1e-12)
+
+
 def test_a_gap_is_named_by_channel_and_sample(tmp_path, record):
     path = tmp_path / "gap.h5"
     x = record.x[:, 0].copy()

@@ -16,7 +16,7 @@ from scipy.interpolate import CubicSpline
 from duffid import Duffing1
 from duffid.data.record import Record
 from duffid.data.signals import Chirp, Multisine
-from duffid.errors import InputError
+from duffid.errors import InputError, RecordError
 from duffid.identification.engine import STATUSES
 from duffid.identification.motion import FIT_TOLERANCE, MOTIONS, integrated_displacement, identify_motion
 from duffid.identification.sampling import NOISE_AGREEMENT, noise_is_white
@@ -210,6 +210,14 @@ def test_a_velocity_read_as_an_acceleration_is_refused(random_force_acceleration
     _, _, _, v, _ = plant_motion(force, 4.0, 2e-4)
     result = identify_motion(Record(t, f, measured(v, 50, 9), source="mislabelled"), Duffing1(), "a")
     assert not any(np.isfinite(v) for v in result.parameters.values())
+
+
+def test_a_model_of_more_dofs_than_the_record_names_its_accelerations(random_force_acceleration):
+    from duffid import Duffing2
+
+    t, f, _, a_meas, _ = random_force_acceleration
+    with pytest.raises(RecordError, match=r"model duffing2 needs 2 accelerations \(columns\), the record has 1"):
+        identify_motion(Record(t, f, a_meas, source="one sensor"), Duffing2(), "a")
 
 
 def test_bad_arguments_are_refused():

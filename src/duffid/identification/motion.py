@@ -41,6 +41,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from ..data.channels import FAMILY_WORDS
 from ..data.record import Record
 from ..data.units import si_unit
 from ..errors import InputError, RecordError
@@ -294,6 +295,11 @@ def identify_motion(record: Record, model: Chain | EquationModel, motion: str | 
                                                            sampling_rtol=record.sampling_rtol, motion=motion)
     if not (math.isfinite(max_uncertainty) and max_uncertainty > 0):
         raise InputError(f"max_uncertainty must be a positive number, got {max_uncertainty!r}")
+    for count, needed, what in ((record.n_dof, model.n_dof, FAMILY_WORDS[motion]), (record.n_forces, model.n_forces,
+                                                                                      "forces")):
+        if count != needed:
+            raise RecordError(f"{record.source}: model {model.name} needs {needed} {what} (columns), the record has "
+                              f"{count}")
     word = MOTIONS[motion]
     given = start
     start, cutoff, states = _start(record, model, motion, cutoff, algebraic=given is None)

@@ -3,7 +3,8 @@
 Every numeric dataset that is a vector (shape ``(N,)``, ``(N, 1)`` or ``(1, N)``) is a channel,
 named by its path (``run1/force``). Its rate, start and unit come from attributes of the
 dataset or, failing that, of the groups above it: a rate in Hz (:data:`RATE_ATTRIBUTES`) or a
-step in s (:data:`STEP_ATTRIBUTES`), a start time (:data:`START_ATTRIBUTES`) and a unit
+step in s (:data:`STEP_ATTRIBUTES`; both from the nearest node that has either, so that a
+dataset's own rate overrides its file's step), a start time (:data:`START_ATTRIBUTES`) and a unit
 (:data:`UNIT_ATTRIBUTES`; a byte string that is not UTF-8 is read as Latin-1). A packed
 dataset (:data:`PACKING_ATTRIBUTES`) needs the user's scale.
 """
@@ -51,8 +52,8 @@ def open_file(path: str, what: str, advice: str = "") -> Iterator[Any]:
         yield handle
 
 
-def _attribute(node: Any, names: tuple[str, ...]) -> Any:
-    """The first of the attributes ``names`` on ``node`` or a group above it (None: none)."""
+def _attribute(node: Any, names: tuple[str, ...], climb: bool = True) -> Any:
+    """The first of the attributes ``names`` on ``node`` or (``climb``) a group above it (None: none)."""
     while True:
         for name in names:
             if name in node.attrs:
@@ -60,7 +61,7 @@ def _attribute(node: Any, names: tuple[str, ...]) -> Any:
                 if isinstance(value, np.ndarray) and value.size == 1:
                     value = value.reshape(-1)[0]
                 return _text(value) if isinstance(value, bytes) else value
-        if node.name == "/":
+        if node.name == "/" or not climb:
             return None
         node = node.parent
 
@@ -87,8 +88,16 @@ def _packing(ds: Any) -> tuple[str, str]:
     return "", ""
 
 
-def _number(path: str, node: Any, names: tuple[str, ...]) -> float | None:
-    value = _attribute(node, names)
+def _nearest(node: Any, names: tuple[str, ...]) -> Any:
+    """``node`` or the nearest group above it with one of the attributes ``names`` (the root
+    when none has)."""
+    while node.name != "/" and not any(name in node.attrs for name in names):
+        node = node.parent
+    return node
+
+
+def _number(path: str, node: Any, names: tuple[str, ...], climb: bool = True) -> float | None:
+    value = _attribute(node, names, climb)
     if value is None:
         return None
     try:
@@ -127,8 +136,8 @@ def open_channels(path: str) -> Iterator[list[Channel]]:
         for ds in datasets:
             if not numeric(ds.dtype) or ds.ndim not in (1, 2) or (ds.ndim == 2 and 1 not in ds.shape):
                 continue
-            rate = _number(path, ds, RATE_ATTRIBUTES)
-            step = _number(path, ds, STEP_ATTRIBUTES)
+            holder = _nearest(ds, RATE_ATTRIBUTES + STEP_ATTRIBUTES)  # the dataset's own timing before its groups'
+            rate, step = (_number(path, holder, names, climb=False) for names in (RATE_ATTRIBUTES, STEP_ATTRIBUTES))
             if rate is not None and step is not None and not np.isclose(rate * step, 1.0, rtol=1e-9, atol=0.0):
                 raise RecordError(f"{path}, dataset {ds.name.lstrip('/')!r}: its rate {rate:g} Hz and step {step:g} s "
                                   "disagree")
