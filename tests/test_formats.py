@@ -345,6 +345,15 @@ def test_a_datasets_own_rate_overrides_its_files_step(tmp_path, record):
     assert Record.read(path).dt == pytest.approx(record.dt, rel=1e-12)
 
 
+def test_a_mat_file_is_read_by_its_variable_names_as_inspect_lists_them(tmp_path, record, capsys):
+    path = tmp_path / "rig.mat"
+    scipy.io.savemat(path, {"t": record.t[:, None], "f": record.f, "x": record.x})
+    assert main(["inspect", str(path)]) == 0
+    assert "without --columns: t=t, f=f, x=x" in capsys.readouterr().out
+    assert main(["identify", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["samples"] == record.n_samples
+
+
 def test_a_gap_is_named_by_channel_and_sample(tmp_path, record):
     path = tmp_path / "gap.h5"
     x = record.x[:, 0].copy()

@@ -407,7 +407,7 @@ def mat_file(tmp_path: Path) -> Path:
         ({"x": ["x", "q"], "f": "f", "t": "t"}, r": variable 'q' not found \(variables present: cell,"),
         ({"x": "x", "f": "f", "t": "t_short"}, r": variables have different lengths: t_short 8 \(shape 1x8\), f 10 \(shape 1x10\), x 10 \(shape 10x2\)"),
         ({"x": "xT", "f": "f", "t": "t"}, r": variables have different lengths: t 10 \(shape 1x10\), f 10 \(shape 1x10\), xT 2 \(shape 2x10\); samples must run along the rows"),
-        ({"x": "x", "f": "f"}, r": no time given; pass t='<time variable>' or the sampling rate fs$"),
+        ({"x": "x", "f": "f"}, r": no time given: name the time variable \(t=NAME; duffid: --t-var NAME or --columns t=NAME,...\) or give the sampling rate \(fs; duffid: --fs HZ\)$"),
         ({"x": "x", "f": "f", "t": "t", "fs": 100.0}, r": give either the time variable t='t' or the sampling rate fs=100\.0, not both$"),
         ({"x": "x", "f": "f", "fs": -1.0}, r": sampling rate fs must be finite and > 0"),
         ({"x": "label", "f": "f", "t": "t"}, r", variable 'label': not a real numeric array \(dtype <U11\)$"),

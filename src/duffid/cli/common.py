@@ -148,6 +148,10 @@ def read_record(args: argparse.Namespace, path: Path | None = None, *, motion: b
     if fmt not in ("csv", "mat") or (fmt == "mat" and args.columns is not None):
         return Record.read(path, format=fmt, columns=args.columns, scale=args.scale, fs=args.fs,
                            sampling_rtol=args.sampling_tolerance, motion=motion)
+    if fmt == "mat" and args.t_var is None and args.fs is None and (args.x_var, args.f_var) == ("x", "f"):
+        # no flag names the variables: the channels by name, as duffid inspect lists them (t, f, x)
+        return Record.read(path, format=fmt, columns=None, scale=args.scale,
+                           sampling_rtol=args.sampling_tolerance, motion=motion)
     if fmt == "mat":
         split = lambda s: [v.strip() for v in s.split(",")] if "," in s else s  # noqa: E731
         record = Record.read_mat(path, x=split(args.x_var), f=split(args.f_var), t=args.t_var, fs=args.fs,

@@ -784,8 +784,8 @@ class Record:
             )
         if t is None and fs is None:
             raise RecordError(
-                f"{source}: no time given; pass t='<time variable>' or the "
-                "sampling rate fs"
+                f"{source}: no time given: name the time variable (t=NAME; duffid: --t-var NAME or --columns "
+                "t=NAME,...) or give the sampling rate (fs; duffid: --fs HZ)"
             )
         if is_v73(source):
             return cls._read_mat_v73(source, x, f, t, fs, rtol)
