@@ -558,10 +558,10 @@ def test_the_first_windows_stated_errors_are_not_too_small():
     tracking = load_benchmark("tracking")
     z_early = []
     for seed in range(100, 105):
-        record = tracking.record_of([], seed)
+        record = tracking.record_of(tracking.DYNAMIC, [], seed)
         rows = CIdentifier(Duffing1(), tracking.DT).run(record.x, record.f)
         values, errors, window = rows["parameters"][:, :4], rows["std_errors"][:, :4], rows["window"]
-        truth = tracking.truth_of(len(values), [])
+        truth = tracking.truth_of(tracking.DYNAMIC, len(values), [])
         full = window >= window[-1] - 0.5 * tracking.DT
         early = full & (np.arange(len(values)) * tracking.DT < 4 * window[-1])
         with np.errstate(invalid="ignore"):
