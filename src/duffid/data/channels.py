@@ -21,8 +21,9 @@ import numpy as np
 from ..errors import RecordError
 from .units import QUANTITY_OF_ROLE, lookup, si_factor
 
-__all__ = ["Channel", "READ_PART", "UNIT_IN_NAME", "unit_in_name", "ROLE_PATTERN", "MOTION_NOT_YET", "MOTION_FAMILIES", "FAMILY_WORDS", "numeric", "check_roles",
-           "channel_table", "select", "motion_of", "assemble", "check_source_voltage"]
+__all__ = ["Channel", "READ_PART", "UNIT_IN_NAME", "unit_in_name", "ROLE_PATTERN", "MOTION_NOT_YET", "MOTION_FAMILIES",
+           "FAMILY_WORDS", "numeric", "check_roles", "channel_table", "select", "motion_of", "assemble",
+           "check_source_voltage"]
 
 #: A role of the selection syntax: ``t``, ``f``, ``x``, ``v``, ``a`` or numbered ``f1``, ``x2``, ...
 #: Samples a streaming reader delivers at a time (8 MB of float64).
@@ -293,10 +294,10 @@ def check_source_voltage(source: str, force: str, unit: str, motion: Mapping[str
     others = {name: unit_ for name, unit_ in motion.items() if _quantity(unit_) != "charge"}
     if others:
         name, other = next(iter(others.items()))
-        raise RecordError(f"{source}: channel {force!r} is in {unit!r} but {name!r} is "
-                          f"{'in ' + repr(other) if other else 'without a unit'}, not a charge (C): a force in volts is "
-                          "a sensor's output; give its sensitivity as --scale f=FACTOR (N per V), or, for the "
-                          "circuit, the charge's unit C")
+        said = f"in {other!r}" if other else "without a unit"
+        raise RecordError(f"{source}: channel {force!r} is in {unit!r} but {name!r} is {said}, not a charge (C): a "
+                          "force in volts is a sensor's output; give its sensitivity as --scale f=FACTOR (N per V), "
+                          "or, for the circuit, the charge's unit C")
 
 
 def _same(a: float, b: float) -> bool:
@@ -411,9 +412,10 @@ def assemble(chosen: Mapping[str, Channel], source: str, *, scale: Mapping[str, 
             del raw
         bad = np.flatnonzero(~np.isfinite(out))
         if bad.size:  # named here, where the channel is known (the record's own check knows its role only)
+            many = f" ({bad.size} such samples)" if bad.size > 1 else ""
             raise RecordError(f"{source}, channel {channel.name!r}: sample {int(bad[0]) + 1} of {channel.length} is "
-                              f"{float(out[bad[0]])}{f' ({bad.size} such samples)' if bad.size > 1 else ''}; duffid never "
-                              "drops or fills samples: give a record without gaps")
+                              f"{float(out[bad[0]])}{many}; duffid never drops or fills samples: give a record without "
+                              "gaps")
         if factors[role] != 1.0:
             out *= factors[role]
         return out

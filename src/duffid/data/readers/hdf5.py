@@ -20,8 +20,8 @@ from ...errors import RecordError
 from ..channels import Channel, numeric
 from . import optional_import
 
-__all__ = ["EXTENSIONS", "RATE_ATTRIBUTES", "STEP_ATTRIBUTES", "START_ATTRIBUTES", "UNIT_ATTRIBUTES", "PACKING_ATTRIBUTES",
-           "open_file", "open_channels"]
+__all__ = ["EXTENSIONS", "RATE_ATTRIBUTES", "STEP_ATTRIBUTES", "START_ATTRIBUTES", "UNIT_ATTRIBUTES",
+           "PACKING_ATTRIBUTES", "open_file", "open_channels"]
 
 EXTENSIONS = (".h5", ".hdf5", ".hdf", ".he5")
 #: Attributes holding a sampling rate [Hz], in the order they are looked for.
