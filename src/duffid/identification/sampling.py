@@ -72,7 +72,7 @@ def _difference_noise(column: np.ndarray, order: int) -> float:
 #: that reaches the upper part of the band (a broadband force on an accelerometer's plant) leaks
 #: into both, into the 4th more: measured on records of a 10 Hz plant at 5 kHz with 0.3-1 % white
 #: noise, the ratio was 0.99-1.005 (1.055 with a 0.3 ms sensor delay); with the force's band up to
-#: 1.5 kHz (the acceleration follows it above resonance) 1.13-1.14, where the 4th differences
+#: 1.5 kHz (the acceleration follows it above resonance) 1.13-1.45, where the 4th differences
 #: overstated the noise 80-fold, and 1.21 for a vibrometer at 250 Hz under a force to 100 Hz.
 NOISE_AGREEMENT = 0.05
 #: See :data:`NOISE_AGREEMENT`.
