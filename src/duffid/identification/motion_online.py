@@ -310,7 +310,7 @@ class OnlineMotionIdentifier:
         try:
             with _quiet():
                 latest = identify_motion(record, self.model, max_uncertainty=self.options["max_uncertainty"],
-                                         start=result.estimates, progress=False)
+                                         start=result.estimates, check_terms=False, progress=False)
         except (InputError, RecordError, ValueError, np.linalg.LinAlgError) as exc:
             return f"the fit of the horizon's latest half failed ({exc})"
         self.fits += 1
