@@ -507,7 +507,8 @@ def identify_motion(record: Record, model: Chain | EquationModel, motion: str | 
                      + ("" if fit.success else f" (the fit did not converge: {fit.message})")
                      + ": nothing is published; check the columns, units and that the model fits the plant")
     lacking: list[LackingTerm] = []
-    if check_terms and STATUSES[1] in status.values():
+    probed = bool(check_terms and isinstance(model, Chain) and STATUSES[1] in status.values())
+    if probed:
         lacking = probe_terms(record, model, fit, motion, np.std(states[0], axis=0), segment=segment, states=states)
     for term in lacking:
         notes.append(term.describe())
@@ -525,8 +526,9 @@ def identify_motion(record: Record, model: Chain | EquationModel, motion: str | 
              "explained": explained, "bias": list(fit.bias), "bias_std": list(fit.bias_std),
              "bias_unit": si_unit(word), "start": dict(start), "cutoff_hz": cutoff, "stretches": fit.options["stretches"],
              "evaluations": fit.nfev,
-             "lacking_terms": [{"term": t.term, "sigmas": t.sigmas, "moved": dict(t.moved), "remedy": t.remedy}
-                               for t in lacking]},
+             "terms_probed": probed,
+             "lacking_terms": [{"term": t.term, "sigmas": t.sigmas, "moved": dict(t.moved), "remedy": t.remedy,
+                                "note": t.describe()} for t in lacking]},
         notes=notes, values=dict(fit.parameters))
     return _result(record, model, motion, published, dict(fit.parameters), assessment)
 
