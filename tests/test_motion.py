@@ -186,17 +186,23 @@ def test_a_plant_the_model_does_not_fit_is_refused_in_words():
     assert any("misses the measured acceleration" in note for note in result.assessment.notes)
 
 
+def quintic_accelerometer(dt: float = 2e-4) -> Record:
+    """The hardening plant with a weak x^5 spring (1 % of the restoring force at the
+    displacement's peak) under random force, acceleration at 40 dB with a 1 % bias, 4 s."""
+    force = Multisine(0.8 * K * AMPLITUDE, 1.0, 30.0, 4.0, phases="random", seed=2)
+    peak = float(np.max(np.abs(plant_motion(force, 4.0, dt)[2])))
+    quintic = 0.01 * (K * peak + KP * peak**3) / peak**5
+    t, f, _, _, a = plant_motion(force, 4.0, dt, quintic=quintic)
+    return Record(t, measured(f, 60, 12), measured(a, 40, 13, bias_share=0.01), source="quintic", motion="a")
+
+
 def test_a_term_the_model_lacks_below_the_noise_withholds_the_values_it_moves():
     """A weak x^5 spring (1 % of the restoring force at the displacement's peak) at 40 dB: the
     Duffing fit follows the signal to its noise, but kp came out 1.2 % off at 26 of its stated
-    errors (k 0.26 % at 9) and both were published. Probed with the next terms (motion.probe_terms), the
-    x^5 term is far from zero: k and kp, which move with it, are withheld, the note says how to
+    errors (k 0.26 % at 9) and both were published. Probed with the next terms
+    (motion.probe_terms), the x^5 term is far from zero: k and kp, which move with it, are withheld, the note says how to
     identify them; the chain with the term publishes them."""
-    force = Multisine(0.8 * K * AMPLITUDE, 1.0, 30.0, 4.0, phases="random", seed=2)
-    peak = float(np.max(np.abs(plant_motion(force, 4.0, 2e-4)[2])))
-    quintic = 0.01 * (K * peak + KP * peak**3) / peak**5
-    t, f, _, _, a = plant_motion(force, 4.0, 2e-4, quintic=quintic)
-    record = Record(t, measured(f, 60, 12), measured(a, 40, 13, bias_share=0.01), source="quintic", motion="a")
+    record = quintic_accelerometer()
     result = identify_motion(record, Duffing1(), "a")
     status = result.assessment.status
     assert status["k"] == status["kp"] == STATUSES[0], result.assessment.notes
