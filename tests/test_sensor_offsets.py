@@ -230,3 +230,24 @@ def test_cli_text_says_what_the_json_says(csv_file, cli_json, capsys):
     assert f"x0 = {x0:.6g} (standard error {error:.2g}) published" in text
     c1 = cli_json["fit"]["offsets"]["c1"]
     assert f"c1 = {c1['value']:.6g} (standard error {c1['standard_error']:.2g}) {c1['status']}" in text
+
+
+def test_a_small_displacement_offset_by_default_leaves_no_value_beyond_its_errors():
+    """An offset of 2 % of the displacement's RMS, whose simulation misses the record by about
+    2.5 % (8 times the noise, inside SIMULATION_TOLERANCE): the algebraic m and k were 0.6-1 %
+    off at 24-53 stated errors. The output-error cross-check fits the sensor's offset, names it
+    and gives every value the difference from its own as the stated error."""
+    m, fn, zeta = 1.0, 20.0, 0.1
+    k = m * (2 * np.pi * fn) ** 2
+    plant = Duffing1(m=m, b=2 * zeta * np.sqrt(k * m), k=k, kp=7.4e7)
+    exact = simulate(plant, Multisine(20.0, 2.0, 30.0, 4.0, phases="random", seed=1), 4.0, 1 / 600)
+    measured = measure(exact, pulses_per_cm=None, snr_db=50, seed=11)
+    offset = 0.02 * float(np.sqrt(np.mean(exact.x**2)))
+    result = identify(Record(measured.t, measured.f, measured.x + offset, source="offset.csv"), Duffing1())
+    a, truth = result.assessment, plant.parameters
+    assert any(s == "published" for s in a.status.values()), a.notes
+    for name, value in result.parameters.items():
+        if math.isfinite(value):
+            assert abs(value - truth[name]) <= 3 * a.uncertainty[name] * abs(value), (name, value, truth[name], a.uncertainty)
+    notes = " ".join(a.notes)
+    assert "displacement-sensor offset" in notes and "--offset displacement" in notes, notes
