@@ -295,9 +295,11 @@ def _bootstrap_uncertainty(record: Record, estimates: Mapping[str, float], noise
                            rerun: Callable[[Record], Mapping[str, float]], replicates: int,
                            seed: int, progress: Any = None, pool: Pool | None = None,
                            reference: Callable[[], Mapping[str, float]] | None = None,
-                           force_noise: np.ndarray | None = None) -> dict[str, float]:
+                           force_noise: np.ndarray | None = None
+                           ) -> tuple[dict[str, float], dict[str, np.ndarray]]:
     """Relative standard error of each estimate from ``replicates`` noisy copies of the record
-    (white noise of the levels ``noise`` on the displacements and ``force_noise`` on the forces).
+    (white noise of the levels ``noise`` on the displacements and ``force_noise`` on the forces),
+    and the replicates' deviations of each finite estimate (for :func:`_traded_off`).
 
     The copies' noise is drawn in order from one generator (seeded by ``seed``) and the
     replicates run on ``pool`` (:class:`~duffid.identification.dispatch.Pool`: at most its
@@ -680,7 +682,8 @@ def _disagreement_as_uncertainty(refinement: Mapping[str, Any], uncertainty: dic
     them all (measured: kp 0.5 % off at 4 of its stated errors while within 3 combined errors
     of the output-error value)."""
     for k, apart in refinement["apart"].items():
-        if refinement.get("offset_found") or not abs(apart) <= 3.0 * math.hypot(uncertainty[k], refinement["uncertainty"][k]):
+        agrees = abs(apart) <= 3.0 * math.hypot(uncertainty[k], refinement["uncertainty"][k])
+        if refinement.get("offset_found") or not agrees:
             uncertainty[k] = max(uncertainty[k], abs(apart))
 
 def _refinement(record: Record, model: Chain, values: Mapping[str, float], uncertainty: Mapping[str, float],
@@ -740,10 +743,12 @@ def _refinement(record: Record, model: Chain, values: Mapping[str, float], uncer
             "displacement_offset": list(full.bias), "displacement_offset_std": list(full.bias_std)}
     offsets = [j for j, (b, sd) in enumerate(zip(full.bias, full.bias_std)) if abs(b) > SENSOR_OFFSET_SIGMAS * sd]
     info["offset_found"] = bool(offsets)
-    if disagree and offsets:
+    if offsets:
+        named = "x" if len(full.bias) == 1 else "x{}"
         notes.append("the output-error fit finds a displacement-sensor offset ("
-                     + ", ".join(f"x{j + 1 if len(full.bias) > 1 else ''} reads {full.bias[j]:.4g} at rest, "
-                                 f"{abs(full.bias[j]) / full.bias_std[j]:.0f} standard errors from zero" for j in offsets)
+                     + ", ".join(f"{named.format(j + 1)} reads {full.bias[j]:.4g} at rest, "
+                                 f"{abs(full.bias[j]) / full.bias_std[j]:.0f} standard errors from zero"
+                                 for j in offsets)
                      + "): identify with --offset displacement (or --offset both) where the model allows it, or "
                        "remove the offset from the record")
     if check:
