@@ -221,6 +221,8 @@ struct duffid_estimator {
     int64_t spanned_from;                  /* the rows of full windows span a window from this
                                             * sample (-1 before the first full window) */
     int64_t *steady;                       /* canonical order, saturated at settle_count */
+    duffid_real *period_seen;              /* while the auto window grows: a period parameter's latest
+                                            * steady value (canonical order; NaN: none yet) */
     duffid_real *anchor;                   /* canonical order: value the estimate stays near */
     int64_t *anchored;                     /* ... since this sample */
     int64_t *settled;                      /* canonical order, saturated at settle_count */
@@ -948,6 +950,7 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
     est->structure_bytes = c.used;
     /* state */
     CARVE(&c, est->steady, np);
+    CARVE(&c, est->period_seen, np);
     CARVE(&c, est->anchor, np);
     CARVE(&c, est->anchored, np);
     CARVE(&c, est->settled, np);
@@ -1638,6 +1641,7 @@ void duffid_reset(duffid_estimator *est)
     }
     for (i = 0; i < est->n_params; i++) {
         est->steady[i] = 0;
+        est->period_seen[i] = R_NAN;
         est->anchor[i] = R_NAN;
         est->anchored[i] = 0;
         est->settled[i] = 0;
@@ -3648,18 +3652,49 @@ static int next_status(int status, int64_t settled, int64_t unsettled, int64_t s
     return status == DUFFID_STATUS_LOST || status == DUFFID_STATUS_CHANGED ? status : DUFFID_STATUS_UNCERTAIN;
 }
 
-/* OnlineIdentifier._window_known: masses and linear stiffnesses steady, the rest steady
- * or not excited */
+/* OnlineIdentifier._window_known: masses and linear stiffnesses steady (or no longer excited
+ * after they were), the rest steady or not excited */
 static int window_known(const duffid_estimator *est)
 {
     int i;
     for (i = 0; i < est->n_params; i++) {
-        int needed = est->m.params[i].period;
+        int needed = est->m.params[i].period && !is_finite(est->period_seen[i]);
         if (!(est->steady[i] >= est->settle_count || (est->status[i] == DUFFID_STATUS_NOT_EXCITED && !needed))) {
             return 0;
         }
     }
     return 1;
+}
+
+/* OnlineIdentifier._after_publish: remember the period parameters' steady values while the
+ * window grows; once the window is known, fix it at window_periods natural periods of the
+ * estimate (never shorter than now), a period parameter no longer excited taken at its
+ * remembered value */
+static void fix_window(duffid_estimator *est, long window)
+{
+    duffid_real saved[DUFFID_MAX_PARAMS];
+    int i;
+    for (i = 0; i < est->n_params; i++) {
+        if (est->m.params[i].period && est->steady[i] >= est->settle_count) {
+            est->period_seen[i] = est->canon[i];
+        }
+    }
+    if (!window_known(est)) {
+        return;
+    }
+    for (i = 0; i < est->n_params; i++) {
+        saved[i] = est->canon[i];
+        if (est->m.params[i].period && est->steady[i] < est->settle_count) {
+            est->canon[i] = est->period_seen[i];
+        }
+    }
+    est->window_fixed = 1;
+    set_target(est, (long)natural_window(est, window, est->cfg.window_periods, (duffid_real)est->capacity));
+    /* the longest window must hold DUFFID_MIN_WINDOW_PERIODS lowest natural periods */
+    est->window_capped = capped(est);
+    for (i = 0; i < est->n_params; i++) {
+        est->canon[i] = saved[i];
+    }
 }
 
 /* the model's is_physical: the sign its term needs (canonical index i) */
@@ -3838,11 +3873,8 @@ static void publish(duffid_estimator *est, long window, duffid_output *out)
                                   : (good ? public_value(est, i, est->canon[est->m.publics[i].canonical]) : R_NAN);
         }
     }
-    if (est->cfg.method == DUFFID_ROBUST && est->auto_window && !est->window_fixed && window_known(est)) {
-        est->window_fixed = 1;
-        set_target(est, (long)natural_window(est, window, est->cfg.window_periods, (duffid_real)est->capacity));
-        /* the longest window must hold DUFFID_MIN_WINDOW_PERIODS lowest natural periods */
-        est->window_capped = capped(est);
+    if (est->cfg.method == DUFFID_ROBUST && est->auto_window && !est->window_fixed) {
+        fix_window(est, window);
     }
 }
 
