@@ -678,3 +678,10 @@ def test_units_are_checked_against_the_role():
                                           r"x=FACTOR \(m per V, i\.e\. 1 / the sensitivity in V/m\)"):
         si_factor("V", "x", "here")
     assert si_factor(None, "x", "here") == 1.0 and si_factor("", "x", "here") == 1.0
+
+
+def test_an_upper_case_g_is_standard_gravity():
+    """Accelerometer software writes ``G`` as often as ``g`` (it was refused as unknown)."""
+    from duffid.data.units import STANDARD_GRAVITY, lookup
+
+    assert lookup("G") == lookup("g") and lookup("G").factor == STANDARD_GRAVITY

@@ -116,3 +116,26 @@ def test_cli_says_which_scale_a_unit_needs(tmp_path, record):
     assert proc.returncode == 2
     assert "column 'disp_mm' (x) is in 'mm' (units row, line 4)" in proc.stderr
     assert proc.stderr.rstrip().endswith("scale it into m: --scale x=0.001")
+
+
+def test_a_unit_ending_a_column_name_is_not_read_as_si_without_a_word(tmp_path, record):
+    """``load_kN`` and ``x_mm`` without a units row were read as N and m (a stiffness 10^6
+    too small, published with every check passed); now they stop until the user scales them
+    (or says with a scale of 1 that the name is no unit). A suffix that names no unit of the
+    signal's quantity (``f_in``: an input force, ``in`` no force unit) is no unit."""
+    path = tmp_path / "rig.csv"
+    lines = ["t,load_kN,x_mm,f_in"] + [f"{float(t)!r},{float(f) / 1e3!r},{float(x) * 1e3!r},{float(f)!r}"
+                                       for t, f, x in zip(record.t, record.f[:, 0], record.x[:, 0])]
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(RecordError, match=r"column 'load_kN' \(f\) is in 'kN' \(the end of its name; if it is in "
+                                          r"N, give it a scale of 1\).*\(multiply f by 1000\)"):
+        Record.read_csv(path, columns={"t": "t", "f": "load_kN", "x": "x_mm"})
+    scaled = Record.read_csv(path, columns={"t": "t", "f": "load_kN", "x": "x_mm"}, scale={"f": 1e3, "x": 1e-3})
+    np.testing.assert_allclose(scaled.f[:, 0], record.f[:, 0], rtol=1e-12)
+    np.testing.assert_allclose(scaled.x[:, 0], record.x[:, 0], rtol=1e-12, atol=1e-18)
+    with pytest.raises(RecordError, match=r"column 'x_mm' \(x\) is in 'mm'"):
+        Record.read_csv(path, columns={"t": "t", "f": "f_in", "x": "x_mm"})
+    plain = Record.read_csv(path, columns={"t": "t", "f": "f_in", "x": "x_mm"}, scale={"x": 1e-3})
+    np.testing.assert_allclose(plain.f[:, 0], record.f[:, 0], rtol=1e-12)
+    proc = _cli("identify", path, "--columns", "t=t,f=load_kN,x=x_mm")
+    assert proc.returncode != 0 and "--scale f=1000" in proc.stderr

@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import RecordError
-from .units import QUANTITY_OF_ROLE, lookup, si_factor
+from .units import QUANTITY_OF_ROLE, ROLE_QUANTITIES, lookup, si_factor
 
-__all__ = ["Channel", "READ_PART", "UNIT_IN_NAME", "unit_in_name", "ROLE_PATTERN", "MOTION_NOT_YET", "MOTION_FAMILIES",
+__all__ = ["Channel", "READ_PART", "UNIT_IN_NAME", "unit_in_name", "unit_suffix", "ROLE_PATTERN", "MOTION_NOT_YET", "MOTION_FAMILIES",
            "FAMILY_WORDS", "numeric", "check_roles", "channel_table", "select", "motion_of", "assemble",
            "check_source_voltage"]
 
@@ -55,6 +55,32 @@ def unit_in_name(name: str) -> str | None:
     """The unit closing ``name`` in brackets (:data:`UNIT_IN_NAME`; None: none)."""
     found = UNIT_IN_NAME.search(name)
     return found.group(1) if found and found.group(1) not in _AXIS_LABELS else None
+
+
+#: What separates a unit ending a channel's name from the rest (``load_kN``, ``acc.mm.s2``).
+_NAME_SEPARATORS = re.compile(r"[_.\- ]+")
+
+
+def unit_suffix(name: str, role: str) -> str | None:
+    """A unit of ``role``'s quantity ending ``name`` after a separator (``load_kN``: ``kN``,
+    ``acc_mm_s2``: ``mm/s2``, ``time_ms``: ``ms``); None when no known unit does.
+
+    Parameters
+    ----------
+    name : str
+        The channel's name (a CSV column's header).
+    role : str
+        ``t``, ``f``, ``x``, ``v``, ``a`` or numbered (``f1``): only its quantity's units count
+        (``f_in``, an input force, names no force unit).
+    """
+    parts = [p for p in _NAME_SEPARATORS.split(name.strip()) if p]
+    for k in (2, 1):  # "mm_s2" before "s2"
+        if len(parts) > k:
+            text = "/".join(parts[-k:])
+            unit = lookup(text)
+            if unit is not None and unit.quantity in ROLE_QUANTITIES[role[0]]:
+                return text
+    return None
 
 
 def numeric(dtype: np.dtype) -> bool:

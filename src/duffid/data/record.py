@@ -32,7 +32,7 @@ from scipy.io.matlab import MatReadError
 
 from ..errors import InputError, OptionError, RecordError
 from .channels import (FAMILY_WORDS, MOTION_FAMILIES, ROLE_PATTERN, Channel, assemble, check_roles,
-                       check_source_voltage, motion_of, select, unit_in_name)
+                       check_source_voltage, motion_of, select, unit_in_name, unit_suffix)
 from .formats import detect_format, read_arrays
 from .readers.matlab import is_v73
 from .readers.matlab import open_channels as open_mat_channels
@@ -1252,10 +1252,14 @@ def _parse_logger_lines(lines: list[str], source: str, rtol: float, columns: Map
             units = {role: fields[index[role]] for role in roles}
             said = {role: f"units row, line {pos + 1}" for role in roles}
             pos += 1
-    for role in roles:  # else a unit closing the column's name: "x (mm)", "f [kN]"
+    for role in roles:  # else a unit closing the column's name: "x (mm)", "f [kN]", "load_kN"
         named = unit_in_name(names[index[role]])
         if role not in units and named:
             units[role], said[role] = named, "in its name"
+        suffix = unit_suffix(names[index[role]], role)
+        if role not in units and suffix:
+            # ... not applied unless the user says so: a suffix may name something else
+            units[role], said[role] = suffix, f"the end of its name; if it is in {SI_UNITS[role[0]][0]}, give it a scale of 1"
     volts = [r for r in f_roles if units.get(r) == "V" and scale.get(r, scale.get("f")) is None]
     if volts:  # the circuit's source voltage, never a force sensor's output
         check_source_voltage(source, names[index[volts[0]]], "V",

@@ -82,7 +82,7 @@ def _normalise(unit: str) -> str:
     text = "".join(unit.split())
     for old, new in _ALIASES.items():
         text = text.replace(old, new)
-    return {"gn": "g", "g0": "g"}.get(text, text)
+    return {"gn": "g", "g0": "g", "G": "g"}.get(text, text)
 
 
 def lookup(unit: str | None) -> Unit | None:
