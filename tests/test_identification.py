@@ -309,3 +309,20 @@ def test_a_jump_of_two_samples_that_stays_is_the_motion(case_b_exact):
 def test_a_step_from_rest_is_no_outlier():
     record = measure(simulate(Duffing1(), Step(10.0, 0.2), 1.0, 1e-3))
     assert estimate(record, Duffing1()).outliers == []
+
+
+def test_a_buffered_method_without_accumulate_says_its_values_rest_on_one_window():
+    """A 3.6 Hz plant through the default 0.25 s Legendre window (0.9 natural periods): the
+    latest window's values escape the simulation check, and the note said only that the
+    model "does not describe the plant"; it now says what they rest on and the remedy (with
+    --accumulate every value is published)."""
+    plant = Duffing1()
+    record = measure(simulate(plant, Multisine(10.0, 1.0, 30.0, 4.0, phases="random", seed=3), 4.0, 1e-3),
+                     pulses_per_cm=None, snr_db=60, seed=3)
+    alone = identify(record, plant, method="legendre")
+    assert not alone.assessment.identified
+    assert any("without --accumulate identifies from its latest window alone (0.25 s" in note
+               for note in alone.assessment.notes)
+    every = identify(record, plant, method="legendre", accumulate=True)
+    assert every.assessment.identified
+    assert not any("--accumulate" in note for note in every.assessment.notes)

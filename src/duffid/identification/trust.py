@@ -105,7 +105,7 @@ from .offsets import (
     report_displacement_offset,
     with_force_offsets,
 )
-from .options import ONLINE_METHODS, check_options
+from .options import BUFFERED_METHODS, ONLINE_METHODS, check_options
 from .sampling import (
     content_frequency,
     every_second,
@@ -333,6 +333,14 @@ def _checked(record: Record, method: str, kind: str | None, physical: Chain, est
                                noise=noise, content=content, rerun_reference=estimation.reference())
     if kind in ("displacement", "both"):
         report_displacement_offset(result, kind, separable=estimation.shifted, cubic_share=cubic_share)
+    if method in BUFFERED_METHODS and not result.assessment.identified and \
+            not check_options(method, opts)["accumulate"]:  # say what its values rest on
+        window = float(check_options(method, opts)["window"])
+        natural = result.assessment.fit.get("natural_hz", math.nan)
+        held = f", {window * natural:.2g} natural periods of the estimate" if np.isfinite(natural) else ""
+        result.assessment.notes.append(
+            f"the {method} method without --accumulate identifies from its latest window alone "
+            f"({window:.3g} s{held}): --accumulate takes every window's rows")
     if outliers:
         listed = ", ".join(f"x{j + 1} = {measured.x[i, j]:.4g} at t = {measured.t[i]:.6g} s" for i, j, _ in outliers[:5])
         result.assessment.notes.insert(0, f"{len(outliers)} isolated outlier{'s' if len(outliers) > 1 else ''} in "
