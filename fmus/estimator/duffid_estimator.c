@@ -53,6 +53,7 @@ typedef char line_unknowns_fit[MAX_LINE <= MAX_UNK ? 1 : -1]; /* the workspaces 
 #define MAX_POW (MAX_DEG + 1)
 #define MAX_CORR (2 * DUFFID_GREGORY_POINTS) /* quadrature end corrections */
 #define MAX_RATE (2 * MAX_CORR + 1)  /* ... of the rule minus the half-rate rule (engine.RATE_NOISE) */
+#define NOISE_HISTORY 7              /* the displacements the rows' noise level keeps: a 6th difference's */
 #define MIN_SAMPLES DUFFID_MIN_SAMPLES  /* engine.MIN_SAMPLES (duffid_facts.h) */
 #define MAX_CAPACITY 100000000L      /* longest robust window in samples */
 #define ANY_SIGN (DUFFID_ALLOW_POSITIVE | DUFFID_ALLOW_ZERO | DUFFID_ALLOW_NEGATIVE)
@@ -170,6 +171,11 @@ typedef struct { /* the state of one block of the description */
     /* engine.RATE_NOISE: the rows' change Q at half the rate (the rule on every second sample) */
     duffid_real *rate_v;              /* n_line: A^T Q of the accumulated rows (with their forgetting) */
     duffid_real *rate_shift;          /* n: how Q moves the unknowns (at the newest rows) */
+    /* row_noise: the rows' noise dA, dD (the channels' change under the displacements' noise) */
+    duffid_real *noise_G;             /* n_line x (n_line + 1): dA^T [dA dD] of the accumulated rows
+                                       * (with their forgetting) */
+    duffid_real *noise_G_recent;      /* ... of the change test's recent rows */
+    duffid_real *noise_shift;         /* n: how it moves the unknowns (row_noise.noise_shift) */
     duffid_real cond, rhs_share, rows, rows_recent, residual;
     int64_t departed;                 /* samples the departure has mattered in a row, saturated
                                        * at settle */
@@ -187,6 +193,10 @@ struct duffid_estimator {
     duffid_config cfg;
     rt_model m;
     int n_dof, n_forces, n_params, n_ch, n_eq;
+    int n_mom;                             /* channels of the moments: the model's n_ch, then n_noise
+                                            * of the rows' noise (row_noise; robust only) */
+    int n_noise;
+    int noise_of[MAX_CH];                  /* a model channel's noise channel (moments), -1: none */
     equation_t eq[MAX_EQ];
     /* derived from the configuration at init (the "structure": duffid_check_state compares it) */
     duffid_real dt, max_condition, max_uncertainty, min_time, deadband;
@@ -206,7 +216,8 @@ struct duffid_estimator {
     duffid_real *k_coef;                   /* packed non-zero kernel coefficients */
     int *k_expo;                           /* ... and their powers of tau */
     int n_used, used_order[N_ORD * MAX_CH], used_channel[N_ORD * MAX_CH]; /* what the terms read */
-    int n_jobs;                            /* the kernel entries to compute: n_used x n_rows */
+    int n_jobs;                            /* the kernel entries to compute: n_used x n_rows, then */
+    int n_noise_jobs;                      /* ... those of the noise channels of the used */
     int *job;                              /* [5 per entry]: poly at, moment at, count, entry, row */
     int *force_channel;                    /* n_forces: the channel that is force j, -1: none */
     duffid_real *stirling;                 /* [k][j] = S2(k, j) N^(j - k) / N: power moments */
@@ -234,6 +245,12 @@ struct duffid_estimator {
     int *changed_now;                      /* canonical order: restarted at this sample: -1 no,
                                             * 0 (uncertain) or 1 (changed) */
     duffid_real *held;                     /* public order */
+    /* row_noise.NoiseLevel: the displacements' noise level and the generator of the rows' noise */
+    uint32_t noise_state;                  /* xorshift32 */
+    int noise_count;                       /* displacements in noise_hist, at most NOISE_HISTORY */
+    duffid_real noise_hist[NOISE_HISTORY * DUFFID_MAX_DOF]; /* the latest, oldest first: [slot * n_dof + j] */
+    duffid_real noise_m4[DUFFID_MAX_DOF], noise_m6[DUFFID_MAX_DOF]; /* running mean square 4th, 6th differences */
+    int64_t noise_n4, noise_n6;
     int has_last_x;                        /* signs of velocity (identification._Channels) */
     duffid_real last_x[DUFFID_MAX_DOF], sgn[DUFFID_MAX_DOF];
 
@@ -288,6 +305,9 @@ struct duffid_estimator {
     duffid_real *E_rate;                    /* the difference's kernel entries, like E */
     duffid_real *B_rate;                    /* a block's rows of the difference, like B */
     duffid_real *rate_q;                    /* Q of a block's rows (workspace) */
+    duffid_real *B_noise;                   /* a block's rows' noise [dA dD], like B (row_noise) */
+    duffid_real *noise_w;                   /* the noise shift's workspace: 3 n x n */
+    duffid_real *noise_Gw;                  /* a growing window's rows' noise gram, n x (n + 1) */
     long leave_i;                           /* cache key of leave_phi (-1: empty) */
     duffid_real *leave_phi;                 /* the basis at the offset where samples leave */
     duffid_real *E;                         /* [r][order][channel] */
@@ -724,6 +744,7 @@ typedef struct {
     long capacity;
     int unknowns[MAX_EQ], parts[MAX_EQ], lines[MAX_EQ]; /* lines: most unknowns with the lines' rates */
     int offset_probe[MAX_EQ];  /* the offset probe runs: robust, one part, no constant (offset) parameter */
+    int n_noise;               /* robust: channels of the rows' noise (one per channel of x, row_noise) */
     block_t blocks[BUILTIN_BLOCKS > MAX_EQ ? BUILTIN_BLOCKS : MAX_EQ];
     term_t terms[BUILTIN_TERMS];
     duffid_rule rules[BUILTIN_RULES];
@@ -801,6 +822,11 @@ static void shape_of(const duffid_config *cfg, shape_t *s)
         }
     }
     s->method = cfg->method;
+    s->n_noise = 0;
+    for (e = 0; e < s->m.c.n_channels && cfg->method == DUFFID_ROBUST; e++) { /* the channels of x (row_noise) */
+        s->n_noise += cfg->model == DUFFID_GENERATED ? generated_model()->channel_force[e] < 0
+                                                     : s->ch[e].kind == CH_X || s->ch[e].kind == CH_DEFL;
+    }
     s->n_rows = cfg->n_rows ? cfg->n_rows : (n_max + 1 > 8 ? n_max + 1 : 8);
     s->capacity = cfg->method == DUFFID_ROBUST ? capacity_of(cfg) : 0;
     s->degree = s->n_coef = 0;
@@ -890,7 +916,7 @@ int duffid_check_config(const duffid_config *cfg, char *msg, size_t size)
             set_msg(msg, size, "n_rows must be at most %d in the C core, got %d", DUFFID_MAX_ROWS, s.n_rows);
             return DUFFID_ERR_CONFIG;
         }
-        if (s.capacity < 0 || ((duffid_real)s.capacity + RC(2.0)) * (duffid_real)s.m.c.n_channels *
+        if (s.capacity < 0 || ((duffid_real)s.capacity + RC(2.0)) * (duffid_real)(s.m.c.n_channels + s.n_noise) *
                                       (duffid_real)sizeof(duffid_real) >
                                   (duffid_real)SIZE_MAX / RC(2.0)) {
             set_msg(msg, size, "the window (%g s at dt %g s) exceeds %ld samples or the address space",
@@ -917,6 +943,7 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
     duffid_estimator scratch;
     carver_t c;
     const int n_ch = s->m.c.n_channels, n_blk = s->m.c.n_blocks, np = s->m.c.n_params;
+    const int n_mom = n_ch + s->n_noise; /* the moments' channels: the model's and their noise's */
     const int D = s->degree, robust = s->method == DUFFID_ROBUST;
     int e, n_max = 0, p_max, rows_max = 0, line_max = 0;
     c.base = base;
@@ -944,7 +971,7 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
     CARVE(&c, est->k_coef, robust ? s->n_coef : 0);
     CARVE(&c, est->k_expo, robust ? s->n_coef : 0);
     CARVE(&c, est->stirling, robust ? (D + 1) * (D + 1) : 0);
-    CARVE(&c, est->job, robust ? 5 * N_ORD * n_ch * s->n_rows : 0);
+    CARVE(&c, est->job, robust ? 5 * N_ORD * n_mom * s->n_rows : 0);
     CARVE(&c, est->step, robust ? D + 1 : 0);
     CARVE(&c, est->force_channel, s->m.c.n_forces);
     est->structure_bytes = c.used;
@@ -966,7 +993,7 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
     CARVE(&c, est->canon_steady, np);
     CARVE(&c, est->canon_share, np);
     CARVE(&c, est->chan_work, s->m.c.channel_work);
-    CARVE(&c, est->g, n_ch);
+    CARVE(&c, est->g, n_mom);
     CARVE(&c, est->lin, 2 * s->m.c.n_dof * s->m.c.n_dof);
     for (e = 0; e < n_blk; e++) {
         equation_t *eq = &est->eq[e];
@@ -988,6 +1015,9 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
         CARVE(&c, eq->jump_shift, n);
         CARVE(&c, eq->rate_v, robust ? nl : 0);
         CARVE(&c, eq->rate_shift, n);
+        CARVE(&c, eq->noise_G, robust ? nl * p : 0);
+        CARVE(&c, eq->noise_G_recent, robust ? nl * p : 0);
+        CARVE(&c, eq->noise_shift, n);
         CARVE(&c, eq->drift_shift, n);
         CARVE(&c, eq->drifting, n);
         CARVE(&c, eq->line, lines ? nl : 0);
@@ -1011,22 +1041,25 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
     CARVE(&c, est->Rinv, line_max * line_max);
     CARVE(&c, est->scale, line_max);
     if (robust) {
-        CARVE(&c, est->ring, (s->capacity + 2) * n_ch);
-        CARVE(&c, est->acc, (D + 1) * n_ch);
-        CARVE(&c, est->shadow, SHADOWS * (D + 1) * n_ch);
-        CARVE(&c, est->fact, (D + 1) * n_ch);
-        CARVE(&c, est->mom, (D + 1) * n_ch);
+        CARVE(&c, est->ring, (s->capacity + 2) * n_mom);
+        CARVE(&c, est->acc, (D + 1) * n_mom);
+        CARVE(&c, est->shadow, SHADOWS * (D + 1) * n_mom);
+        CARVE(&c, est->fact, (D + 1) * n_mom);
+        CARVE(&c, est->mom, (D + 1) * n_mom);
         CARVE(&c, est->poly, s->n_coef);
         CARVE(&c, est->corr_w, MAX_CORR * (D + 1));
         CARVE(&c, est->acc_alt, (D + 1) * n_ch);
         CARVE(&c, est->shadow_alt, SHADOWS * (D + 1) * n_ch);
         CARVE(&c, est->dfact, (D + 1) * n_ch);
         CARVE(&c, est->dmom, (D + 1) * n_ch);
-        CARVE(&c, est->E_rate, s->n_rows * N_ORD * n_ch);
+        CARVE(&c, est->E_rate, s->n_rows * N_ORD * n_mom);
         CARVE(&c, est->B_rate, rows_max * (line_max + 1));
         CARVE(&c, est->rate_q, rows_max);
+        CARVE(&c, est->B_noise, s->n_noise ? rows_max * (line_max + 1) : 0);
+        CARVE(&c, est->noise_w, s->n_noise ? 3 * line_max * line_max : 0);
+        CARVE(&c, est->noise_Gw, s->n_noise ? line_max * (line_max + 1) : 0);
         CARVE(&c, est->leave_phi, D + 1);
-        CARVE(&c, est->E, s->n_rows * N_ORD * n_ch);
+        CARVE(&c, est->E, s->n_rows * N_ORD * n_mom);
         CARVE(&c, est->one_E, s->n_rows);
         CARVE(&c, est->jump_flag, s->capacity + 2);
         CARVE(&c, est->jump_sum, (D + 1) * s->m.c.n_forces);
@@ -1160,6 +1193,13 @@ static void build_structure(duffid_estimator *est, const shape_t *s)
     est->n_params = est->m.c.n_params;
     est->n_ch = est->m.c.n_channels;
     est->n_eq = est->m.c.n_blocks;
+    est->n_noise = s->n_noise;
+    est->n_mom = est->n_ch + est->n_noise;
+    for (i = 0, k = est->n_ch; i < est->n_ch; i++) { /* the channels of x have a noise channel each */
+        const int noisy = est->cfg.model == DUFFID_GENERATED ? generated_model()->channel_force[i] < 0
+                                                             : est->m.ch[i].kind == CH_X || est->m.ch[i].kind == CH_DEFL;
+        est->noise_of[i] = noisy && est->n_noise > 0 ? k++ : -1;
+    }
     for (i = 0; i < est->n_params; i++) {
         est->nominal[est->m.publics[i].canonical] = R_FABS(est->cfg.nominal[i]);
     }
@@ -1197,17 +1237,25 @@ static void build_structure(duffid_estimator *est, const shape_t *s)
         est->sqrt_lam = R_SQRT(est->lam);
         est->inv_cap = RC(1.0) / (duffid_real)est->capacity;
         build_kernel_bank(est);
-        est->n_jobs = 0;
-        for (i = 0; i < est->n_used; i++) { /* the kernel entries: E[(r * N_ORD + d) * n_ch + c] */
-            const int d = est->used_order[i], c = est->used_channel[i];
-            int r;
-            for (r = 0; r < est->n_rows; r++) {
-                int *job = est->job + 5 * est->n_jobs++;
-                job[0] = est->k_at[r * N_ORD + d];
-                job[1] = c * (est->degree + 1) + est->k_first[r * N_ORD + d];
-                job[2] = est->k_count[r * N_ORD + d];
-                job[3] = (r * N_ORD + d) * est->n_ch + c;
-                job[4] = d == 2 && est->raw_b[r] >= 0 ? r : -1;
+        est->n_jobs = est->n_noise_jobs = 0;
+        for (k = 0; k < 2; k++) { /* the kernel entries: E[(r * N_ORD + d) * n_mom + c]; then the
+                                   * entries of the used channels' noise channels */
+            for (i = 0; i < est->n_used; i++) {
+                const int d = est->used_order[i], c = k == 0 ? est->used_channel[i] : est->noise_of[est->used_channel[i]];
+                int r;
+                for (r = 0; r < est->n_rows && c >= 0; r++) {
+                    int *job = est->job + 5 * (est->n_jobs + est->n_noise_jobs);
+                    job[0] = est->k_at[r * N_ORD + d];
+                    job[1] = c * (est->degree + 1) + est->k_first[r * N_ORD + d];
+                    job[2] = est->k_count[r * N_ORD + d];
+                    job[3] = (r * N_ORD + d) * est->n_mom + c;
+                    job[4] = d == 2 && est->raw_b[r] >= 0 ? r : -1;
+                    if (k == 0) {
+                        est->n_jobs++;
+                    } else {
+                        est->n_noise_jobs++;
+                    }
+                }
             }
         }
         est->change_threshold = est->cfg.change_threshold;
@@ -1310,7 +1358,8 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
         return DUFFID_ERR_ARGUMENT;
     }
     /* structure: everything duffid_init derives from the configuration */
-    STATE_SAME(n_dof) STATE_SAME(n_forces) STATE_SAME(n_params) STATE_SAME(n_ch) STATE_SAME(n_eq)
+    STATE_SAME(n_dof) STATE_SAME(n_forces) STATE_SAME(n_params) STATE_SAME(n_ch) STATE_SAME(n_mom) STATE_SAME(n_eq)
+    STATE_SAME(n_noise) STATE_SAME(noise_of) STATE_SAME(n_noise_jobs)
     if (memcmp(&est->m.c, &fresh->m.c, sizeof est->m.c) != 0) { /* another model (its counts, signature) */
         bad = "model";
         goto done;
@@ -1379,6 +1428,10 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     }
     STATE_RANGE(est->spanned_from, -1, n + 1 + (int64_t)est->capacity)
     STATE_RANGE(est->has_last_x, 0, 1)
+    STATE_RANGE(est->noise_count, 0, NOISE_HISTORY) /* the rows' noise */
+    STATE_RANGE(est->noise_n4, 0, n + 1)
+    STATE_RANGE(est->noise_n6, 0, est->noise_n4)
+    STATE_RANGE(est->noise_state, 1, UINT32_MAX) /* xorshift32 never reaches 0 */
     STATE_RANGE(est->pending, 0, 2)
     STATE_RANGE(est->received, n + est->pending, n + est->pending) /* a held sample is not processed yet */
     STATE_RANGE(est->g_count, 0, est->received + 1)
@@ -1554,6 +1607,7 @@ static void clear_change(equation_t *eq, int n)
         eq->jump_shift[u] = RC(0.0);
         eq->rate_shift[u] = RC(0.0);
         eq->drift_shift[u] = RC(0.0);
+        eq->noise_shift[u] = RC(0.0);
     }
 }
 
@@ -1566,6 +1620,8 @@ static void clear_factors(duffid_estimator *est, int e)
     int i;
     memset(eq->R, 0, (size_t)(p * p) * sizeof(duffid_real));
     memset(eq->R_recent, 0, (size_t)(p * p) * sizeof(duffid_real));
+    memset(eq->noise_G, 0, (size_t)((p - 1) * p) * sizeof(duffid_real));
+    memset(eq->noise_G_recent, 0, (size_t)((p - 1) * p) * sizeof(duffid_real));
     if (eq->probe_n > 0) {
         memset(eq->R_probe, 0, (size_t)(p * p) * sizeof(duffid_real));
     }
@@ -1621,6 +1677,12 @@ void duffid_reset(duffid_estimator *est)
     est->has_last_x = 0;
     memset(est->last_x, 0, sizeof est->last_x);
     memset(est->sgn, 0, sizeof est->sgn);
+    est->noise_state = DUFFID_NOISE_SEED; /* row_noise.NoiseLevel.reset */
+    est->noise_count = 0;
+    memset(est->noise_hist, 0, sizeof est->noise_hist);
+    memset(est->noise_m4, 0, sizeof est->noise_m4);
+    memset(est->noise_m6, 0, sizeof est->noise_m6);
+    est->noise_n4 = est->noise_n6 = 0;
     est->received = -1;
     guard_reset(est);
     est->pending = 0;
@@ -1655,9 +1717,10 @@ void duffid_reset(duffid_estimator *est)
     }
     if (est->cfg.method == DUFFID_ROBUST) {
         const size_t moments = (size_t)(est->degree + 1) * (size_t)est->n_ch * sizeof(duffid_real);
-        memset(est->ring, 0, (size_t)(est->capacity + 2) * (size_t)est->n_ch * sizeof(duffid_real));
-        memset(est->acc, 0, moments);
-        memset(est->shadow, 0, SHADOWS * moments);
+        const size_t all = (size_t)(est->degree + 1) * (size_t)est->n_mom * sizeof(duffid_real);
+        memset(est->ring, 0, (size_t)(est->capacity + 2) * (size_t)est->n_mom * sizeof(duffid_real));
+        memset(est->acc, 0, all);
+        memset(est->shadow, 0, SHADOWS * all);
         memset(est->acc_alt, 0, moments);
         memset(est->shadow_alt, 0, SHADOWS * moments);
         est->rate_ok = 0;
@@ -1703,6 +1766,104 @@ void duffid_reset(duffid_estimator *est)
 }
 
 /* ------------------------------------------------------------------ channels */
+/* a built-in model's channel c at x, f */
+static duffid_real channel_value(const channel_t *c, const duffid_real *x, const duffid_real *f)
+{
+    switch (c->kind) {
+    case CH_X:
+        return int_power(x[c->index], c->power);
+    case CH_DEFL:
+        return int_power(x[c->index] - (c->index > 0 ? x[c->index - 1] : RC(0.0)), c->power);
+    case CH_FORCE:
+        return f[c->index];
+    default:
+        return RC(1.0);
+    }
+}
+
+#ifdef DUFFID_GENERATED_MODEL
+/* the generated model's channels at x, f into g (the channel function is CasADi's double code) */
+static void generated_channels(duffid_estimator *est, const duffid_real *x, const duffid_real *f, duffid_real *g)
+{
+    double xd[DUFFID_MAX_DOF], fd[DUFFID_MAX_FORCES], sd[DUFFID_MAX_DOF], gd[MAX_CH];
+    int i;
+    for (i = 0; i < est->n_dof; i++) {
+        xd[i] = (double)x[i];
+        sd[i] = (double)est->sgn[i];
+    }
+    for (i = 0; i < est->n_forces; i++) {
+        fd[i] = (double)f[i];
+    }
+    duffid_generated_channels(xd, fd, (double)est->n * (double)est->dt, sd, gd, est->chan_work);
+    for (i = 0; i < est->n_ch; i++) {
+        g[i] = (duffid_real)gd[i];
+    }
+}
+#endif
+
+/* ------------------------------------------------------------------ the rows' noise (row_noise) */
+static const duffid_real D4[5] = {RC(1.0), RC(-4.0), RC(6.0), RC(-4.0), RC(1.0)};
+static const duffid_real D6[7] = {RC(1.0), RC(-6.0), RC(15.0), RC(-20.0), RC(15.0), RC(-6.0), RC(1.0)};
+
+/* NoiseLevel.uniform: the next pseudo-random number of unit variance (xorshift32) */
+static duffid_real noise_uniform(duffid_estimator *est)
+{
+    uint32_t v = est->noise_state;
+    v ^= v << 13;
+    v ^= v >> 17;
+    v ^= v << 5;
+    est->noise_state = v;
+    return (RC(2.0) * ((duffid_real)v * RC(2.3283064365386963e-10)) - RC(1.0)) * RC(1.7320508075688772); /* v / 2^32 */
+}
+
+/* NoiseLevel.push and .perturbed: the running mean squares of x's 4th and 6th differences,
+ * then xn = x plus a noise of the level they measure */
+static void noise_perturbed(duffid_estimator *est, const duffid_real *x, duffid_real *xn)
+{
+    const int nd = est->n_dof;
+    duffid_real *h = est->noise_hist;
+    int j, k;
+    if (est->noise_count == NOISE_HISTORY) { /* the oldest leaves */
+        memmove(h, h + nd, (size_t)((NOISE_HISTORY - 1) * nd) * sizeof(duffid_real));
+        est->noise_count--;
+    }
+    for (j = 0; j < nd; j++) {
+        h[est->noise_count * nd + j] = x[j];
+    }
+    est->noise_count++;
+    if (est->noise_count >= 5) {
+        const duffid_real *last = h + (est->noise_count - 5) * nd;
+        est->noise_n4++;
+        for (j = 0; j < nd; j++) {
+            duffid_real d = RC(0.0);
+            for (k = 0; k < 5; k++) {
+                d += D4[k] * last[k * nd + j];
+            }
+            est->noise_m4[j] += (d * d - est->noise_m4[j]) / (duffid_real)est->noise_n4;
+        }
+    }
+    if (est->noise_count >= NOISE_HISTORY) {
+        est->noise_n6++;
+        for (j = 0; j < nd; j++) {
+            duffid_real d = RC(0.0);
+            for (k = 0; k < NOISE_HISTORY; k++) {
+                d += D6[k] * h[k * nd + j];
+            }
+            est->noise_m6[j] += (d * d - est->noise_m6[j]) / (duffid_real)est->noise_n6;
+        }
+    }
+    for (j = 0; j < nd; j++) { /* NoiseLevel.sigma: the smaller estimate (0 before five samples) */
+        duffid_real v = RC(0.0), sigma;
+        if (est->noise_n4 > 0) {
+            const duffid_real v4 = est->noise_m4[j] / RC(70.0);
+            const duffid_real v6 = est->noise_n6 > 0 ? est->noise_m6[j] / RC(924.0) : v4;
+            v = v6 < v4 ? v6 : v4;
+        }
+        sigma = R_SQRT(v);
+        xn[j] = x[j] + sigma * noise_uniform(est);
+    }
+}
+
 static void evaluate_channels(duffid_estimator *est, const duffid_real *x, const duffid_real *f)
 {
     int i;
@@ -1720,40 +1881,34 @@ static void evaluate_channels(duffid_estimator *est, const duffid_real *x, const
     }
     if (est->cfg.model == DUFFID_GENERATED) {
 #ifdef DUFFID_GENERATED_MODEL
-        /* the channel function is CasADi's double code */
-        double xd[DUFFID_MAX_DOF], fd[DUFFID_MAX_FORCES], sd[DUFFID_MAX_DOF], gd[MAX_CH];
-        for (i = 0; i < est->n_dof; i++) {
-            xd[i] = (double)x[i];
-            sd[i] = (double)est->sgn[i];
-        }
-        for (i = 0; i < est->n_forces; i++) {
-            fd[i] = (double)f[i];
-        }
-        duffid_generated_channels(xd, fd, (double)est->n * (double)est->dt, sd, gd, est->chan_work);
-        for (i = 0; i < est->n_ch; i++) {
-            est->g[i] = (duffid_real)gd[i];
-        }
+        generated_channels(est, x, f, est->g);
 #endif
-        return;
-    }
-    for (i = 0; i < est->n_ch; i++) {
-        const channel_t *c = &est->m.ch[i];
-        duffid_real v;
-        switch (c->kind) {
-        case CH_X:
-            v = int_power(x[c->index], c->power);
-            break;
-        case CH_DEFL:
-            v = int_power(x[c->index] - (c->index > 0 ? x[c->index - 1] : RC(0.0)), c->power);
-            break;
-        case CH_FORCE:
-            v = f[c->index];
-            break;
-        default:
-            v = RC(1.0);
-            break;
+    } else {
+        for (i = 0; i < est->n_ch; i++) {
+            est->g[i] = channel_value(&est->m.ch[i], x, f);
         }
-        est->g[i] = v;
+    }
+    if (est->n_noise > 0 && !est->defer) { /* OnlineIdentifier._row_noise: the channels of x at xn minus
+                                             * at x (a deferred run gives values only: none) */
+        duffid_real xn[DUFFID_MAX_DOF];
+        noise_perturbed(est, x, xn);
+        if (est->cfg.model == DUFFID_GENERATED) {
+#ifdef DUFFID_GENERATED_MODEL
+            duffid_real gn[MAX_CH];
+            generated_channels(est, xn, f, gn);
+            for (i = 0; i < est->n_ch; i++) {
+                if (est->noise_of[i] >= 0) {
+                    est->g[est->noise_of[i]] = gn[i] - est->g[i];
+                }
+            }
+#endif
+        } else {
+            for (i = 0; i < est->n_ch; i++) {
+                if (est->noise_of[i] >= 0) {
+                    est->g[est->noise_of[i]] = channel_value(&est->m.ch[i], xn, f) - est->g[i];
+                }
+            }
+        }
     }
 }
 
@@ -1885,15 +2040,15 @@ static void rate_weights(duffid_estimator *est, long L)
     est->rate_L = L;
 }
 
-/* step an accumulator: every sample one further away (acc[c * (degree + 1) + j]), the new
- * sample g in; leaving (if not NULL) is the sample that leaves the window, phi its basis
+/* step an accumulator of n_ch channels: every sample one further away (acc[c * (degree + 1) + j]),
+ * the new sample g in; leaving (if not NULL) is the sample that leaves the window, phi its basis
  * values at its distance */
-static void shift_accumulator(const duffid_estimator *est, duffid_real *acc, const duffid_real *g,
+static void shift_accumulator(const duffid_estimator *est, int n_ch, duffid_real *acc, const duffid_real *g,
                               const duffid_real *leaving, const duffid_real *phi)
 {
     const int D1 = est->degree + 1;
     int j, c;
-    for (c = 0; c < est->n_ch; c++) {
+    for (c = 0; c < n_ch; c++) {
         duffid_real *a = acc + c * D1, below = a[0];
         if (leaving != NULL) {
             const duffid_real old = leaving[c];
@@ -1914,8 +2069,8 @@ static void shift_accumulator(const duffid_estimator *est, duffid_real *acc, con
     }
 }
 
-/* acc += sign * phi(i) x sample */
-static void accumulate(const duffid_estimator *est, duffid_real *acc, const duffid_real *phi,
+/* acc += sign * phi(i) x sample (n_ch channels) */
+static void accumulate(const duffid_estimator *est, int n_ch, duffid_real *acc, const duffid_real *phi,
                        const duffid_real *sample, duffid_real sign)
 {
     const int D1 = est->degree + 1;
@@ -1923,7 +2078,7 @@ static void accumulate(const duffid_estimator *est, duffid_real *acc, const duff
     while (top < D1 && phi[top] != RC(0.0)) {
         top++; /* phi_j(i) = 0 for j > i */
     }
-    for (c = 0; c < est->n_ch; c++) {
+    for (c = 0; c < n_ch; c++) {
         const duffid_real w = sign * sample[c];
         duffid_real *a = acc + c * D1;
         for (j = 0; j < top; j++) {
@@ -1943,10 +2098,10 @@ static const duffid_real *leaving_basis(duffid_estimator *est, long i)
 }
 
 /* the power moments S_k = sum_j S2(k, j) N^(j-k) / N x fact_j (positive weights;
- * S2(k, 0) = 0 for k > 0), channel after channel */
-static void power_moments(const duffid_estimator *est, const duffid_real *fact, duffid_real *mom)
+ * S2(k, 0) = 0 for k > 0), channel after channel (n_ch of them) */
+static void power_moments(const duffid_estimator *est, int n_ch, const duffid_real *fact, duffid_real *mom)
 {
-    const int n_ch = est->n_ch, D = est->degree, D1 = D + 1;
+    const int D = est->degree, D1 = D + 1;
     int c, k;
     for (c = 0; c + 1 < n_ch; c += 2) { /* two channels at a time: each weight is loaded once */
         const duffid_real *in = fact + c * D1, *in2 = in + D1;
@@ -1994,9 +2149,9 @@ static void signed_sample(const duffid_real *sample, duffid_real sign, int n_ch,
  * 0, 1, ... near the newest sample, short in the basis, then the far ones, full), each entry
  * summed in the order of the general loop (the full ones, then the short ones), two channels
  * at a time: each weight is loaded once */
-static void end_corrections(duffid_estimator *est, const duffid_real *const *sample, int near)
+static void end_corrections(duffid_estimator *est, int n_ch, const duffid_real *const *sample, int near)
 {
-    const int n_ch = est->n_ch, D1 = est->degree + 1, n_far = est->corr_n - near;
+    const int D1 = est->degree + 1, n_far = est->corr_n - near;
     int c, k, m;
     for (c = 0; c < n_ch; c += 2) {
         const int pair = c + 1 < n_ch;
@@ -2038,9 +2193,13 @@ static void end_corrections(duffid_estimator *est, const duffid_real *const *sam
 static long moments_push(duffid_estimator *est, long window)
 {
     const long N = est->capacity;
-    const int n_ch = est->n_ch, D = est->degree, D1 = D + 1;
+    /* the ring holds the model's channels and their noise's (stride); the moments are those of
+     * n_mom channels: the model's and, but in a deferred run (values only), their noise's; the
+     * alternating sums the model's channels' only (the rows at half the rate) */
+    const int n_ch = est->n_ch, stride = est->n_mom, n_mom = est->defer ? est->n_ch : est->n_mom;
+    const int D = est->degree, D1 = D + 1;
     const int64_t n = est->n; /* SlidingMoments.n == OnlineIdentifier.n */
-    const size_t bytes = (size_t)(D1 * n_ch) * sizeof(duffid_real);
+    const size_t bytes = (size_t)(D1 * n_mom) * sizeof(duffid_real), bytes_alt = (size_t)(D1 * n_ch) * sizeof(duffid_real);
     duffid_real phi[MAX_POW], signed_g[MAX_CH], leaving[MAX_CH];
     const duffid_real sign = (n & 1) ? RC(-1.0) : RC(1.0); /* (-1)^n: the alternating sums' */
     const int alt = !est->defer; /* the alternating sums feed only the half-rate rows, which deferred
@@ -2051,26 +2210,28 @@ static long moments_push(duffid_estimator *est, long window)
     duffid_real *slot;
 
     est->head = est->head == N + 1 ? 0 : est->head + 1;
-    slot = est->ring + (size_t)est->head * (size_t)n_ch;
-    for (c = 0; c < n_ch; c++) {
+    slot = est->ring + (size_t)est->head * (size_t)stride;
+    for (c = 0; c < n_mom; c++) {
         slot[c] = est->g[c];
+    }
+    for (c = 0; c < n_ch; c++) {
         signed_g[c] = sign * est->g[c];
     }
     w = window < N ? window : N;
     new_start = n - w > est->start ? n - w : est->start;
     if (new_start == est->start + 1) { /* a sliding window: one sample leaves */
         const long i = (long)(n - est->start);
-        const duffid_real *old = est->ring + (size_t)ring_at(est, i) * (size_t)n_ch;
-        shift_accumulator(est, est->acc, est->g, old, leaving_basis(est, i));
+        const duffid_real *old = est->ring + (size_t)ring_at(est, i) * (size_t)stride;
+        shift_accumulator(est, n_mom, est->acc, est->g, old, leaving_basis(est, i));
         if (alt) {
             signed_sample(old, (i & 1) ? -sign : sign, n_ch, leaving);
-            shift_accumulator(est, est->acc_alt, signed_g, leaving, leaving_basis(est, i));
+            shift_accumulator(est, n_ch, est->acc_alt, signed_g, leaving, leaving_basis(est, i));
         }
         est->start = new_start;
     } else {
-        shift_accumulator(est, est->acc, est->g, NULL, NULL);
+        shift_accumulator(est, n_mom, est->acc, est->g, NULL, NULL);
         if (alt) {
-            shift_accumulator(est, est->acc_alt, signed_g, NULL, NULL);
+            shift_accumulator(est, n_ch, est->acc_alt, signed_g, NULL, NULL);
         }
         if (new_start - est->start > (int64_t)w + 1) {
             /* many samples leave at once (the window shrank): rebuilding from the new window
@@ -2080,11 +2241,11 @@ static long moments_push(duffid_estimator *est, long window)
         } else {
             for (j = est->start; j < new_start; j++) { /* samples leaving the window */
                 const long i = (long)(n - j);
-                const duffid_real *old = est->ring + (size_t)ring_at(est, i) * (size_t)n_ch;
-                accumulate(est, est->acc, leaving_basis(est, i), old, RC(-1.0));
+                const duffid_real *old = est->ring + (size_t)ring_at(est, i) * (size_t)stride;
+                accumulate(est, n_mom, est->acc, leaving_basis(est, i), old, RC(-1.0));
                 if (alt) {
                     signed_sample(old, (i & 1) ? -sign : sign, n_ch, leaving);
-                    accumulate(est, est->acc_alt, leaving_basis(est, i), leaving, RC(-1.0));
+                    accumulate(est, n_ch, est->acc_alt, leaving_basis(est, i), leaving, RC(-1.0));
                 }
             }
             est->start = new_start;
@@ -2092,14 +2253,14 @@ static long moments_push(duffid_estimator *est, long window)
     }
     for (k = 0; k < SHADOWS; k++) {
         if (est->shadow_from[k] >= 0) {
-            shift_accumulator(est, est->shadow + k * D1 * n_ch, est->g, NULL, NULL);
+            shift_accumulator(est, n_mom, est->shadow + k * D1 * stride, est->g, NULL, NULL);
             if (alt) {
-                shift_accumulator(est, est->shadow_alt + k * D1 * n_ch, signed_g, NULL, NULL);
+                shift_accumulator(est, n_ch, est->shadow_alt + k * D1 * n_ch, signed_g, NULL, NULL);
             }
         }
     }
     for (k = 0; k < SHADOWS; k++) {
-        duffid_real *shadow = est->shadow + k * D1 * n_ch, *shadow_alt = est->shadow_alt + k * D1 * n_ch;
+        duffid_real *shadow = est->shadow + k * D1 * stride, *shadow_alt = est->shadow_alt + k * D1 * n_ch;
         if (est->shadow_from[k] >= 0 && est->shadow_from[k] < est->start) {
             /* the shadow holds samples outside the window (it shrank): the first is rebuilt
              * from the window, the others start again */
@@ -2107,14 +2268,14 @@ static long moments_push(duffid_estimator *est, long window)
                 long i;
                 est->shadow_from[0] = est->start;
                 memset(shadow, 0, bytes);
-                memset(shadow_alt, 0, bytes);
+                memset(shadow_alt, 0, bytes_alt);
                 for (i = 0; i <= (long)(n - est->start); i++) {
-                    const duffid_real *old = est->ring + (size_t)ring_at(est, i) * (size_t)n_ch;
+                    const duffid_real *old = est->ring + (size_t)ring_at(est, i) * (size_t)stride;
                     factorial_basis(est, i, phi);
-                    accumulate(est, shadow, phi, old, RC(1.0));
+                    accumulate(est, n_mom, shadow, phi, old, RC(1.0));
                     if (alt) {
                         signed_sample(old, (i & 1) ? -sign : sign, n_ch, leaving);
-                        accumulate(est, shadow_alt, phi, leaving, RC(1.0));
+                        accumulate(est, n_ch, shadow_alt, phi, leaving, RC(1.0));
                     }
                 }
             } else {
@@ -2123,13 +2284,13 @@ static long moments_push(duffid_estimator *est, long window)
         }
     }
     for (k = 0; k < SHADOWS; k++) {
-        duffid_real *shadow = est->shadow + k * D1 * n_ch, *shadow_alt = est->shadow_alt + k * D1 * n_ch;
+        duffid_real *shadow = est->shadow + k * D1 * stride, *shadow_alt = est->shadow_alt + k * D1 * n_ch;
         if (est->shadow_from[k] == est->start && n - est->start >= 1) {
             /* the shadow holds exactly the window: it becomes the main accumulator */
             memcpy(est->acc, shadow, bytes);
-            memcpy(est->acc_alt, shadow_alt, bytes);
+            memcpy(est->acc_alt, shadow_alt, bytes_alt);
             memset(shadow, 0, bytes);
-            memset(shadow_alt, 0, bytes);
+            memset(shadow_alt, 0, bytes_alt);
             est->shadow_from[k] = n + 1;
         }
     }
@@ -2141,8 +2302,8 @@ static long moments_push(duffid_estimator *est, long window)
         }
         for (k = 0; k < SHADOWS; k++) {
             if (est->shadow_from[k] < 0 && SHADOWS * (n + 1 - latest) >= (int64_t)w) {
-                memset(est->shadow + k * D1 * n_ch, 0, bytes);
-                memset(est->shadow_alt + k * D1 * n_ch, 0, bytes);
+                memset(est->shadow + k * D1 * stride, 0, bytes);
+                memset(est->shadow_alt + k * D1 * n_ch, 0, bytes_alt);
                 est->shadow_from[k] = n + 1;
                 break;
             }
@@ -2163,12 +2324,12 @@ static long moments_push(duffid_estimator *est, long window)
     { /* fact = acc + the quadrature's end corrections (those near the newest sample are short) */
         const duffid_real *sample[MAX_CORR];
         for (m = 0; m < est->corr_n; m++) {
-            sample[m] = est->ring + (size_t)ring_at(est, est->corr_off[m]) * (size_t)n_ch;
+            sample[m] = est->ring + (size_t)ring_at(est, est->corr_off[m]) * (size_t)stride;
         }
         if (est->corr_near >= 0) {
-            end_corrections(est, sample, est->corr_near);
+            end_corrections(est, n_mom, sample, est->corr_near);
         } else { /* the full ones first, then the short ones */
-            for (c = 0; c < n_ch; c++) {
+            for (c = 0; c < n_mom; c++) {
                 duffid_real *out = est->fact + c * D1;
                 memcpy(out, est->acc + c * D1, (size_t)D1 * sizeof(duffid_real));
                 for (m = 0; m < est->corr_n; m++) {
@@ -2190,7 +2351,7 @@ static long moments_push(duffid_estimator *est, long window)
             }
         }
     }
-    power_moments(est, est->fact, est->mom);
+    power_moments(est, n_mom, est->fact, est->mom);
     /* SlidingMoments.rate_difference: minus the alternating sums plus the rules' corrections */
     est->rate_ok = L >= 2 && !est->defer; /* deferred solutions publish nothing */
     if (est->rate_ok) {
@@ -2206,7 +2367,7 @@ static long moments_push(duffid_estimator *est, long window)
         }
         for (m = 0; m < est->rate_n; m++) {
             const long at = est->rate_off[m];
-            const duffid_real *sample = est->ring + (size_t)ring_at(est, at) * (size_t)n_ch;
+            const duffid_real *sample = est->ring + (size_t)ring_at(est, at) * (size_t)stride;
             const int top = at + 1 < D1 ? (int)at + 1 : D1; /* phi_j(i) = 0, j > i */
             factorial_basis(est, at, phi);
             for (c = 0; c < n_ch; c++) {
@@ -2217,7 +2378,7 @@ static long moments_push(duffid_estimator *est, long window)
                 }
             }
         }
-        power_moments(est, est->dfact, est->dmom);
+        power_moments(est, n_ch, est->dfact, est->dmom);
     }
     return L;
 }
@@ -2239,8 +2400,8 @@ static void jump_powers(int D, duffid_real x, duffid_real *out)
 static void jump_at(const duffid_estimator *est, long back, duffid_real *df)
 {
     const unsigned char flags = est->jump_flag[ring_at(est, back)];
-    const duffid_real *now = est->ring + (size_t)ring_at(est, back) * (size_t)est->n_ch;
-    const duffid_real *before = est->ring + (size_t)ring_at(est, back + 1) * (size_t)est->n_ch;
+    const duffid_real *now = est->ring + (size_t)ring_at(est, back) * (size_t)est->n_mom;
+    const duffid_real *before = est->ring + (size_t)ring_at(est, back + 1) * (size_t)est->n_mom;
     int j;
     for (j = 0; j < est->n_forces; j++) {
         const int c = est->force_channel[j];
@@ -2384,12 +2545,146 @@ static void jump_product(const duffid_real *B, const duffid_real *J, int m, int 
     }
 }
 
+/* ------------------------------------------------------------------ the rows' noise's bias */
+/* S = dA^T [dA dD] of the m rows' noise B ([dA dD] column after column, nl + 1 columns; S is
+ * nl x (nl + 1), its leading nl x nl block symmetric) */
+static void noise_product(const duffid_real *B, int m, int nl, duffid_real *S)
+{
+    int i, k, r;
+    for (i = 0; i < nl; i++) {
+        for (k = i; k <= nl; k++) {
+            duffid_real sum = RC(0.0);
+            for (r = 0; r < m; r++) {
+                sum += B[i * m + r] * B[k * m + r];
+            }
+            S[i * (nl + 1) + k] = sum;
+            if (k < nl) {
+                S[k * (nl + 1) + i] = sum;
+            }
+        }
+    }
+}
+
+/* G = lam G + S (nl x (nl + 1)): the rows' noise accumulated with the rows' forgetting */
+static void noise_forget(const duffid_real *S, int nl, duffid_real lam, duffid_real *G)
+{
+    int i;
+    for (i = 0; i < nl * (nl + 1); i++) {
+        G[i] = lam * G[i] + S[i];
+    }
+}
+
+/* R^-T b of the n x n leading block of the p x p factor R (forward substitution); b and out
+ * are read and written with strides sb and so */
+static void forward_solve(int n, int p, const duffid_real *R, const duffid_real *b, int sb, duffid_real *out, int so)
+{
+    int i, k;
+    for (i = 0; i < n; i++) {
+        duffid_real sum = RC(0.0);
+        for (k = 0; k < i; k++) {
+            sum += R[k * p + i] * out[k * so];
+        }
+        out[i * so] = (b[i * sb] - sum) / R[i * p + i];
+    }
+}
+
+/* row_noise._cholesky: the lower factor L of s I - M (its lower triangle); 0 unless positive definite */
+static int noise_cholesky(int n, duffid_real s, const duffid_real *M, duffid_real *L)
+{
+    int i, j, k;
+    for (j = 0; j < n; j++) {
+        duffid_real d = RC(0.0);
+        for (k = 0; k < j; k++) {
+            d += L[j * n + k] * L[j * n + k];
+        }
+        d = (s - M[j * n + j]) - d;
+        if (!(d > RC(0.0))) {
+            return 0;
+        }
+        L[j * n + j] = R_SQRT(d);
+        for (i = j + 1; i < n; i++) {
+            duffid_real sum = RC(0.0);
+            for (k = 0; k < j; k++) {
+                sum += L[i * n + k] * L[j * n + k];
+            }
+            L[i * n + j] = (-M[i * n + j] - sum) / L[j * n + j];
+        }
+    }
+    return 1;
+}
+
+/* row_noise.noise_shift: how the rows' noise (G = dA^T [dA dD], n x (n + 1)) moves the solution
+ * of the p x p factor R (its n x n leading block and column n): R^-1 (I - M)^-1 (M z - R^-T c),
+ * M = R^-T N R^-1; infinite where DUFFID_NOISE_SHARE I - M is not positive definite, zeros
+ * without noise or for a singular R; work: 3 n^2 */
+static void noise_shift_of(int n, int p, const duffid_real *R, const duffid_real *G, duffid_real *work,
+                           duffid_real *out)
+{
+    duffid_real *Y = work, *M = work + n * n, *L = work + 2 * n * n;
+    duffid_real z[MAX_LINE], rhs[MAX_LINE], w[MAX_LINE];
+    int i, k, any = 0, singular = 0;
+    for (i = 0; i < n; i++) {
+        for (k = 0; k < n; k++) {
+            any |= G[i * (n + 1) + k] != RC(0.0);
+        }
+        singular |= R[i * p + i] == RC(0.0);
+        out[i] = RC(0.0);
+    }
+    if (!any || singular) {
+        return;
+    }
+    for (k = 0; k < n; k++) { /* Y = R^-T N, column after column */
+        forward_solve(n, p, R, G + k, n + 1, Y + k, n);
+    }
+    for (k = 0; k < n; k++) { /* M's column k: R^-T (row k of Y) */
+        forward_solve(n, p, R, Y + k * n, 1, M + k, n);
+    }
+    if (!noise_cholesky(n, RC(DUFFID_NOISE_SHARE), M, L) || !noise_cholesky(n, RC(1.0), M, L)) {
+        for (i = 0; i < n; i++) {
+            out[i] = R_INF;
+        }
+        return;
+    }
+    forward_solve(n, p, R, G + n, n + 1, w, 1); /* R^-T c */
+    for (i = 0; i < n; i++) {
+        z[i] = R[i * p + n];
+    }
+    for (i = 0; i < n; i++) {
+        duffid_real sum = RC(0.0);
+        for (k = 0; k < n; k++) {
+            sum += M[i * n + k] * z[k];
+        }
+        rhs[i] = sum - w[i];
+    }
+    for (i = 0; i < n; i++) { /* L y = rhs */
+        duffid_real sum = RC(0.0);
+        for (k = 0; k < i; k++) {
+            sum += L[i * n + k] * w[k];
+        }
+        w[i] = (rhs[i] - sum) / L[i * n + i];
+    }
+    for (i = n - 1; i >= 0; i--) { /* L^T s = y */
+        duffid_real sum = RC(0.0);
+        for (k = i + 1; k < n; k++) {
+            sum += L[k * n + i] * rhs[k];
+        }
+        rhs[i] = (w[i] - sum) / L[i * n + i];
+    }
+    for (i = n - 1; i >= 0; i--) { /* R out = s */
+        duffid_real sum = RC(0.0);
+        for (k = i + 1; k < n; k++) {
+            sum += R[i * p + k] * out[k];
+        }
+        out[i] = (rhs[i] - sum) / R[i * p + i];
+    }
+}
+
 /* ------------------------------------------------------------------ kernel entries */
 /* KernelBank.entries: E[r, d, channel] for a window of L samples (the orders and channels
  * a term reads) */
 static void kernel_entries(duffid_estimator *est, long L)
 {
-    const int n_rows = est->n_rows, n_ch = est->n_ch;
+    const int n_rows = est->n_rows, n_ch = est->n_mom;
     const duffid_real tau = (duffid_real)L * est->inv_cap;
     int r, k, u;
     if (est->poly_L != L) {
@@ -2448,6 +2743,18 @@ static void kernel_entries(duffid_estimator *est, long L)
      * their terms cancel */
     est->rounding = norm2 > RC(0.0) ? R_EPS * R_SQRT((duffid_real)L * size2 / norm2) : R_INF;
 #endif
+    for (u = est->n_jobs; u < est->n_jobs + (est->defer ? 0 : est->n_noise_jobs); u++) { /* the rows' noise's */
+        const int *job = est->job + 5 * u, count = job[2], entry = job[3];
+        const duffid_real *poly = est->poly + job[0], *m = est->mom + job[1];
+        duffid_real sum = RC(0.0);
+        for (k = 0; k < count; k++) {
+            sum += poly[k] * m[k];
+        }
+        if (job[4] >= 0) {
+            sum += est->raw_pow[job[4]] * est->g[entry % n_ch];
+        }
+        est->E[entry] = sum * est->entry_scale[entry / n_ch];
+    }
 }
 
 /* OnlineIdentifier._rate_rows: the kernel entries of the moments' difference at half the rate
@@ -2455,7 +2762,7 @@ static void kernel_entries(duffid_estimator *est, long L)
  * (the raw terms cancel) */
 static void rate_entries(duffid_estimator *est)
 {
-    const int n_ch = est->n_ch;
+    const int n_ch = est->n_mom;
     int k, u;
     for (u = 0; u < est->n_jobs; u++) {
         const int *job = est->job + 5 * u, count = job[2], entry = job[3];
@@ -2470,18 +2777,24 @@ static void rate_entries(duffid_estimator *est)
 
 /* rows of [A D] of one block (identification._Assembly) into B, column after column
  * (B[col * m + row], m = parts * n_rows rows: those of each equation of the block, one
- * equation after the other); E[(r * N_ORD + d) * n_ch + c] */
-static void assemble(const duffid_estimator *est, const block_t *b, const duffid_real *E, int n_rows,
+ * equation after the other); E[(r * N_ORD + d) * n_mom + c]. noise: the rows' noise [dA dD]
+ * instead, from the channels' noise channels (0 for a channel without). */
+static void assemble(const duffid_estimator *est, const block_t *b, const duffid_real *E, int n_rows, int noise,
                      duffid_real *B)
 {
-    const int p = b->n_unknowns + 1, n_ch = est->n_ch, m = b->n_parts * n_rows;
+    const int p = b->n_unknowns + 1, n_ch = est->n_mom, m = b->n_parts * n_rows;
     int r, k;
     memset(B, 0, (size_t)(m * p) * sizeof(duffid_real));
     for (k = 0; k < b->n_terms; k++) {
         const term_t *t = &est->m.terms[b->term0 + k];
         const int col = t->unknown >= 0 ? t->unknown : b->n_unknowns;
+        const int channel = noise ? est->noise_of[t->channel] : t->channel;
         duffid_real *out = B + col * m + t->part * n_rows;
-        const duffid_real *in = E + t->order * n_ch + t->channel;
+        const duffid_real *in;
+        if (channel < 0) {
+            continue;
+        }
+        in = E + t->order * n_ch + channel;
         for (r = 0; r < n_rows; r++) {
             out[r] += t->coef * in[r * N_ORD * n_ch];
         }
@@ -2998,6 +3311,7 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit, du
     const int n = est->m.blocks[e].n_unknowns, nl = eq->n_line, p = nl + 1;
     duffid_real theta[MAX_UNK], rse[MAX_UNK], then_store[MAX_UNK], then_rse_store[MAX_UNK];
     const duffid_real *then = eq->theta, *then_rse = eq->rse;
+    const int noisy = est->n_noise > 0 && !est->defer;
     int departed[MAX_UNK], drifted[MAX_UNK], confirmed[MAX_UNK];
     int i, any = 0, any_drift = 0;
     if (est->n < eq->recent_resume) { /* the recent estimate restarted after a surprise */
@@ -3006,11 +3320,20 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit, du
     duffid_la_qr_accumulate(eq->R_recent, p, est->sqrt_lam_recent, est->B_copy, m);
     eq->rows_recent = est->lam_recent * eq->rows_recent + (duffid_real)m;
     eq->times_recent = est->lam_recent * eq->times_recent + (duffid_real)m * t;
+    if (noisy) {
+        noise_forget(est->noise_Gw, nl, est->lam_recent, eq->noise_G_recent);
+    }
     if (nl == n) {
         if (recent_solution(n, eq->R_recent, eq->rows_recent, est->last_L, est->scale, est->U, est->Rinv, theta,
                             rse) != 0) {
             for (i = 0; i < n; i++) {
                 theta[i] = R_NAN;
+            }
+        } else if (noisy) { /* ... with its rows' noise's bias (row_noise) */
+            duffid_real bias[MAX_UNK];
+            noise_shift_of(n, p, eq->R_recent, eq->noise_G_recent, est->noise_w, bias);
+            for (i = 0; i < n; i++) {
+                rse[i] = bias[i] != RC(0.0) ? duffid_la_hypot(rse[i], R_FABS(bias[i] / theta[i])) : rse[i];
             }
         }
     } else { /* both lines where the recent rows are (their mean time) */
@@ -3066,6 +3389,7 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit, du
         restart(est, e, drifted);
     } else if (eq->surprised >= est->settle_count) { /* the recent estimate starts afresh after it */
         memset(eq->R_recent, 0, (size_t)(p * p) * sizeof(duffid_real));
+        memset(eq->noise_G_recent, 0, (size_t)(nl * p) * sizeof(duffid_real));
         eq->rows_recent = eq->times_recent = RC(0.0);
         for (i = 0; i < n; i++) {
             eq->departure[i] = RC(0.0);
@@ -3089,6 +3413,23 @@ static void line_rows(const duffid_estimator *est, const block_t *b, const equat
             int r;
             for (r = 0; r < m; r++) {
                 B[k * m + r] = t * B[i * m + r] - timed_entry(est, moments, b, i, r);
+            }
+            k++;
+        }
+    }
+}
+
+/* DriftLine.rows without S for the rows' noise [dA dD] (B, m rows): [dA, t dA_i, dD] (the
+ * newest time's: the window is short against the time) */
+static void noise_line_rows(const block_t *b, const equation_t *eq, int m, duffid_real t, duffid_real *B)
+{
+    const int n = b->n_unknowns;
+    int i, r, k = n;
+    memcpy(B + eq->n_line * m, B + n * m, (size_t)m * sizeof(duffid_real));
+    for (i = 0; i < n; i++) {
+        if (eq->drifting[i]) {
+            for (r = 0; r < m; r++) {
+                B[k * m + r] = t * B[i * m + r];
             }
             k++;
         }
@@ -3119,6 +3460,7 @@ static long robust_step(duffid_estimator *est)
 {
     const int64_t old_start = est->start;
     long L = moments_push(est, est->target);
+    const int noisy = est->n_noise > 0 && !est->defer; /* the rows' noise (deferred runs: values only) */
     int full, rated, e, i;
     jumps_step(est, old_start);
     if (est->regrow) { /* after duffid_hold: the previous output until the window is full */
@@ -3147,9 +3489,12 @@ static long robust_step(duffid_estimator *est)
         if (full && est->n < eq->resume) { /* a window that holds samples from before the change */
             continue;
         }
-        assemble(est, b, est->E, est->n_rows, est->B);
+        assemble(est, b, est->E, est->n_rows, 0, est->B);
         if (rated) {
-            assemble(est, b, est->E_rate, est->n_rows, est->B_rate);
+            assemble(est, b, est->E_rate, est->n_rows, 0, est->B_rate);
+        }
+        if (noisy) {
+            assemble(est, b, est->E, est->n_rows, 1, est->B_noise);
         }
         if (est->n_jumps > 0 && !est->defer) {
             jump_column(est, b);
@@ -3167,11 +3512,14 @@ static long robust_step(duffid_estimator *est)
                 if (rated) {
                     line_rows(est, b, eq, m, t, est->dmom, est->B_rate);
                 }
+                if (noisy) {
+                    noise_line_rows(b, eq, m, t, est->B_noise);
+                }
             }
             if (est->defer) { /* duffid_defer_solutions: the rows only (no lines: no change test, no
                                * jumps' errors: the values only) */
                 for (i = 0; i < n; i++) {
-                    eq->jump_shift[i] = eq->rate_shift[i] = RC(0.0);
+                    eq->jump_shift[i] = eq->rate_shift[i] = eq->noise_shift[i] = RC(0.0);
                 }
                 if (eq->rows == RC(0.0)) { /* R held the growing window's factor (below) */
                     memset(eq->R, 0, (size_t)(p * p) * sizeof(duffid_real));
@@ -3205,6 +3553,10 @@ static long robust_step(duffid_estimator *est)
             }
             duffid_la_qr_accumulate(eq->R, nl + 1, est->sqrt_lam, est->B, m);
             eq->rows = est->lam * eq->rows + (duffid_real)m;
+            if (noisy) { /* this sample's rows' noise (noise_Gw), into the accumulated and the recent */
+                noise_product(est->B_noise, m, nl, est->noise_Gw);
+                noise_forget(est->noise_Gw, nl, est->lam, eq->noise_G);
+            }
             if (nl > n) {
                 line_solve(est, eq, n, m, t, (duffid_real)L);
             } else {
@@ -3221,13 +3573,24 @@ static long robust_step(duffid_estimator *est)
                 for (i = 0, k = n; i < n; i++) {
                     eq->rate_shift[i] = shift[i] + (nl > n && eq->drifting[i] ? shift[k++] * t : RC(0.0));
                 }
+                if (noisy) { /* the rows' noise's bias (row_noise): none where it is infinite */
+                    int finite = 1;
+                    noise_shift_of(nl, nl + 1, eq->R, eq->noise_G, est->noise_w, shift);
+                    for (i = 0; i < nl; i++) {
+                        finite &= is_finite(shift[i]);
+                    }
+                    for (i = 0, k = n; i < n; i++) {
+                        eq->noise_shift[i] = !finite ? R_INF
+                                             : shift[i] + (nl > n && eq->drifting[i] ? shift[k++] * t : RC(0.0));
+                    }
+                }
             }
             if (est->change_threshold > RC(0.0) && !drift_probe(est, e, m, t, (duffid_real)L)) {
                 change_test(est, e, m, fit, t);
             }
         } else if (est->defer) { /* a growing window's factor, solved once asked (resolve) */
             for (i = 0; i < n; i++) {
-                eq->jump_shift[i] = eq->rate_shift[i] = RC(0.0);
+                eq->jump_shift[i] = eq->rate_shift[i] = eq->noise_shift[i] = RC(0.0);
             }
             memset(eq->R, 0, (size_t)(p * p) * sizeof(duffid_real));
             duffid_la_qr_accumulate(eq->R, p, RC(1.0), est->B, m);
@@ -3253,6 +3616,10 @@ static long robust_step(duffid_estimator *est)
                 }
             }
             solve_factor(est, eq, n, est->W, (duffid_real)m, RC(1.0));
+            if (noisy) { /* these rows' noise alone (row_noise) */
+                noise_product(est->B_noise, m, n, est->noise_Gw);
+                noise_shift_of(n, p, est->W, est->noise_Gw, est->noise_w, eq->noise_shift);
+            }
             if (rated && rate_column(est->B_rate, m, n, eq->theta, est->rate_q)) { /* RATE_NOISE */
                 duffid_real v[MAX_UNK] = {RC(0.0)};
                 jump_product(est->B_copy, est->rate_q, m, n, RC(1.0), v);
@@ -3379,7 +3746,7 @@ static long paper_step(duffid_estimator *est)
                 Ep[c] = y[(p + 2) * m + 2 * n_ch + c];
             }
         }
-        assemble(est, b, est->E, n, est->B); /* one part: the paper method refuses joint blocks */
+        assemble(est, b, est->E, n, 0, est->B); /* one part: the paper method refuses joint blocks */
         for (p = 0; p < n; p++) {
             for (u = 0; u < n; u++) {
                 est->Ap[p * n + u] = est->B[u * n + p];
@@ -3425,21 +3792,24 @@ static long paper_step(duffid_estimator *est)
  * progresses). Relative errors of products add in quadrature. */
 /* engine._published_error: unknown u's standard error with its jumps' bias (JUMP_ERROR), its
  * rows' change at half the rate beyond DUFFID_RATE_NOISE standard errors and the drift probe's
- * drift to now (DUFFID_DRIFT_BIAS_SIGMAS), in quadrature; without the last two: with_rate 0 */
+ * drift to now (DUFFID_DRIFT_BIAS_SIGMAS) and the rows' noise's bias (row_noise), in
+ * quadrature; without the last three: with_rate 0 */
 static duffid_real published_rse(const equation_t *eq, int u, int with_rate)
 {
     const duffid_real rse = eq->rse[u];
-    duffid_real jump, change, rate, drift;
+    duffid_real jump, change, rate, drift, noise;
     if (eq->jump_shift[u] == RC(0.0) &&
-        ((eq->rate_shift[u] == RC(0.0) && eq->drift_shift[u] == RC(0.0)) || !with_rate)) {
+        ((eq->rate_shift[u] == RC(0.0) && eq->drift_shift[u] == RC(0.0) && eq->noise_shift[u] == RC(0.0)) ||
+         !with_rate)) {
         return rse;
     }
     jump = eq->jump_shift[u] != RC(0.0) ? RC(DUFFID_JUMP_ERROR) * R_FABS(eq->jump_shift[u] / eq->theta[u]) : RC(0.0);
     change = eq->rate_shift[u] != RC(0.0) && with_rate ? R_FABS(eq->rate_shift[u] / eq->theta[u]) : RC(0.0);
     drift = eq->drift_shift[u] != RC(0.0) && with_rate ? R_FABS(eq->drift_shift[u] / eq->theta[u]) : RC(0.0);
+    noise = eq->noise_shift[u] != RC(0.0) && with_rate ? R_FABS(eq->noise_shift[u] / eq->theta[u]) : RC(0.0);
     rate = change * change - RC(DUFFID_RATE_NOISE) * RC(DUFFID_RATE_NOISE) * rse * rse;
     rate = rate <= RC(0.0) ? RC(0.0) : rate; /* np.maximum: a NaN stays */
-    return R_SQRT(rse * rse + jump * jump + rate + drift * drift);
+    return R_SQRT(rse * rse + jump * jump + rate + drift * drift + noise * noise);
 }
 
 /* one pass of the combination with or without the quadrature's bias into errors */
@@ -3965,11 +4335,12 @@ static void restart_window(duffid_estimator *est, int regrow)
 {
     int i;
     const size_t moments = (size_t)(est->degree + 1) * (size_t)est->n_ch * sizeof(duffid_real);
+    const size_t all = (size_t)(est->degree + 1) * (size_t)est->n_mom * sizeof(duffid_real);
     est->has_last_x = 0;
     memset(est->last_x, 0, sizeof est->last_x);
     memset(est->sgn, 0, sizeof est->sgn);
-    memset(est->acc, 0, moments); /* SlidingMoments.reset */
-    memset(est->shadow, 0, SHADOWS * moments);
+    memset(est->acc, 0, all); /* SlidingMoments.reset (the rows' noise's too) */
+    memset(est->shadow, 0, SHADOWS * all);
     memset(est->acc_alt, 0, moments);
     memset(est->shadow_alt, 0, SHADOWS * moments);
     est->rate_ok = 0;

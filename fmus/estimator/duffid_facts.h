@@ -63,6 +63,8 @@
 #define DUFFID_MIN_UNCHECKED_SAMPLES 200 /* ... while a mass is not excited, the window holds at least this many samples */
 #define DUFFID_JUMP_ISOLATION 0.5 /* force jump: the next change is at most this share of it */
 #define DUFFID_JUMP_ERROR 0.5 /* force jump: a row errs by up to this share of the jump times the interval */
+#define DUFFID_NOISE_SHARE 0.5 /* rows' noise: no solution where the displacement's noise carries this share of the rows' energy in some direction */
+#define DUFFID_NOISE_SEED 2463534242 /* rows' noise: the seed of its generator (xorshift32) */
 #define DUFFID_RATE_NOISE 2.0 /* quadrature: the unknowns' change with the rows at half the rate beyond this many standard errors is a bias */
 
 /* Quadrature (duffid.identification.regressors). */

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..models.registry import GENERATED_MODEL_CODE, REGISTRY
-from . import engine, regressors
+from . import engine, regressors, row_noise
 
 __all__ = ["Fact", "LIMITS", "RETURN_CODES", "MODEL_CODES", "PUBLICATION", "QUADRATURE", "C_HEADER_NAME", "c_header",
            "limit", "return_code"]
@@ -106,6 +106,9 @@ PUBLICATION: tuple[Fact, ...] = (
     Fact("DUFFID_MIN_UNCHECKED_SAMPLES", engine.MIN_UNCHECKED_SAMPLES, "... while a mass is not excited, the window holds at least this many samples"),
     Fact("DUFFID_JUMP_ISOLATION", engine.JUMP_ISOLATION, "force jump: the next change is at most this share of it"),
     Fact("DUFFID_JUMP_ERROR", engine.JUMP_ERROR, "force jump: a row errs by up to this share of the jump times the interval"),
+    Fact("DUFFID_NOISE_SHARE", row_noise.NOISE_SHARE,
+         "rows' noise: no solution where the displacement's noise carries this share of the rows' energy in some direction"),
+    Fact("DUFFID_NOISE_SEED", row_noise.NOISE_SEED, "rows' noise: the seed of its generator (xorshift32)"),
     Fact("DUFFID_RATE_NOISE", engine.RATE_NOISE,
          "quadrature: the unknowns' change with the rows at half the rate beyond this many standard errors is a bias"),
 )

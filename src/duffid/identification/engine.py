@@ -36,6 +36,7 @@ from .identifier import Identifier
 from .options import ONLINE_METHODS, check_online_options
 from .orthogonal import BASES
 from .regressors import KernelBank, SlidingMoments, row_exponents
+from .row_noise import NoiseLevel, noise_shift
 
 __all__ = ["OnlineIdentifier", "check_record", "Identification", "Estimate", "METHODS",
            "STATUSES", "CHANGE_WINDOWS", "CHANGE_SURPRISE", "CHANGE_ALONE_SHARE", "MAX_LINE_UNKNOWNS", "DRIFT_SIGMAS", "DRIFT_BIAS_SIGMAS", "WINDOW_EQUATIONS", "WINDOW_INFLATION", "accumulated_rows", "OFFSET_SIGMAS", "FORCE_VARIATION", "DriftLine", "MIN_SHARE", "LOSS_FACTOR", "GROWTH_STEADY", "OUTLIER_SIGMAS", "OUTLIER_RANGE", "JUMP_FACTOR", "JUMP_RANGE", "JUMP_ISOLATION", "JUMP_ERROR", "MIN_WINDOW_PERIODS", "MIN_UNCHECKED_SAMPLES", "status_codes", "prior_sizes", "filtered_cramer", "combine_equations",
@@ -215,6 +216,11 @@ class _Channels:
                 moving = np.abs(dx) > self.deadband
                 self._sign = np.where(moving, np.sign(dx), self._sign)
             self._last_x = x.copy()
+        return self.at(x, f)
+
+    def at(self, x: np.ndarray, f: np.ndarray) -> np.ndarray:
+        """The channels of ``x, f`` at the latest sample's time and signs of velocity (no
+        step: the rows' noise evaluates them at a perturbed displacement)."""
         values = None if self.expressions is None else self.expressions.channel_values(x, f, self._n * self.dt,
                                                                                         self._sign)
         out = np.empty(len(self.channels))
@@ -305,17 +311,19 @@ class _JumpMoments:
 
 
 def _published_error(rse: np.ndarray, theta: np.ndarray, jump_shift: np.ndarray,
-                     rate_shift: np.ndarray, drift_shift: np.ndarray) -> np.ndarray:
+                     rate_shift: np.ndarray, drift_shift: np.ndarray, noise: np.ndarray) -> np.ndarray:
     """Each unknown's relative standard error with the jumps' bias (:data:`JUMP_ERROR` times
-    its shift), the rate change's beyond :data:`RATE_NOISE` standard errors and the drift
-    probe's drift to now (:data:`DRIFT_BIAS_SIGMAS`), in quadrature."""
+    its shift), the rate change's beyond :data:`RATE_NOISE` standard errors, the drift
+    probe's drift to now (:data:`DRIFT_BIAS_SIGMAS`) and the rows' noise bias
+    (:func:`~duffid.identification.row_noise.noise_shift`), in quadrature."""
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         jump = np.where(jump_shift != 0, JUMP_ERROR * np.abs(jump_shift / theta), 0.0)
         change = np.where(rate_shift != 0, np.abs(rate_shift / theta), 0.0)
         rate = np.sqrt(np.maximum(change**2 - (RATE_NOISE * rse) ** 2, 0.0))
         drift = np.where(drift_shift != 0, np.abs(drift_shift / theta), 0.0)
-        return np.where((jump_shift != 0) | (rate_shift != 0) | (drift_shift != 0),
-                        np.sqrt(rse**2 + jump**2 + rate**2 + drift**2), rse)
+        bias = np.where(noise != 0, np.abs(noise / theta), 0.0)
+        return np.where((jump_shift != 0) | (rate_shift != 0) | (drift_shift != 0) | (noise != 0),
+                        np.sqrt(rse**2 + jump**2 + rate**2 + drift**2 + bias**2), rse)
 
 
 def _jump_shift(R: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -516,15 +524,19 @@ class _QRLeastSquares:
         self.times = 0.0  # the rows' times (since a drifting equation's origin), weighted as the rows
         self.jump = np.zeros(n_unknowns)  # A^T J, the rows' jump errors (JUMP_ERROR)
         self.rate = np.zeros(n_unknowns)  # A^T Q, the rows' change at half the rate (RATE_NOISE)
+        self.gram = np.zeros((n_unknowns, n_unknowns))  # dA^T dA and dA^T dD: the rows' noise (row_noise)
+        self.cross = np.zeros(n_unknowns)
 
     def reset(self) -> None:
         self.R[:] = 0.0
         self.rows = self.times = 0.0
         self.jump[:] = 0.0
         self.rate[:] = 0.0
+        self.gram[:] = 0.0
+        self.cross[:] = 0.0
 
     def update(self, A: np.ndarray, D: np.ndarray, time: float = 0.0, J: np.ndarray | None = None,
-               Q: np.ndarray | None = None) -> None:
+               Q: np.ndarray | None = None, noise: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         stacked = np.vstack([np.sqrt(self.lam) * self.R, np.column_stack([A, D])])
         self.R = triangular_factor(stacked, self.n + 1)
         self.rows = self.lam * self.rows + len(A)
@@ -533,6 +545,17 @@ class _QRLeastSquares:
             self.jump = self.lam * self.jump + (0.0 if J is None else A.T @ J)
         if Q is not None or np.any(self.rate):
             self.rate = self.lam * self.rate + (0.0 if Q is None else A.T @ Q)
+        if noise is not None:
+            dA, dD = noise
+            self.gram = self.lam * self.gram + dA.T @ dA
+            self.cross = self.lam * self.cross + dA.T @ dD
+        else:
+            self.gram *= self.lam
+            self.cross *= self.lam
+
+    def noise_shift(self) -> np.ndarray:
+        """How the accumulated rows' noise moves the unknowns (:func:`noise_shift`)."""
+        return noise_shift(self.R, self.gram, self.cross)
 
     def jump_shift(self) -> np.ndarray:
         """How the accumulated rows' jump errors move the unknowns (:func:`_jump_shift`)."""
@@ -974,6 +997,7 @@ class _EquationState:
         self.jump_shift = np.zeros(len(self.theta))  # how the rows' jump errors move the unknowns
         self.rate_shift = np.zeros(len(self.theta))  # ... and their change at half the rate (RATE_NOISE)
         self.drift_shift = np.zeros(len(self.theta))  # ... and the drift probe's drift to now
+        self.noise_shift = np.zeros(len(self.theta))  # ... and the rows' noise (row_noise)
 
 
 class OnlineIdentifier(Identifier):
@@ -1065,6 +1089,11 @@ class OnlineIdentifier(Identifier):
             self._timed_moments = None if o["change_threshold"] is None else SlidingMoments(
                 self.capacity, self.bank.degree + 1, len(self.channels))
             self._jumps = _JumpMoments(self.capacity, self.bank.degree, model.n_forces)
+            # the rows' noise (row_noise): the displacements' noise level and the moments of the
+            # channels' change under a noise of that level
+            self._noise_level = NoiseLevel(model.n_dof)
+            self._noisy = np.array([c.kind in ("x", "deflection", "expression") for c in self.channels])
+            self._noise_moments = SlidingMoments(self.capacity, self.bank.degree, len(self.channels))
             lam = 1.0 if o["forgetting"] is None else float(np.exp(-self.dt / o["forgetting"]))
             self._solvers = [_QRLeastSquares(len(eq.unknowns), lam) for eq in self.equations]
             # the change test's recent estimate (its forgetting factor follows the window)
@@ -1113,6 +1142,8 @@ class OnlineIdentifier(Identifier):
             self._moments.reset()
             if self._timed_moments is not None:
                 self._timed_moments.reset()
+            self._noise_level.reset()
+            self._noise_moments.reset()
             self._jumps.reset()
             self._set_target(self.capacity)
             self._solvers = [_QRLeastSquares(len(st.equation.unknowns), s.lam)
@@ -1193,6 +1224,7 @@ class OnlineIdentifier(Identifier):
         self._moments.reset()
         if self._timed_moments is not None:
             self._timed_moments.reset()
+        self._noise_moments.reset()
         self._jumps.reset()
         self._regrow = regrow
 
@@ -1230,7 +1262,7 @@ class OnlineIdentifier(Identifier):
         self.n += 1
         g = self._channels.evaluate(x, f)
         if self.method == "robust":
-            window = self._robust_step(g)
+            window = self._robust_step(g, self._row_noise(x, f, g))
             if window is None:  # after hold(): the previous estimate until the window is full
                 assert self._last is not None
                 return self._last
@@ -1375,10 +1407,11 @@ class OnlineIdentifier(Identifier):
         # change of the rows at half the rate beyond the noise (RATE_NOISE) and the drift
         # probe's drift to now (DRIFT_BIAS_SIGMAS)
         errors = [dict(zip(st.equation.unknowns, _published_error(st.rse, st.theta, st.jump_shift, st.rate_shift,
-                                                                  st.drift_shift)))
+                                                                  st.drift_shift, st.noise_shift)))
                   for st in self._states]
         without = [dict(zip(st.equation.unknowns, _published_error(st.rse, st.theta, st.jump_shift,
-                                                                   np.zeros_like(st.rse), np.zeros_like(st.rse))))
+                                                                   np.zeros_like(st.rse), np.zeros_like(st.rse),
+                                                                   np.zeros_like(st.rse))))
                    for st in self._states]
         cond = max(st.cond for st in self._states)
         values, rse = combine_equations(self.model, solutions, errors)
@@ -1399,8 +1432,16 @@ class OnlineIdentifier(Identifier):
         return out
 
     # -------------------------------------------------------------- robust
-    def _robust_step(self, g: np.ndarray) -> int | None:
+    def _row_noise(self, x: np.ndarray, f: np.ndarray, g: np.ndarray) -> np.ndarray:
+        """The channels' change when the displacements take a pseudo-random noise of their
+        measured level (:mod:`~duffid.identification.row_noise`; 0 for the other channels)."""
+        self._noise_level.push(x)
+        noisy = self._channels.at(self._noise_level.perturbed(x), f)
+        return np.where(self._noisy, noisy - g, 0.0)
+
+    def _robust_step(self, g: np.ndarray, dg: np.ndarray) -> int | None:
         moments, L = self._moments.push(g, self._target)
+        noise_moments = self._noise_moments.push(dg, self._target)[0]
         timed_moments = None if self._timed_moments is None else self._timed_moments.push(g, self._target)[0]
         jumps = self._jumps.step(self._moments.n, self._moments.start, self._jump)
         if self._regrow:
@@ -1410,10 +1451,12 @@ class OnlineIdentifier(Identifier):
         if L == 0:
             return 0
         E = self.bank.entries(L / self.capacity, moments, g, self.capacity * self.dt)
+        dE = self.bank.entries(L / self.capacity, noise_moments, dg, self.capacity * self.dt)
         # the lines' rows (DriftLine) need the time-weighted entries
         lines = L >= self._target and timed_moments is not None
         self._robust_solve([st.assembly(E) for st in self._states], L, self._jump_columns(jumps, L),
-                           self._rate_rows(L, lines), self._timed(L, timed_moments) if lines else None)
+                           self._rate_rows(L, lines), [st.assembly(dE) for st in self._states],
+                           self._timed(L, timed_moments) if lines else None)
         return L
 
     def _timed(self, L: int, moments: np.ndarray) -> list[np.ndarray]:
@@ -1456,18 +1499,19 @@ class OnlineIdentifier(Identifier):
 
     def _robust_solve(self, systems: list[tuple[np.ndarray, np.ndarray]], L: int,
                       jumps: list[np.ndarray | None], rates: list[tuple[np.ndarray, np.ndarray, np.ndarray | None] | None],
-                      timed: list[np.ndarray] | None = None) -> None:
+                      noises: list[tuple[np.ndarray, np.ndarray]], timed: list[np.ndarray] | None = None) -> None:
         """Update the estimate with the rows of the current window (length ``L``).
 
         While the window grows, the current window alone is solved (like the paper's
         fixed t0); once it has its full length, the rows of every full window are
         accumulated (with forgetting), and the change test compares the solution with the
-        recent one (see :data:`CHANGE_WINDOWS`).
+        recent one (see :data:`CHANGE_WINDOWS`). ``noises``: each equation's rows' noise
+        ``dA, dD`` (:mod:`~duffid.identification.row_noise`).
         """
         full = L >= self._target
         threshold = self.options["change_threshold"]
-        for j, (st, solver, recent, (A, D), J, rate) in enumerate(zip(
-                self._states, self._solvers, self._recent, systems, jumps, rates)):
+        for j, (st, solver, recent, (A, D), J, rate, (dA, dD)) in enumerate(zip(
+                self._states, self._solvers, self._recent, systems, jumps, rates, noises)):
             S = None if timed is None else timed[j]  # t_ref times the rows' time-weighted entries
             n = len(st.equation.unknowns)
             if not full:
@@ -1477,6 +1521,7 @@ class OnlineIdentifier(Identifier):
                 Q = None if rate is None else rate[1] - rate[0] @ st.theta
                 st.rate_shift = np.zeros(n) if Q is None or not np.all(np.isfinite(Q)) else \
                     _jump_shift(R[:n, :n], A.T @ Q)
+                st.noise_shift = noise_shift(R, dA.T @ dA, dA.T @ dD)
                 continue
             if self.n < st.resume:  # a window that holds samples from before the change
                 continue
@@ -1489,7 +1534,9 @@ class OnlineIdentifier(Identifier):
             Q = None
             if rate is not None and np.all(np.isfinite(previous)):  # the rows' change at half the rate
                 Q = rate[1] - (rate[0] if line is None else line.rows(rate[0], time, rate[2])) @ previous
-            solver.update(rows, D, J=J, Q=Q)
+            # the noise of the lines' columns: the newest time's (the window is short against it)
+            noise = (dA if line is None else line.rows(dA, time), dD)
+            solver.update(rows, D, J=J, Q=Q, noise=noise)
             if line is None:
                 st.theta, st.cond, st.rse, st.share, st.rhs_share = solve_factor(
                     solver.R, accumulated_rows(solver.rows, n, len(A), L), float(L))
@@ -1501,17 +1548,24 @@ class OnlineIdentifier(Identifier):
             st.jump_shift = shift[:n].copy()
             rate_shift = solver.rate_shift()
             st.rate_shift = rate_shift[:n].copy()
+            bias = solver.noise_shift()
+            st.noise_shift = bias[:n].copy() if np.all(np.isfinite(bias)) else np.full(n, np.inf)
             if line is not None:  # the lines' values now
                 st.jump_shift[line.index] += shift[n:] * time
                 st.rate_shift[line.index] += rate_shift[n:] * time
+                if np.all(np.isfinite(bias)):
+                    st.noise_shift[line.index] += bias[n:] * time
             self._offset_probe(j, A, D, L)
             if threshold is not None and self._drift_probe(j, A, D, time, L, S):
                 continue
             if threshold is None or self.n < st.recent_resume:  # no test, or the recent estimate restarted
                 continue
-            recent.update(rows, D, time)
+            recent.update(rows, D, time, noise=noise)
             if line is None:
                 theta, rse = recent_solution(recent.R, recent.rows, float(L))
+                bias = recent.noise_shift()  # ... with its rows' noise bias
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    rse = np.where(bias != 0, np.hypot(rse, np.abs(bias / theta)), rse)
                 then, then_rse = st.theta, st.rse
             else:  # both drifting equations' lines where the recent rows are (their mean time)
                 st.recent_line.solve_recent(recent.R, recent.rows, float(L))
