@@ -54,6 +54,7 @@ typedef char line_unknowns_fit[MAX_LINE <= MAX_UNK ? 1 : -1]; /* the workspaces 
 #define MAX_CORR (2 * DUFFID_GREGORY_POINTS) /* quadrature end corrections */
 #define MAX_RATE (2 * MAX_CORR + 1)  /* ... of the rule minus the half-rate rule (engine.RATE_NOISE) */
 #define NOISE_HISTORY 7              /* the displacements the rows' noise level keeps: a 6th difference's */
+#define NEAR (DUFFID_GREGORY_POINTS + 1) /* a raw ring's newest samples whose channels are kept */
 #define MIN_SAMPLES DUFFID_MIN_SAMPLES  /* engine.MIN_SAMPLES (duffid_facts.h) */
 #define MAX_CAPACITY 100000000L      /* longest robust window in samples */
 #define ANY_SIGN (DUFFID_ALLOW_POSITIVE | DUFFID_ALLOW_ZERO | DUFFID_ALLOW_NEGATIVE)
@@ -277,7 +278,14 @@ struct duffid_estimator {
     int64_t memory;                         /* ... its memory in samples (a drift lasts it) */
     duffid_real last_L;                     /* the window length of this sample's rows */
     long head;                              /* ring position of the newest sample */
-    duffid_real *ring;                      /* (capacity + 2) x n_ch */
+    duffid_real *ring;                      /* (capacity + 2) x ring_width: each sample's raw values (x,
+                                             * f, the noisy x) or channels (ring_sample) */
+    int ring_raw, ring_width;
+    duffid_real *ring_buf;                  /* raw: the channels of MAX_CORR + 1 ring samples (n_mom each) */
+    duffid_real *near;                      /* raw: the channels of the NEAR newest samples (n_mom each) */
+    int near_head;                          /* ... the newest's slot */
+    duffid_real x_now[DUFFID_MAX_DOF], xn_now[DUFFID_MAX_DOF], f_now[DUFFID_MAX_FORCES]; /* the sample
+                                             * processed and its noisy x (raw: into the ring) */
     duffid_real *acc, *mom, *fact;          /* (degree + 1) x n_ch each */
     duffid_real *shadow;                    /* SHADOWS of those */
     int64_t start, shadow_from[SHADOWS];    /* first sample of each shadow, -1: not started */
@@ -745,6 +753,8 @@ typedef struct {
     int unknowns[MAX_EQ], parts[MAX_EQ], lines[MAX_EQ]; /* lines: most unknowns with the lines' rates */
     int offset_probe[MAX_EQ];  /* the offset probe runs: robust, one part, no constant (offset) parameter */
     int n_noise;               /* robust: channels of the rows' noise (one per channel of x, row_noise) */
+    int ring_width;            /* robust: values a sample takes in the ring (ring_sample) */
+    int ring_raw;              /* ... 1: the raw sample (a built-in model), 0: the channels */
     block_t blocks[BUILTIN_BLOCKS > MAX_EQ ? BUILTIN_BLOCKS : MAX_EQ];
     term_t terms[BUILTIN_TERMS];
     duffid_rule rules[BUILTIN_RULES];
@@ -827,6 +837,11 @@ static void shape_of(const duffid_config *cfg, shape_t *s)
         s->n_noise += cfg->model == DUFFID_GENERATED ? generated_model()->channel_force[e] < 0
                                                      : s->ch[e].kind == CH_X || s->ch[e].kind == CH_DEFL;
     }
+    /* the ring: a built-in model's raw sample (x, f and, with the rows' noise, the noisy x: its
+     * channels are recomputed where the ring is read), a generated model's channels */
+    s->ring_raw = cfg->model != DUFFID_GENERATED;
+    s->ring_width = !s->ring_raw ? s->m.c.n_channels + s->n_noise
+                                 : s->m.c.n_dof * (s->n_noise > 0 ? 2 : 1) + s->m.c.n_forces;
     s->n_rows = cfg->n_rows ? cfg->n_rows : (n_max + 1 > 8 ? n_max + 1 : 8);
     s->capacity = cfg->method == DUFFID_ROBUST ? capacity_of(cfg) : 0;
     s->degree = s->n_coef = 0;
@@ -916,7 +931,7 @@ int duffid_check_config(const duffid_config *cfg, char *msg, size_t size)
             set_msg(msg, size, "n_rows must be at most %d in the C core, got %d", DUFFID_MAX_ROWS, s.n_rows);
             return DUFFID_ERR_CONFIG;
         }
-        if (s.capacity < 0 || ((duffid_real)s.capacity + RC(2.0)) * (duffid_real)(s.m.c.n_channels + s.n_noise) *
+        if (s.capacity < 0 || ((duffid_real)s.capacity + RC(2.0)) * (duffid_real)s.ring_width *
                                       (duffid_real)sizeof(duffid_real) >
                                   (duffid_real)SIZE_MAX / RC(2.0)) {
             set_msg(msg, size, "the window (%g s at dt %g s) exceeds %ld samples or the address space",
@@ -1041,7 +1056,9 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
     CARVE(&c, est->Rinv, line_max * line_max);
     CARVE(&c, est->scale, line_max);
     if (robust) {
-        CARVE(&c, est->ring, (s->capacity + 2) * n_mom);
+        CARVE(&c, est->ring, (s->capacity + 2) * s->ring_width);
+        CARVE(&c, est->ring_buf, s->ring_raw ? (MAX_CORR + 1) * n_mom : 0);
+        CARVE(&c, est->near, s->ring_raw ? NEAR * n_mom : 0);
         CARVE(&c, est->acc, (D + 1) * n_mom);
         CARVE(&c, est->shadow, SHADOWS * (D + 1) * n_mom);
         CARVE(&c, est->fact, (D + 1) * n_mom);
@@ -1195,6 +1212,8 @@ static void build_structure(duffid_estimator *est, const shape_t *s)
     est->n_eq = est->m.c.n_blocks;
     est->n_noise = s->n_noise;
     est->n_mom = est->n_ch + est->n_noise;
+    est->ring_raw = s->ring_raw;
+    est->ring_width = s->ring_width;
     for (i = 0, k = est->n_ch; i < est->n_ch; i++) { /* the channels of x have a noise channel each */
         const int noisy = est->cfg.model == DUFFID_GENERATED ? generated_model()->channel_force[i] < 0
                                                              : est->m.ch[i].kind == CH_X || est->m.ch[i].kind == CH_DEFL;
@@ -1358,7 +1377,7 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
         return DUFFID_ERR_ARGUMENT;
     }
     /* structure: everything duffid_init derives from the configuration */
-    STATE_SAME(n_dof) STATE_SAME(n_forces) STATE_SAME(n_params) STATE_SAME(n_ch) STATE_SAME(n_mom) STATE_SAME(n_eq)
+    STATE_SAME(n_dof) STATE_SAME(n_forces) STATE_SAME(n_params) STATE_SAME(n_ch) STATE_SAME(n_mom) STATE_SAME(n_eq) STATE_SAME(ring_raw) STATE_SAME(ring_width)
     STATE_SAME(n_noise) STATE_SAME(noise_of) STATE_SAME(n_noise_jobs)
     if (memcmp(&est->m.c, &fresh->m.c, sizeof est->m.c) != 0) { /* another model (its counts, signature) */
         bad = "model";
@@ -1429,6 +1448,7 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     STATE_RANGE(est->spanned_from, -1, n + 1 + (int64_t)est->capacity)
     STATE_RANGE(est->has_last_x, 0, 1)
     STATE_RANGE(est->noise_count, 0, NOISE_HISTORY) /* the rows' noise */
+    STATE_RANGE(est->near_head, 0, NEAR - 1)
     STATE_RANGE(est->noise_n4, 0, n + 1)
     STATE_RANGE(est->noise_n6, 0, est->noise_n4)
     STATE_RANGE(est->noise_state, 1, UINT32_MAX) /* xorshift32 never reaches 0 */
@@ -1718,7 +1738,11 @@ void duffid_reset(duffid_estimator *est)
     if (est->cfg.method == DUFFID_ROBUST) {
         const size_t moments = (size_t)(est->degree + 1) * (size_t)est->n_ch * sizeof(duffid_real);
         const size_t all = (size_t)(est->degree + 1) * (size_t)est->n_mom * sizeof(duffid_real);
-        memset(est->ring, 0, (size_t)(est->capacity + 2) * (size_t)est->n_mom * sizeof(duffid_real));
+        memset(est->ring, 0, (size_t)(est->capacity + 2) * (size_t)est->ring_width * sizeof(duffid_real));
+        if (est->ring_raw) {
+            memset(est->near, 0, (size_t)(NEAR * est->n_mom) * sizeof(duffid_real));
+        }
+        est->near_head = NEAR - 1; /* the first sample goes to slot 0 */
         memset(est->acc, 0, all);
         memset(est->shadow, 0, SHADOWS * all);
         memset(est->acc_alt, 0, moments);
@@ -1888,9 +1912,15 @@ static void evaluate_channels(duffid_estimator *est, const duffid_real *x, const
             est->g[i] = channel_value(&est->m.ch[i], x, f);
         }
     }
+    for (i = 0; i < est->n_dof; i++) { /* the raw ring's sample (the noisy x: x without noise) */
+        est->x_now[i] = est->xn_now[i] = x[i];
+    }
+    for (i = 0; i < est->n_forces; i++) {
+        est->f_now[i] = f[i];
+    }
     if (est->n_noise > 0 && !est->defer) { /* OnlineIdentifier._row_noise: the channels of x at xn minus
                                              * at x (a deferred run gives values only: none) */
-        duffid_real xn[DUFFID_MAX_DOF];
+        duffid_real *xn = est->xn_now;
         noise_perturbed(est, x, xn);
         if (est->cfg.model == DUFFID_GENERATED) {
 #ifdef DUFFID_GENERATED_MODEL
@@ -1923,6 +1953,33 @@ static long ring_at(const duffid_estimator *est, long back)
 {
     long k = est->head - back;
     return k < 0 ? k + est->capacity + 2 : k;
+}
+
+/* the first count of the n_mom channels (the model's, then their noise's) of the ring's sample
+ * `back` samples before the newest: a pointer into a ring of channels, or, for a raw ring,
+ * recomputed into buf from the sample's x, f and noisy x as evaluate_channels computed them */
+static const duffid_real *ring_sample(const duffid_estimator *est, long back, int count, duffid_real *buf)
+{
+    const duffid_real *slot = est->ring + (size_t)ring_at(est, back) * (size_t)est->ring_width;
+    const duffid_real *x = slot, *f = slot + est->n_dof, *xn = f + est->n_forces;
+    int c;
+    if (!est->ring_raw) {
+        return slot;
+    }
+    if (back < NEAR) { /* kept as evaluate_channels computed them */
+        const int k = est->near_head - (int)back;
+        return est->near + (k < 0 ? k + NEAR : k) * est->n_mom;
+    }
+    for (c = 0; c < est->n_ch; c++) {
+        buf[c] = channel_value(&est->m.ch[c], x, f);
+    }
+    for (c = 0; c < est->n_ch; c++) {
+        const int k = est->noise_of[c];
+        if (k >= 0 && k < count) {
+            buf[k] = channel_value(&est->m.ch[c], xn, f) - buf[c];
+        }
+    }
+    return buf;
 }
 
 /* phi_j(i), j = 0..degree */
@@ -2193,10 +2250,11 @@ static void end_corrections(duffid_estimator *est, int n_ch, const duffid_real *
 static long moments_push(duffid_estimator *est, long window)
 {
     const long N = est->capacity;
-    /* the ring holds the model's channels and their noise's (stride); the moments are those of
-     * n_mom channels: the model's and, but in a deferred run (values only), their noise's; the
-     * alternating sums the model's channels' only (the rows at half the rate) */
-    const int n_ch = est->n_ch, stride = est->n_mom, n_mom = est->defer ? est->n_ch : est->n_mom;
+    /* the moments are those of n_mom channels: the model's and, but in a deferred run (values
+     * only), their noise's; the alternating sums the model's channels' only (the rows at half
+     * the rate); the ring's samples are read through ring_sample */
+    const int n_ch = est->n_ch, n_mom = est->defer ? est->n_ch : est->n_mom;
+    duffid_real *one = est->ring_buf + MAX_CORR * est->n_mom; /* a raw ring's sample's channels */
     const int D = est->degree, D1 = D + 1;
     const int64_t n = est->n; /* SlidingMoments.n == OnlineIdentifier.n */
     const size_t bytes = (size_t)(D1 * n_mom) * sizeof(duffid_real), bytes_alt = (size_t)(D1 * n_ch) * sizeof(duffid_real);
@@ -2210,9 +2268,19 @@ static long moments_push(duffid_estimator *est, long window)
     duffid_real *slot;
 
     est->head = est->head == N + 1 ? 0 : est->head + 1;
-    slot = est->ring + (size_t)est->head * (size_t)stride;
-    for (c = 0; c < n_mom; c++) {
-        slot[c] = est->g[c];
+    slot = est->ring + (size_t)est->head * (size_t)est->ring_width;
+    if (est->ring_raw) { /* x, f, the noisy x; the channels of the newest samples */
+        est->near_head = est->near_head + 1 == NEAR ? 0 : est->near_head + 1;
+        memcpy(est->near + est->near_head * est->n_mom, est->g, (size_t)n_mom * sizeof(duffid_real));
+        memcpy(slot, est->x_now, (size_t)est->n_dof * sizeof(duffid_real));
+        memcpy(slot + est->n_dof, est->f_now, (size_t)est->n_forces * sizeof(duffid_real));
+        if (est->n_noise > 0) {
+            memcpy(slot + est->n_dof + est->n_forces, est->xn_now, (size_t)est->n_dof * sizeof(duffid_real));
+        }
+    } else {
+        for (c = 0; c < n_mom; c++) {
+            slot[c] = est->g[c];
+        }
     }
     for (c = 0; c < n_ch; c++) {
         signed_g[c] = sign * est->g[c];
@@ -2221,7 +2289,7 @@ static long moments_push(duffid_estimator *est, long window)
     new_start = n - w > est->start ? n - w : est->start;
     if (new_start == est->start + 1) { /* a sliding window: one sample leaves */
         const long i = (long)(n - est->start);
-        const duffid_real *old = est->ring + (size_t)ring_at(est, i) * (size_t)stride;
+        const duffid_real *old = ring_sample(est, i, n_mom, one);
         shift_accumulator(est, n_mom, est->acc, est->g, old, leaving_basis(est, i));
         if (alt) {
             signed_sample(old, (i & 1) ? -sign : sign, n_ch, leaving);
@@ -2241,7 +2309,7 @@ static long moments_push(duffid_estimator *est, long window)
         } else {
             for (j = est->start; j < new_start; j++) { /* samples leaving the window */
                 const long i = (long)(n - j);
-                const duffid_real *old = est->ring + (size_t)ring_at(est, i) * (size_t)stride;
+                const duffid_real *old = ring_sample(est, i, n_mom, one);
                 accumulate(est, n_mom, est->acc, leaving_basis(est, i), old, RC(-1.0));
                 if (alt) {
                     signed_sample(old, (i & 1) ? -sign : sign, n_ch, leaving);
@@ -2253,14 +2321,14 @@ static long moments_push(duffid_estimator *est, long window)
     }
     for (k = 0; k < SHADOWS; k++) {
         if (est->shadow_from[k] >= 0) {
-            shift_accumulator(est, n_mom, est->shadow + k * D1 * stride, est->g, NULL, NULL);
+            shift_accumulator(est, n_mom, est->shadow + k * D1 * est->n_mom, est->g, NULL, NULL);
             if (alt) {
                 shift_accumulator(est, n_ch, est->shadow_alt + k * D1 * n_ch, signed_g, NULL, NULL);
             }
         }
     }
     for (k = 0; k < SHADOWS; k++) {
-        duffid_real *shadow = est->shadow + k * D1 * stride, *shadow_alt = est->shadow_alt + k * D1 * n_ch;
+        duffid_real *shadow = est->shadow + k * D1 * est->n_mom, *shadow_alt = est->shadow_alt + k * D1 * n_ch;
         if (est->shadow_from[k] >= 0 && est->shadow_from[k] < est->start) {
             /* the shadow holds samples outside the window (it shrank): the first is rebuilt
              * from the window, the others start again */
@@ -2270,7 +2338,7 @@ static long moments_push(duffid_estimator *est, long window)
                 memset(shadow, 0, bytes);
                 memset(shadow_alt, 0, bytes_alt);
                 for (i = 0; i <= (long)(n - est->start); i++) {
-                    const duffid_real *old = est->ring + (size_t)ring_at(est, i) * (size_t)stride;
+                    const duffid_real *old = ring_sample(est, i, n_mom, one);
                     factorial_basis(est, i, phi);
                     accumulate(est, n_mom, shadow, phi, old, RC(1.0));
                     if (alt) {
@@ -2284,7 +2352,7 @@ static long moments_push(duffid_estimator *est, long window)
         }
     }
     for (k = 0; k < SHADOWS; k++) {
-        duffid_real *shadow = est->shadow + k * D1 * stride, *shadow_alt = est->shadow_alt + k * D1 * n_ch;
+        duffid_real *shadow = est->shadow + k * D1 * est->n_mom, *shadow_alt = est->shadow_alt + k * D1 * n_ch;
         if (est->shadow_from[k] == est->start && n - est->start >= 1) {
             /* the shadow holds exactly the window: it becomes the main accumulator */
             memcpy(est->acc, shadow, bytes);
@@ -2302,7 +2370,7 @@ static long moments_push(duffid_estimator *est, long window)
         }
         for (k = 0; k < SHADOWS; k++) {
             if (est->shadow_from[k] < 0 && SHADOWS * (n + 1 - latest) >= (int64_t)w) {
-                memset(est->shadow + k * D1 * stride, 0, bytes);
+                memset(est->shadow + k * D1 * est->n_mom, 0, bytes);
                 memset(est->shadow_alt + k * D1 * n_ch, 0, bytes_alt);
                 est->shadow_from[k] = n + 1;
                 break;
@@ -2324,7 +2392,7 @@ static long moments_push(duffid_estimator *est, long window)
     { /* fact = acc + the quadrature's end corrections (those near the newest sample are short) */
         const duffid_real *sample[MAX_CORR];
         for (m = 0; m < est->corr_n; m++) {
-            sample[m] = est->ring + (size_t)ring_at(est, est->corr_off[m]) * (size_t)stride;
+            sample[m] = ring_sample(est, est->corr_off[m], n_mom, est->ring_buf + m * est->n_mom);
         }
         if (est->corr_near >= 0) {
             end_corrections(est, n_mom, sample, est->corr_near);
@@ -2367,7 +2435,7 @@ static long moments_push(duffid_estimator *est, long window)
         }
         for (m = 0; m < est->rate_n; m++) {
             const long at = est->rate_off[m];
-            const duffid_real *sample = est->ring + (size_t)ring_at(est, at) * (size_t)stride;
+            const duffid_real *sample = ring_sample(est, at, n_ch, one);
             const int top = at + 1 < D1 ? (int)at + 1 : D1; /* phi_j(i) = 0, j > i */
             factorial_basis(est, at, phi);
             for (c = 0; c < n_ch; c++) {
@@ -2400,12 +2468,12 @@ static void jump_powers(int D, duffid_real x, duffid_real *out)
 static void jump_at(const duffid_estimator *est, long back, duffid_real *df)
 {
     const unsigned char flags = est->jump_flag[ring_at(est, back)];
-    const duffid_real *now = est->ring + (size_t)ring_at(est, back) * (size_t)est->n_mom;
-    const duffid_real *before = est->ring + (size_t)ring_at(est, back + 1) * (size_t)est->n_mom;
+    const duffid_real *now = est->ring + (size_t)ring_at(est, back) * (size_t)est->ring_width;
+    const duffid_real *before = est->ring + (size_t)ring_at(est, back + 1) * (size_t)est->ring_width;
     int j;
-    for (j = 0; j < est->n_forces; j++) {
-        const int c = est->force_channel[j];
-        df[j] = (flags >> j) & 1u && c >= 0 ? now[c] - before[c] : RC(0.0);
+    for (j = 0; j < est->n_forces; j++) { /* a raw ring holds the forces after x */
+        const int c = est->ring_raw ? est->n_dof + j : est->force_channel[j];
+        df[j] = (flags >> j) & 1u && est->force_channel[j] >= 0 ? now[c] - before[c] : RC(0.0);
     }
 }
 

@@ -1404,8 +1404,9 @@ class OnlineIdentifier(Identifier):
         shares, and the errors without the quadrature's bias (what the window rule goes by)."""
         solutions = [dict(zip(st.equation.unknowns, st.theta)) for st in self._states]
         # each unknown's standard error includes the bias of the jumps' rows (JUMP_ERROR), the
-        # change of the rows at half the rate beyond the noise (RATE_NOISE) and the drift
-        # probe's drift to now (DRIFT_BIAS_SIGMAS)
+        # change of the rows at half the rate beyond the noise (RATE_NOISE), the drift
+        # probe's drift to now (DRIFT_BIAS_SIGMAS) and the rows' noise (row_noise); the window
+        # rule goes by the jumps' alone
         errors = [dict(zip(st.equation.unknowns, _published_error(st.rse, st.theta, st.jump_shift, st.rate_shift,
                                                                   st.drift_shift, st.noise_shift)))
                   for st in self._states]
