@@ -371,7 +371,7 @@ class BufferedIdentifier(Identifier):
         displacements' measured level (:mod:`~duffid.identification.row_noise`): the rows'
         noise is accumulated as the rows, and the noise-corrected solution's shift enters
         each unknown's relative standard error (where the noise dominates the rows, the
-        estimate is not flagged). A settled step accumulated 1,000 windows of one
+        estimate is not flagged). A settled step accumulated 48 windows of 0.25 s of one
         displacement, whose ``k x`` and ``kp x^3`` differ only by its noise: kp was flagged
         identified 14-17 % off."""
         solutions: list[dict[str, float]] = [dict() for _ in self.regression.unknowns]
