@@ -134,6 +134,11 @@ typedef struct {
     int count;         /* samples pushed, saturated at 2 */
 } integrators_t;
 
+/* the parts of a block's score carve (engine.BATCH_WINDOWS) */
+#define LAST_SCORE(eq) ((eq)->score + (eq)->line_cap)
+#define SCORES(eq) ((eq)->score + 2 * (eq)->line_cap)
+#define NOMINAL(eq) ((eq)->score + (eq)->line_cap * ((eq)->line_cap + 2))
+
 typedef struct { /* the state of one block of the description */
     duffid_real *theta, *rse, *share; /* n_unknowns each */
     duffid_real *R;                   /* robust: accumulated factor of [A D], p x p (p = n_line + 1) */
@@ -177,6 +182,13 @@ typedef struct { /* the state of one block of the description */
                                        * (with their forgetting) */
     duffid_real *noise_G_recent;      /* ... of the change test's recent rows */
     duffid_real *noise_shift;         /* n: how it moves the unknowns (row_noise.noise_shift) */
+    /* engine.BATCH_WINDOWS: the accumulated rows' scores A^T r by blocks of a window */
+    duffid_real *score;               /* line_cap: the open block's; then (LAST_SCORE, SCORES,
+                                       * NOMINAL) line_cap: the last closed one's, line_cap^2:
+                                       * the closed blocks' products with their neighbours', n: the
+                                       * residual's relative errors (the change test's) */
+    duffid_real scored, blocks;       /* the rows the closed blocks hold, and the blocks (weighted as the rows) */
+    int block;                        /* samples in the open block */
     duffid_real cond, rhs_share, rows, rows_recent, residual;
     int64_t departed;                 /* samples the departure has mattered in a row, saturated
                                        * at settle */
@@ -1033,6 +1045,7 @@ static size_t layout(const shape_t *s, duffid_estimator *est, char *base)
         CARVE(&c, eq->noise_G, robust ? nl * p : 0);
         CARVE(&c, eq->noise_G_recent, robust ? nl * p : 0);
         CARVE(&c, eq->noise_shift, n);
+        CARVE(&c, eq->score, nl * (nl + 2) + n); /* with LAST_SCORE, SCORES, NOMINAL */
         CARVE(&c, eq->drift_shift, n);
         CARVE(&c, eq->drifting, n);
         CARVE(&c, eq->line, lines ? nl : 0);
@@ -1413,6 +1426,7 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
             STATE_RANGE(est->eq[i].off_row, 0, fresh->m.blocks[i].n_parts * fresh->n_rows - 1)
         }
         STATE_RANGE(est->eq[i].resume, 0, limit)
+        STATE_RANGE(est->eq[i].block, 0, fresh->capacity)
         STATE_RANGE(est->eq[i].recent_resume, 0, limit)
         STATE_SAME(eq[i].line_cap)
         if (cfg.method == DUFFID_ROBUST) { /* n_line: the block's unknowns and one rate per line */
@@ -1628,6 +1642,7 @@ static void clear_change(equation_t *eq, int n)
         eq->rate_shift[u] = RC(0.0);
         eq->drift_shift[u] = RC(0.0);
         eq->noise_shift[u] = RC(0.0);
+        NOMINAL(eq)[u] = R_INF;
     }
 }
 
@@ -1642,6 +1657,11 @@ static void clear_factors(duffid_estimator *est, int e)
     memset(eq->R_recent, 0, (size_t)(p * p) * sizeof(duffid_real));
     memset(eq->noise_G, 0, (size_t)((p - 1) * p) * sizeof(duffid_real));
     memset(eq->noise_G_recent, 0, (size_t)((p - 1) * p) * sizeof(duffid_real));
+    memset(eq->score, 0, (size_t)(p - 1) * sizeof(duffid_real));
+    memset(LAST_SCORE(eq), 0, (size_t)(p - 1) * sizeof(duffid_real));
+    memset(SCORES(eq), 0, (size_t)((p - 1) * (p - 1)) * sizeof(duffid_real));
+    eq->scored = eq->blocks = RC(0.0);
+    eq->block = 0;
     if (eq->probe_n > 0) {
         memset(eq->R_probe, 0, (size_t)(p * p) * sizeof(duffid_real));
     }
@@ -2875,7 +2895,7 @@ static void singular(equation_t *eq, int n)
     int i;
     for (i = 0; i < n; i++) {
         eq->theta[i] = R_NAN;
-        eq->rse[i] = R_INF;
+        eq->rse[i] = NOMINAL(eq)[i] = R_INF;
         eq->share[i] = R_NAN;
     }
     eq->rhs_share = R_NAN;
@@ -2907,33 +2927,133 @@ static void shares(duffid_estimator *est, equation_t *eq, int n, int n_terms, co
     eq->rhs_share = balance > RC(0.0) ? rhs / balance : R_NAN;
 }
 
-/* float: each unknown's relative standard error includes the rounding of the rows it rests on */
-static void with_rounding(equation_t *eq, int n)
+/* float: each unknown's relative standard error (and rse, when not NULL, too) includes the
+ * rounding of the rows it rests on */
+static void with_rounding(equation_t *eq, int n, duffid_real *rse)
 {
 #if DUFFID_SINGLE
     int i;
     for (i = 0; i < n; i++) {
         eq->rse[i] = duffid_la_hypot(eq->rse[i], ARITHMETIC_FACTOR * eq->rounding * eq->cond);
+        if (rse != NULL) {
+            rse[i] = duffid_la_hypot(rse[i], ARITHMETIC_FACTOR * eq->rounding * eq->cond);
+        }
     }
 #else
     (void)eq;
     (void)n;
+    (void)rse;
 #endif
 }
 
 /* identification.solve_factor on the p x p factor Raug (p = n + 1): the condition number of
  * the column-equilibrated factor by a warm-started Jacobi iteration, the unknowns and their
  * standard errors from its triangular inverse */
-static void solve_factor(duffid_estimator *est, equation_t *eq, int n, const duffid_real *Raug, duffid_real rows,
-                         duffid_real overlap)
+static int solve_plain(duffid_estimator *est, equation_t *eq, int n, const duffid_real *Raug, duffid_real rows,
+                       duffid_real overlap)
 {
     if (duffid_la_solve_factor(n, Raug, rows, overlap, COND_SINGULAR, est->scale, est->U, est->Rinv, eq->V,
                                &eq->warm, eq->theta, eq->rse, &eq->cond) != 0) {
         singular(eq, n);
-        return;
+        return 1;
     }
     shares(est, eq, n, n, Raug, eq->theta);
-    with_rounding(eq, n);
+    return 0;
+}
+
+static void solve_factor(duffid_estimator *est, equation_t *eq, int n, const duffid_real *Raug, duffid_real rows,
+                         duffid_real overlap)
+{
+    if (solve_plain(est, eq, n, Raug, rows, overlap) == 0) {
+        with_rounding(eq, n, NULL);
+    }
+}
+
+static int rate_column(const duffid_real *B, int m, int n, const duffid_real *theta, duffid_real *q);
+
+/* engine._QRLeastSquares.add_scores: the m rows B = [A D] (nl unknowns) with their residuals
+ * against the previous solution into the open block's score (before B is factored away);
+ * NaN-free previous only (returns 0 otherwise) */
+static int add_score(duffid_estimator *est, equation_t *eq, int m, int nl, const duffid_real *previous)
+{
+    if (!rate_column(est->B, m, nl, previous, est->rate_q)) {
+        return 0;
+    }
+    jump_product(est->B, est->rate_q, m, nl, est->lam, eq->score);
+    return 1;
+}
+
+/* ... and, after the rows were accumulated, the block's end: its score's products with itself and
+ * its neighbour's into scores (engine.BATCH_WINDOWS) once it holds `length` samples */
+static void close_block(duffid_estimator *est, equation_t *eq, int nl, long length)
+{
+    const duffid_real lam2 = est->lam * est->lam;
+    int i, j;
+    if (lam2 != RC(1.0)) {
+        for (i = 0; i < nl * nl; i++) {
+            SCORES(eq)[i] *= lam2;
+        }
+    }
+    eq->scored *= est->lam;
+    eq->blocks *= est->lam;
+    if (++eq->block < length) {
+        return;
+    }
+    for (i = 0; i < nl; i++) {
+        const duffid_real u = eq->score[i], q = LAST_SCORE(eq)[i];
+        for (j = 0; j < nl; j++) {
+            SCORES(eq)[i * nl + j] += u * eq->score[j] + u * LAST_SCORE(eq)[j] + q * eq->score[j];
+        }
+    }
+    for (i = 0; i < nl; i++) {
+        LAST_SCORE(eq)[i] = eq->score[i];
+        eq->score[i] = RC(0.0);
+    }
+    eq->block = 0;
+    eq->blocks += RC(1.0);
+    eq->scored = eq->rows;
+}
+
+/* engine._batch_relative: after a solve of the accumulated factor (inv = R^-1, nl x nl), each of
+ * the block's n unknowns at time t (lines: value + t rate) with its batch-means error
+ * (engine.BATCH_WINDOWS): where larger than the residual's (kept in NOMINAL for the change
+ * test), it is the unknown's error */
+static void batch_means(equation_t *eq, int n, duffid_real t, const duffid_real *inv)
+{
+    const int nl = eq->n_line;
+    duffid_real K[MAX_LINE];
+    int i, j, k, rate = n, known = eq->blocks > (duffid_real)nl && eq->scored > RC(0.0);
+    for (i = 0; i < n; i++) {
+        known &= is_finite(eq->theta[i]);
+        NOMINAL(eq)[i] = eq->rse[i];
+    }
+    if (!known) {
+        return;
+    }
+    for (i = 0; i < n; i++) {
+        const int r = nl > n && eq->drifting[i] ? rate++ : -1;
+        duffid_real var = RC(0.0), batch;
+        for (j = 0; j < nl; j++) { /* the unknown's row of G^-1 = C R^-T, C its row of the map z -> theta */
+            duffid_real sum = RC(0.0);
+            for (k = j; k < nl; k++) { /* R^-1 is upper triangular */
+                const duffid_real c = r >= 0 ? inv[i * nl + k] + t * inv[r * nl + k] : inv[i * nl + k];
+                sum += c * inv[j * nl + k];
+            }
+            K[j] = sum;
+        }
+        for (j = 0; j < nl; j++) {
+            duffid_real sum = RC(0.0);
+            for (k = 0; k < nl; k++) {
+                sum += SCORES(eq)[j * nl + k] * K[k];
+            }
+            var += K[j] * sum;
+        }
+        var *= eq->rows / eq->scored * eq->blocks / (eq->blocks - (duffid_real)nl);
+        batch = eq->theta[i] != RC(0.0) ? R_SQRT(var > RC(0.0) ? var : RC(0.0)) / R_FABS(eq->theta[i]) : R_INF;
+        if (batch > eq->rse[i]) {
+            eq->rse[i] = batch;
+        }
+    }
 }
 
 /* engine.DriftLine._inverse: after a solve of the factor Raug of nl unknowns (est->Rinv and
@@ -3008,7 +3128,8 @@ static void line_solve(duffid_estimator *est, equation_t *eq, int n, int m, duff
     shares(est, eq, n, nl, eq->R, eq->line);
     eq->line_sigma = line_inverse(est, nl, eq->R, rows, overlap, eq->line_inv);
     line_at(eq, n, t, eq->line, eq->line_inv, eq->line_sigma, eq->theta, eq->rse);
-    with_rounding(eq, n);
+    batch_means(eq, n, t, eq->line_inv);
+    with_rounding(eq, n, NOMINAL(eq));
 }
 
 /* engine._relative_residual: ||D - A theta|| over the norm of the force balance of the m
@@ -3256,7 +3377,7 @@ static int drift_probe(duffid_estimator *est, int e, int m, duffid_real t, duffi
             /* ... and the line's end further from the accumulated value than that may move */
             departed[i] = R_FABS(rate) > RC(DUFFID_DRIFT_SIGMAS) * sigma * R_SQRT(norm2) &&
                           R_FABS(end - eq->theta[i]) > band * R_FABS(end) &&
-                          confirmed && eq->rse[i] <= est->max_uncertainty && !eq->drifting[i];
+                          confirmed && NOMINAL(eq)[i] <= est->max_uncertainty && !eq->drifting[i];
             any |= departed[i];
         }
     }
@@ -3378,7 +3499,7 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit, du
     equation_t *eq = &est->eq[e];
     const int n = est->m.blocks[e].n_unknowns, nl = eq->n_line, p = nl + 1;
     duffid_real theta[MAX_UNK], rse[MAX_UNK], then_store[MAX_UNK], then_rse_store[MAX_UNK];
-    const duffid_real *then = eq->theta, *then_rse = eq->rse;
+    const duffid_real *then = eq->theta, *then_rse = NOMINAL(eq); /* the residual's errors (BATCH_WINDOWS) */
     const int noisy = est->n_noise > 0 && !est->defer;
     int departed[MAX_UNK], drifted[MAX_UNK], confirmed[MAX_UNK];
     int i, any = 0, any_drift = 0;
@@ -3397,11 +3518,13 @@ static void change_test(duffid_estimator *est, int e, int m, duffid_real fit, du
             for (i = 0; i < n; i++) {
                 theta[i] = R_NAN;
             }
-        } else if (noisy) { /* ... with its rows' noise's bias (row_noise) */
-            duffid_real bias[MAX_UNK];
-            noise_shift_of(n, p, eq->R_recent, eq->noise_G_recent, est->noise_w, bias);
-            for (i = 0; i < n; i++) {
-                rse[i] = bias[i] != RC(0.0) ? duffid_la_hypot(rse[i], R_FABS(bias[i] / theta[i])) : rse[i];
+        } else {
+            if (noisy) { /* ... with its rows' noise's bias (row_noise) */
+                duffid_real bias[MAX_UNK];
+                noise_shift_of(n, p, eq->R_recent, eq->noise_G_recent, est->noise_w, bias);
+                for (i = 0; i < n; i++) {
+                    rse[i] = bias[i] != RC(0.0) ? duffid_la_hypot(rse[i], R_FABS(bias[i] / theta[i])) : rse[i];
+                }
             }
         }
     } else { /* both lines where the recent rows are (their mean time) */
@@ -3575,6 +3698,7 @@ static long robust_step(duffid_estimator *est)
         if (full) {
             const duffid_real t = (duffid_real)(est->n - eq->origin) * est->dt; /* the rows' time */
             duffid_real previous[MAX_UNK], fit;
+            int scored;
             if (nl > n) { /* a block with lines: the rows [A, t A_i - S_i (the lines), D] */
                 line_rows(est, b, eq, m, t, est->mom, est->B);
                 if (rated) {
@@ -3619,16 +3743,25 @@ static long robust_step(duffid_estimator *est)
                     eq->rate_v[i] *= est->lam;
                 }
             }
+            scored = add_score(est, eq, m, nl, previous); /* BATCH_WINDOWS */
             duffid_la_qr_accumulate(eq->R, nl + 1, est->sqrt_lam, est->B, m);
             eq->rows = est->lam * eq->rows + (duffid_real)m;
+            if (scored) {
+                close_block(est, eq, nl, DUFFID_BATCH_WINDOWS * est->target);
+            }
             if (noisy) { /* this sample's rows' noise (noise_Gw), into the accumulated and the recent */
                 noise_product(est->B_noise, m, nl, est->noise_Gw);
                 noise_forget(est->noise_Gw, nl, est->lam, eq->noise_G);
             }
             if (nl > n) {
                 line_solve(est, eq, n, m, t, (duffid_real)L);
-            } else {
-                solve_factor(est, eq, n, eq->R, accumulated_rows(eq->rows, n, m, (duffid_real)L), (duffid_real)L);
+            } else if (solve_plain(est, eq, n, eq->R, accumulated_rows(eq->rows, n, m, (duffid_real)L),
+                                   (duffid_real)L) == 0) {
+                for (i = 0; i < n * n; i++) { /* R^-1 = U^-1 / scale row-wise (U: the solve's workspace) */
+                    est->U[i] = est->Rinv[i] / est->scale[i / n];
+                }
+                batch_means(eq, n, RC(0.0), est->U);
+                with_rounding(eq, n, NOMINAL(eq));
             }
             {
                 duffid_real shift[MAX_LINE];

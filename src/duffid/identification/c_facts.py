@@ -90,6 +90,8 @@ PUBLICATION: tuple[Fact, ...] = (
          "independent equations a window's length of accumulated rows counts for in their degrees of freedom"),
     Fact("DUFFID_WINDOW_INFLATION", engine.WINDOW_INFLATION,
          "the largest factor by which the window equations' degrees of freedom raise a standard error"),
+    Fact("DUFFID_BATCH_WINDOWS", engine.BATCH_WINDOWS,
+         "the batch-means errors' blocks of the rows' scores: this many windows' samples each"),
     Fact("DUFFID_OFFSET_SIGMAS", engine.OFFSET_SIGMAS,
          "offset probe: a constant force beyond this many standard errors that moves a value keeps it unpublished"),
     Fact("DUFFID_FORCE_VARIATION", engine.FORCE_VARIATION,
