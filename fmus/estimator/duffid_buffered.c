@@ -40,6 +40,9 @@ struct duffid_buffered {
     duffid_real *E;     /* chunk x n_ord x n_ch: the row entries of one stage's rows */
     duffid_real *B;     /* chunk x (unknowns + 1), column-major: one equation's [A D] rows */
     duffid_real *R;     /* per equation: the (unknowns + 1)^2 factor of the window being solved */
+    duffid_real *R_check; /* ... of its first check_rows coefficient equations (buffered.CHECK_SHARE) */
+    duffid_real *check; /* workspace of that check: max unknowns x (2 max unknowns + 3) */
+    int check_rows;     /* the check's rows per equation */
     duffid_real *norm2, *bound2; /* per equation and column: squares of the rows and of their rounding bounds */
     duffid_real *rse;           /* workspace */
     duffid_real *U, *Rinv, *scale; /* per equation: the equilibrated factor, its inverse, the column scales */
@@ -153,6 +156,8 @@ static size_t layout(const duffid_buffered_config *cfg, duffid_buffered *est, ch
     CARVE(&c, est->E, chunk_of(cfg) * n_ord * n_ch);
     CARVE(&c, est->B, chunk_of(cfg) * p);
     CARVE(&c, est->R, sum_unknowns(tb, 2));
+    CARVE(&c, est->R_check, sum_unknowns(tb, 2));
+    CARVE(&c, est->check, (p - 1) * (2 * p + 1));
     CARVE(&c, est->norm2, sum_unknowns(tb, 3));
     CARVE(&c, est->bound2, sum_unknowns(tb, 3));
     CARVE(&c, est->U, sum_unknowns(tb, 1));
@@ -417,6 +422,7 @@ int duffid_buffered_init(duffid_buffered **out, void *memory, size_t size, const
         off4 += n + 1;
     }
     est->chunk = chunk_of(cfg);
+    est->check_rows = (int)(RC(DUFFID_BUFFERED_CHECK_SHARE) * (duffid_real)tb->n_kept);
     est->stages = immediate(cfg) ? (tb->n_kept + est->chunk - 1) / est->chunk + 3 : stages_of(cfg);
     est->immediate = immediate(cfg);
     duffid_buffered_reset(est);
@@ -628,6 +634,25 @@ static void solve_conditions(duffid_buffered *est, int range)
     }
 }
 
+/* BufferedIdentifier.solve_window's check of the basis (buffered.CHECK_SHARE): the estimate of
+ * equation e's first check_rows rows against theta, their relative difference into rse in
+ * quadrature (infinite where that estimate is undetermined) */
+static void check_basis(duffid_buffered *est, int e, const duffid_real *theta)
+{
+    const int n = est->tb->n_unknowns[e];
+    duffid_real *scale = est->check, *U = scale + n, *Rinv = U + n * n, *first = Rinv + n * n,
+                *unused = first + n;
+    int i, solved = duffid_la_factor_prepare(n, est->R_check + est->offset[4 * e + 2], scale, U, Rinv) == 0;
+    if (solved) {
+        duffid_la_factor_unknowns(n, est->R_check + est->offset[4 * e + 2], (duffid_real)est->check_rows, RC(1.0),
+                                  scale, Rinv, first, unused);
+    }
+    for (i = 0; i < n; i++) {
+        const duffid_real moved = solved && theta[i] != RC(0.0) ? R_FABS((first[i] - theta[i]) / theta[i]) : R_INF;
+        est->rse[i] = is_finite(moved) ? duffid_la_hypot(est->rse[i], moved) : R_INF;
+    }
+}
+
 /* BufferedIdentifier.solve_window's unknowns, errors and verdict, from the conditions */
 static void solve_unknowns(duffid_buffered *est)
 {
@@ -652,6 +677,7 @@ static void solve_unknowns(duffid_buffered *est)
             duffid_la_factor_unknowns(n, est->R + est->offset[4 * e + 2], (duffid_real)tb->n_kept, RC(1.0),
                                       est->scale + est->offset[4 * e], est->Rinv + est->offset[4 * e + 1], held,
                                       est->rse);
+            check_basis(est, e, held);
         }
         cond = c > cond ? c : cond;
         for (i = 0; i < n; i++) {
@@ -673,24 +699,41 @@ static void solve_unknowns(duffid_buffered *est)
     est->windows++;
 }
 
+/* the rows [row0, row1) of the pending window into every equation's factor */
+static void stage_rows(duffid_buffered *est, int slot, int row0, int row1)
+{
+    int e;
+    if (row0 < row1) {
+        entries(est, slot, row0, row1);
+        for (e = 0; e < est->tb->n_equations; e++) {
+            factor_rows(est, slot, e, row0, row1);
+        }
+    }
+}
+
 /* one stage of the pending window's solve; returns 1 when the window was solved */
 static int solve_stage(duffid_buffered *est)
 {
     const duffid_buffered_tables *tb = est->tb;
     const int slot = est->pending;
-    int e;
     if (est->stage == 0) {
         memset(est->R, 0, (size_t)sum_unknowns(tb, 2) * sizeof(duffid_real));
+        memset(est->R_check, 0, (size_t)sum_unknowns(tb, 2) * sizeof(duffid_real));
         memset(est->norm2, 0, (size_t)sum_unknowns(tb, 3) * sizeof(duffid_real));
         memset(est->bound2, 0, (size_t)sum_unknowns(tb, 3) * sizeof(duffid_real));
     }
     if (est->stage < est->stages - 3) {
         const int row0 = est->stage * est->chunk;
         const int row1 = row0 + est->chunk < tb->n_kept ? row0 + est->chunk : tb->n_kept;
-        if (row0 < row1) {
-            entries(est, slot, row0, row1);
-            for (e = 0; e < tb->n_equations; e++) {
-                factor_rows(est, slot, e, row0, row1);
+        const int split = est->check_rows;
+        if (row0 < split && split < row1) { /* the check's factor is the one of the rows before it */
+            stage_rows(est, slot, row0, split);
+            memcpy(est->R_check, est->R, (size_t)sum_unknowns(tb, 2) * sizeof(duffid_real));
+            stage_rows(est, slot, split, row1);
+        } else {
+            stage_rows(est, slot, row0, row1);
+            if (row1 == split) {
+                memcpy(est->R_check, est->R, (size_t)sum_unknowns(tb, 2) * sizeof(duffid_real));
             }
         }
         est->stage++;

@@ -51,6 +51,7 @@
 #define DUFFID_WINDOW_EQUATIONS 4.0 /* independent equations a window's length of accumulated rows counts for in their degrees of freedom */
 #define DUFFID_WINDOW_INFLATION 2.0 /* the largest factor by which the window equations' degrees of freedom raise a standard error */
 #define DUFFID_BATCH_WINDOWS 1 /* the batch-means errors' blocks of the rows' scores: this many windows' samples each */
+#define DUFFID_BUFFERED_CHECK_SHARE 0.75 /* buffered: a window's estimate against the one of this share of its first coefficient equations */
 #define DUFFID_OFFSET_SIGMAS 3.0 /* offset probe: a constant force beyond this many standard errors that moves a value keeps it unpublished */
 #define DUFFID_FORCE_VARIATION 0.05 /* offset probe: only while the rows' right-hand side varies by this share of its constant part */
 #define DUFFID_GROWTH_STEADY 0.25 /* a growing window's estimate steady while the window grew by this share */

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..models.registry import GENERATED_MODEL_CODE, REGISTRY
-from . import engine, regressors, row_noise
+from . import buffered, engine, regressors, row_noise
 
 __all__ = ["Fact", "LIMITS", "RETURN_CODES", "MODEL_CODES", "PUBLICATION", "QUADRATURE", "C_HEADER_NAME", "c_header",
            "limit", "return_code"]
@@ -92,6 +92,8 @@ PUBLICATION: tuple[Fact, ...] = (
          "the largest factor by which the window equations' degrees of freedom raise a standard error"),
     Fact("DUFFID_BATCH_WINDOWS", engine.BATCH_WINDOWS,
          "the batch-means errors' blocks of the rows' scores: this many windows' samples each"),
+    Fact("DUFFID_BUFFERED_CHECK_SHARE", buffered.CHECK_SHARE,
+         "buffered: a window's estimate against the one of this share of its first coefficient equations"),
     Fact("DUFFID_OFFSET_SIGMAS", engine.OFFSET_SIGMAS,
          "offset probe: a constant force beyond this many standard errors that moves a value keeps it unpublished"),
     Fact("DUFFID_FORCE_VARIATION", engine.FORCE_VARIATION,
