@@ -560,8 +560,8 @@ class _QRLeastSquares:
         self.gram = np.zeros((n_unknowns, n_unknowns))  # dA^T dA and dA^T dD: the rows' noise (row_noise)
         self.cross = np.zeros(n_unknowns)
         # the rows' scores A^T r by blocks of a window (BATCH_WINDOWS): the open block's, the
-        # last closed one's, their sum of products, the samples in the open block, the rows
-        # the closed blocks hold (weighted as the rows) and how many blocks closed
+        # last closed one's, their sum of products, the samples in the open block, and the
+        # rows and the blocks the closed blocks hold (both weighted as the rows)
         self.score = np.zeros(n_unknowns)
         self.last_score = np.zeros(n_unknowns)
         self.scores = np.zeros((n_unknowns, n_unknowns))
