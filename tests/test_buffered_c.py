@@ -36,6 +36,16 @@ def _python_windows(ident, rec):
     return ends, values, res.condition[ends], res.identified[ends]
 
 
+def _python_uncertainties(ident, rec, ends):
+    """The stated relative error of each window ending at ``ends``, sample by sample (update)."""
+    ident.reset()
+    stated = {}
+    for i in range(ends[-1] + 1):
+        est = ident.update(rec.x[i], rec.f[i])
+        stated[i] = est.uncertainty
+    return np.array([stated[e] for e in ends])
+
+
 @pytest.mark.parametrize("method, options", [
     ("legendre", {}),
     ("chebyshev", {"n_terms": 16}),
@@ -59,6 +69,9 @@ def test_double_equals_python_per_window(record, method, options):
     assert np.all(np.abs(got - values) <= tol), np.max(np.abs(got - values) / tol)
     assert np.allclose(out["condition"][solved], cond, rtol=ROUNDING_ULPS * EPS * max(1.0, cond.max()))
     assert out["identified"][solved].tolist() == identified.tolist()
+    # the stated errors (the residual's, the noise's, the basis check's) as Python's
+    stated = _python_uncertainties(BufferedIdentifier(Duffing1(), record.dt, method, **options), record, ends)
+    assert np.allclose(out["uncertainty"][solved], stated, rtol=1e-6 + ROUNDING_ULPS * EPS * max(1.0, cond.max()))
     # published exactly when identified; NaN otherwise
     published = out["parameters"][solved]
     assert np.array_equal(np.isfinite(published).all(axis=1), identified)
@@ -140,4 +153,5 @@ def test_memory_is_sized_to_the_model_and_precision():
     overlapping = CBufferedIdentifier(Duffing1(), 1e-3, "legendre", n_terms=24, every=50)
     assert small.memory_size < large.memory_size < overlapping.memory_size
     assert single.memory_size < large.memory_size
-    assert single.memory_size < 6 * 1024   # no sample buffer: the coefficients and the solve only
+    # the coefficients, the solve and the window's displacements (its noise errors) only
+    assert single.memory_size < 8 * 1024

@@ -11,6 +11,17 @@
  * sample by sample, and V[d] = sum_k alpha_dk (P_(n-d+k)^T C_(n-k))[kept] once per window, with
  * P_m stored by kept column as a sparse list (tridiagonal for Legendre). The results equal
  * Python's to rounding amplified by the conditioning (tests/test_buffered_c.py).
+ *
+ * The noise errors (BufferedIdentifier.noise_products): a noise e_s on measured signal j (a
+ * displacement or a force) at the window's sample s moves the residual A theta - D by e_s m_s,
+ *     m_s = sum_m c_m(s) y_m(s),  y_m(s) = (P_m^T Q[s])[kept],
+ *     c_m(s) = sum over n - d + k = m of T^-d alpha_dk (s/N)^(n-k) J_d(s),
+ *     J_d(s) = sum_c w[d, c] dg_c/dx_j (s),  w = lhs theta - rhs,
+ * and the unknowns by G^-1 A^T m_s (G = A^T A): their variance sums sigma_j^2 (G^-1 A^T m_s)^2
+ * over the samples, with sigma_j the signal's noise level at the window's last sample.
+ * The window's displacements are kept for that (a ring of N + 1 + stages samples), and
+ * A^T m_s = sum_m c_m(s) Z_m^T Q[s] with Z_m = P_m[:, kept] A formed as the rows are; the sum
+ * is spread over the stages after the unknowns.
  */
 #include "duffid_buffered.h"
 #include "duffid_linalg.h"
@@ -44,18 +55,29 @@ struct duffid_buffered {
     duffid_real *check; /* workspace of that check: max unknowns x (2 max unknowns + 3) */
     int check_rows;     /* the check's rows per equation */
     duffid_real *norm2, *bound2; /* per equation and column: squares of the rows and of their rounding bounds */
-    duffid_real *rse;           /* workspace */
     duffid_real *U, *Rinv, *scale; /* per equation: the equilibrated factor, its inverse, the column scales */
     duffid_real *eq_cond;       /* per equation: its condition number (infinite: singular or held) */
     int *eq_state;              /* per equation: SOLVABLE, SINGULAR or HELD (no known term) */
     duffid_real *V;     /* per equation: unknowns x unknowns, the Jacobi iteration's start */
     int *warm;          /* per equation */
     duffid_real *held;  /* per equation: its unknowns of the latest solved window */
+    duffid_real *Z;     /* per equation: Z_m = P_m[:, kept] A (m = 0..n, each r x n; P_0 = I), as
+                         * r rows of (n + 1) n: Z[j * (n + 1) n + m * n + u] */
+    duffid_real *weight; /* per equation: n_ord x n_ch, its weights w = lhs theta - rhs */
+    duffid_real *K;     /* per equation: n x n, G^-1 = (A^T A)^-1 */
+    duffid_real *zq;    /* per equation: (n + 1) n, Q[s]^T Z of one sample */
+    duffid_real *resid, *moved, *var; /* per unknown: the residual's relative error, the check's
+                                       * difference, the noise's variance */
+    duffid_real *ring;  /* ring_size x n_dof: the latest displacements */
+    long ring_size;
     int *offset;        /* per equation: first unknown in held, first square in V, first in R, first
                          * column in norm2 / bound2 */
     int chunk;          /* rows per stage */
-    int stages;         /* stages of a window's solve: row chunks, the conditions, the unknowns */
-    int immediate;      /* 1: all stages at the window's last sample (every < 3) */
+    int row_stages;     /* stages of the row chunks */
+    int noise_chunk;    /* window samples per stage of the noise errors */
+    int stages;         /* stages of a window's solve: row chunks, the conditions, the unknowns, the
+                         * noise errors (the last one also the verdict) */
+    int immediate;      /* 1: all stages at the window's last sample (every < 5) */
     /* state */
     int64_t n;          /* samples received - 1 (-1: none) */
     int pending;        /* the slot whose window is being solved, -1: none */
@@ -68,6 +90,11 @@ struct duffid_buffered {
     int identified;
     duffid_real condition, uncertainty;
     duffid_real current[DUFFID_MAX_PARAMS];
+    duffid_la_noise_level noise_level, force_level; /* the displacements' and the forces' */
+    long ring_pos;                      /* the ring's slot of the latest sample */
+    long window_ring;                   /* ... of the pending window's first sample */
+    duffid_real window_sigma[DUFFID_MAX_DOF + DUFFID_MAX_FORCES]; /* the noise levels at its last
+                                                                  * sample: displacements, forces */
 };
 
 static int is_finite(duffid_real v)
@@ -95,37 +122,71 @@ static int sum_unknowns(const duffid_buffered_tables *tb, int what)
     return total;
 }
 
-/* Rows per stage of a window's solve: a window's per-window work (its row entries, the
- * factor's update) is spread over the samples after its end, a chunk of rows per sample, then
- * one sample solves; this keeps every update within a fixed bound. */
-#define ROWS_PER_STAGE 2
+/* Rows and window samples per stage of a window's solve: a window's per-window work (its row
+ * entries, the factor's update, its noise errors) is spread over the samples after its end, a
+ * chunk of rows or of samples per update, so that every update stays within a fixed bound. */
+#define ROWS_PER_STAGE 1
+#define SAMPLES_PER_STAGE 2
 
 static long every_of(const duffid_buffered_config *cfg)
 {
     return cfg->every > 0 ? cfg->every : cfg->tables->n_intervals;
 }
 
-/* stages of one window's solve: the row chunks, the factors' inverses, their condition
- * numbers, the unknowns; at most every (a window ends every `every` samples: its solve is
- * done before the next ends), and when fewer than 4 fit, all of them at the window's last
- * sample */
+/* a window's solve: row_stages chunks of rows, the factors' inverses, their condition numbers,
+ * the unknowns, then noise_stages chunks of samples; in all at most every (a window ends every
+ * `every` samples: its solve is done before the next ends), and when fewer than 5 fit, one of
+ * each at the window's last sample (immediate) */
+static void stage_plan(const duffid_buffered_config *cfg, int *row_stages, int *noise_stages, int *immediate)
+{
+    const long kept = cfg->tables->n_kept, samples = cfg->tables->n_intervals + 1, budget = every_of(cfg) - 3;
+    const long rows = (kept + ROWS_PER_STAGE - 1) / ROWS_PER_STAGE;
+    const long noise = (samples + SAMPLES_PER_STAGE - 1) / SAMPLES_PER_STAGE;
+    *immediate = budget < 2;
+    if (budget < 2) {
+        *row_stages = *noise_stages = 1;
+    } else if (rows + noise <= budget) {
+        *row_stages = (int)rows;
+        *noise_stages = (int)noise;
+    } else { /* shared in proportion */
+        long r = budget * rows / (rows + noise);
+        r = r < 1 ? 1 : (r > budget - 1 ? budget - 1 : r);
+        *row_stages = (int)r;
+        *noise_stages = (int)(budget - r);
+    }
+}
+
 static int stages_of(const duffid_buffered_config *cfg)
 {
-    const int kept = cfg->tables->n_kept;
-    const long every = every_of(cfg);
-    const long wanted = (kept + ROWS_PER_STAGE - 1) / ROWS_PER_STAGE + 3;
-    return (int)(wanted < every ? wanted : every);
+    int rows, noise, now;
+    stage_plan(cfg, &rows, &noise, &now);
+    return rows + 3 + noise;
 }
 
 static int immediate(const duffid_buffered_config *cfg)
 {
-    return stages_of(cfg) < 4;
+    int rows, noise, now;
+    stage_plan(cfg, &rows, &noise, &now);
+    return now;
 }
 
 static int chunk_of(const duffid_buffered_config *cfg)
 {
-    const int kept = cfg->tables->n_kept, chunks = immediate(cfg) ? 1 : stages_of(cfg) - 3;
-    return (kept + chunks - 1) / chunks;
+    int rows, noise, now;
+    stage_plan(cfg, &rows, &noise, &now);
+    return (cfg->tables->n_kept + rows - 1) / rows;
+}
+
+static int noise_chunk_of(const duffid_buffered_config *cfg)
+{
+    int rows, noise, now;
+    stage_plan(cfg, &rows, &noise, &now);
+    return (int)((cfg->tables->n_intervals + 1 + noise - 1) / noise);
+}
+
+static long ring_of(const duffid_buffered_config *cfg)
+{
+    return cfg->tables->n_intervals + 1 + stages_of(cfg);
 }
 
 static long slots_of(const duffid_buffered_config *cfg)
@@ -140,9 +201,8 @@ static size_t layout(const duffid_buffered_config *cfg, duffid_buffered *est, ch
 {
     const duffid_buffered_tables *tb = cfg->tables;
     const long slots = slots_of(cfg);
-    const int n_ord = tb->order + 1, n_ch = tb->n_channels, r = tb->n_terms, kept = tb->n_kept;
+    const int n_ord = tb->order + 1, n_ch = tb->n_channels, r = tb->n_terms;
     const int p = max_unknowns_of(tb) + 1, n_eq = tb->n_equations;
-    (void)kept;
     duffid_buffered scratch;
     duffid_la_carver c;
     if (est == NULL) {
@@ -161,7 +221,6 @@ static size_t layout(const duffid_buffered_config *cfg, duffid_buffered *est, ch
     CARVE(&c, est->norm2, sum_unknowns(tb, 3));
     CARVE(&c, est->bound2, sum_unknowns(tb, 3));
     CARVE(&c, est->U, sum_unknowns(tb, 1));
-    CARVE(&c, est->rse, p - 1);
     CARVE(&c, est->Rinv, sum_unknowns(tb, 1));
     CARVE(&c, est->scale, sum_unknowns(tb, 0));
     CARVE(&c, est->eq_cond, n_eq);
@@ -169,6 +228,14 @@ static size_t layout(const duffid_buffered_config *cfg, duffid_buffered *est, ch
     CARVE(&c, est->V, sum_unknowns(tb, 1));
     CARVE(&c, est->warm, n_eq);
     CARVE(&c, est->held, sum_unknowns(tb, 0));
+    CARVE(&c, est->Z, n_ord * r * sum_unknowns(tb, 0));
+    CARVE(&c, est->weight, n_eq * n_ord * n_ch);
+    CARVE(&c, est->K, sum_unknowns(tb, 1));
+    CARVE(&c, est->zq, n_ord * sum_unknowns(tb, 0));
+    CARVE(&c, est->resid, sum_unknowns(tb, 0));
+    CARVE(&c, est->moved, sum_unknowns(tb, 0));
+    CARVE(&c, est->var, sum_unknowns(tb, 0));
+    CARVE(&c, est->ring, ring_of(cfg) * tb->n_dof);
     CARVE(&c, est->offset, 4 * n_eq);
     return c.used;
 }
@@ -359,6 +426,14 @@ void duffid_buffered_reset(duffid_buffered *est)
     est->next_slot = 0;
     est->have_last = 0;
     est->windows = 0;
+    duffid_la_noise_reset(&est->noise_level);
+    duffid_la_noise_reset(&est->force_level);
+    memset(est->ring, 0, (size_t)(est->ring_size * tb->n_dof) * sizeof(duffid_real));
+    est->ring_pos = -1;
+    est->window_ring = 0;
+    for (i = 0; i < DUFFID_MAX_DOF + DUFFID_MAX_FORCES; i++) {
+        est->window_sigma[i] = RC(0.0);
+    }
     est->identified = 0;
     est->condition = R_INF;
     est->uncertainty = R_NAN;
@@ -422,9 +497,14 @@ int duffid_buffered_init(duffid_buffered **out, void *memory, size_t size, const
         off4 += n + 1;
     }
     est->chunk = chunk_of(cfg);
+    est->noise_chunk = noise_chunk_of(cfg);
     est->check_rows = (int)(RC(DUFFID_BUFFERED_CHECK_SHARE) * (duffid_real)tb->n_kept);
-    est->stages = immediate(cfg) ? (tb->n_kept + est->chunk - 1) / est->chunk + 3 : stages_of(cfg);
-    est->immediate = immediate(cfg);
+    {
+        int noise;
+        stage_plan(cfg, &est->row_stages, &noise, &est->immediate);
+        est->stages = est->row_stages + 3 + noise;
+    }
+    est->ring_size = ring_of(cfg);
     duffid_buffered_reset(est);
     *out = est;
     return DUFFID_OK;
@@ -571,6 +651,24 @@ static void factor_rows(duffid_buffered *est, int slot, int e, int row0, int row
 #else
     (void)slot;
 #endif
+    { /* the rows' A into Z_m (the noise errors) */
+        const int r = est->r, kept = tb->n_kept, L = n_ord * n;
+        duffid_real *Z = est->Z + (size_t)(n_ord * r) * (size_t)est->offset[4 * e];
+        int col, mm, j;
+        for (row = 0; row < m; row++) {
+            const int rho = row0 + row;
+            for (col = 0; col < n; col++) {
+                const duffid_real a = est->B[col * m + row];
+                Z[tb->kept[rho] * L + col] = a;
+                for (mm = 1; mm <= tb->order; mm++) {
+                    const int *start = tb->p_start + (mm - 1) * (kept + 1);
+                    for (j = start[rho]; j < start[rho + 1]; j++) {
+                        Z[tb->p_index[j] * L + mm * n + col] += tb->p_value[j] * a;
+                    }
+                }
+            }
+        }
+    }
     duffid_la_qr_accumulate(est->R + est->offset[4 * e + 2], p, RC(1.0), est->B, m);
 }
 
@@ -635,9 +733,9 @@ static void solve_conditions(duffid_buffered *est, int range)
 }
 
 /* BufferedIdentifier.solve_window's check of the basis (buffered.CHECK_SHARE): the estimate of
- * equation e's first check_rows rows against theta, their relative difference into rse in
- * quadrature (infinite where that estimate is undetermined) */
-static void check_basis(duffid_buffered *est, int e, const duffid_real *theta)
+ * equation e's first check_rows rows against theta, their relative difference into moved
+ * (infinite where that estimate is undetermined) */
+static void check_basis(duffid_buffered *est, int e, const duffid_real *theta, duffid_real *moved)
 {
     const int n = est->tb->n_unknowns[e];
     duffid_real *scale = est->check, *U = scale + n, *Rinv = U + n * n, *first = Rinv + n * n,
@@ -648,45 +746,223 @@ static void check_basis(duffid_buffered *est, int e, const duffid_real *theta)
                                   scale, Rinv, first, unused);
     }
     for (i = 0; i < n; i++) {
-        const duffid_real moved = solved && theta[i] != RC(0.0) ? R_FABS((first[i] - theta[i]) / theta[i]) : R_INF;
-        est->rse[i] = is_finite(moved) ? duffid_la_hypot(est->rse[i], moved) : R_INF;
+        moved[i] = solved && theta[i] != RC(0.0) ? R_FABS((first[i] - theta[i]) / theta[i]) : R_INF;
     }
 }
 
-/* BufferedIdentifier.solve_window's unknowns, errors and verdict, from the conditions */
+/* BufferedIdentifier.solve_window's unknowns and the residual's errors from the conditions, the
+ * check's differences; the weights w and G^-1 of the noise errors, whose variances start at 0 */
 static void solve_unknowns(duffid_buffered *est)
+{
+    const duffid_buffered_tables *tb = est->tb;
+    const int n_ord = est->n_ord, n_ch = est->n_ch;
+    int e, i, k;
+    for (e = 0; e < tb->n_equations; e++) {
+        const int n = tb->n_unknowns[e], o = est->offset[4 * e];
+        duffid_real *held = est->held + o, *w = est->weight + e * n_ord * n_ch, *K = est->K + est->offset[4 * e + 1];
+        if (est->eq_state[e] == HELD) {
+            continue;
+        }
+        for (i = 0; i < n; i++) {
+            est->var[o + i] = RC(0.0);
+        }
+        if (est->eq_state[e] == SINGULAR) {
+            for (i = 0; i < n; i++) {
+                held[i] = R_NAN;
+                est->resid[o + i] = est->moved[o + i] = R_INF;
+            }
+            continue;
+        }
+        duffid_la_factor_unknowns(n, est->R + est->offset[4 * e + 2], (duffid_real)tb->n_kept, RC(1.0),
+                                  est->scale + o, est->Rinv + est->offset[4 * e + 1], held, est->resid + o);
+        check_basis(est, e, held, est->moved + o);
+        memset(w, 0, (size_t)(n_ord * n_ch) * sizeof(duffid_real));
+        for (k = 0; k < tb->n_model_terms; k++) {
+            const duffid_buffered_term *t = &tb->terms[k];
+            if (t->equation == e) {
+                w[t->order * n_ch + t->channel] += t->unknown >= 0 ? t->coef * held[t->unknown] : -t->coef;
+            }
+        }
+        { /* G^-1 = R^-1 R^-T, R^-1 = diag(1 / scale) Rinv (Rinv: the equilibrated factor's) */
+            const duffid_real *Rinv = est->Rinv + est->offset[4 * e + 1], *scale = est->scale + o;
+            int a, b;
+            for (a = 0; a < n; a++) {
+                for (b = 0; b < n; b++) {
+                    duffid_real sum = RC(0.0);
+                    for (k = (a > b ? a : b); k < n; k++) {
+                        sum += Rinv[a * n + k] * Rinv[b * n + k];
+                    }
+                    K[a * n + b] = sum / (scale[a] * scale[b]);
+                }
+            }
+        }
+    }
+}
+
+/* the derivative of a channel by measured signal j (displacements 0..n_dof - 1, then the
+ * forces) at the displacements x (0: not of that signal) */
+static duffid_real channel_slope(const duffid_buffered_channel *ch, int j, int n_dof, const duffid_real *x)
+{
+    duffid_real v, sign, out = RC(1.0);
+    int i;
+    if (j >= n_dof) {
+        return ch->kind == DUFFID_BUF_FORCE && ch->index == j - n_dof ? RC(1.0) : RC(0.0);
+    }
+    if (ch->kind == DUFFID_BUF_X && ch->index == j) {
+        v = x[j];
+        sign = RC(1.0);
+    } else if (ch->kind == DUFFID_BUF_DEFLECTION && (ch->index == j || ch->index - 1 == j)) {
+        v = x[ch->index] - (ch->index > 0 ? x[ch->index - 1] : RC(0.0));
+        sign = ch->index == j ? RC(1.0) : RC(-1.0);
+    } else {
+        return RC(0.0);
+    }
+    for (i = 1; i < ch->power; i++) {
+        out *= v;
+    }
+    return sign * (duffid_real)ch->power * out;
+}
+
+/* the noise errors' variances over the pending window's samples [s0, s1): for each solvable
+ * equation the products zq = Q[s]^T Z (the same for every signal), then for each measured
+ * signal with a noise level that the equation's channels depend on, c_m, v = sum_m c_m zq_m
+ * and (G^-1 v)^2 sigma^2 */
+static void noise_samples(duffid_buffered *est, long s0, long s1)
+{
+    const duffid_buffered_tables *tb = est->tb;
+    const int r = est->r, n_ord = est->n_ord, n_ch = est->n_ch, n = tb->order, n_src = tb->n_dof + tb->n_forces;
+    long s;
+    int rho, m, j, e, d, k, c, u;
+    for (s = s0; s < s1; s++) {
+        const duffid_real *q = tb->Q + (size_t)s * (size_t)r, sn = (duffid_real)(int)s / (duffid_real)(int)est->N;
+        long slot = est->window_ring + s;
+        const duffid_real *x;
+        duffid_real sp[MAX_ORD];
+        slot = slot >= est->ring_size ? slot - est->ring_size : slot;
+        x = est->ring + slot * tb->n_dof;
+        for (m = 0, sp[0] = RC(1.0); m < n; m++) {
+            sp[m + 1] = sp[m] * sn;
+        }
+        for (e = 0; e < tb->n_equations; e++) {
+            const int ne = tb->n_unknowns[e], L = n_ord * ne;
+            const duffid_real *Z = est->Z + (size_t)(n_ord * r) * (size_t)est->offset[4 * e];
+            duffid_real *zq = est->zq + n_ord * est->offset[4 * e];
+            int mu;
+            if (est->eq_state[e] != SOLVABLE) {
+                continue;
+            }
+            for (mu = 0; mu < L; mu += 4) { /* zq = Q[s]^T Z, four columns at a time (one load of Q) */
+                const duffid_real *z = Z + mu;
+                duffid_real a0 = RC(0.0), a1 = RC(0.0), a2 = RC(0.0), a3 = RC(0.0);
+                if (L - mu >= 4) {
+                    for (rho = 0; rho < r; rho++, z += L) {
+                        const duffid_real qr = q[rho];
+                        a0 += qr * z[0];
+                        a1 += qr * z[1];
+                        a2 += qr * z[2];
+                        a3 += qr * z[3];
+                    }
+                    zq[mu + 3] = a3;
+                    zq[mu + 2] = a2;
+                    zq[mu + 1] = a1;
+                } else {
+                    for (k = mu; k < L; k++) {
+                        duffid_real sum = RC(0.0);
+                        for (rho = 0; rho < r; rho++) {
+                            sum += q[rho] * Z[rho * L + k];
+                        }
+                        zq[k] = sum;
+                    }
+                    a0 = zq[mu];
+                }
+                zq[mu] = a0;
+            }
+        }
+        for (j = 0; j < n_src; j++) {
+            const duffid_real sigma2 = est->window_sigma[j] * est->window_sigma[j];
+            duffid_real slope[DUFFID_MAX_CHANNELS];
+            int any = 0;
+            if (!(sigma2 > RC(0.0))) {
+                continue;
+            }
+            for (c = 0; c < n_ch; c++) {
+                slope[c] = channel_slope(&tb->channels[c], j, tb->n_dof, x);
+                any |= slope[c] != RC(0.0);
+            }
+            for (e = 0; any && e < tb->n_equations; e++) {
+                const int ne = tb->n_unknowns[e], o = est->offset[4 * e];
+                const duffid_real *w = est->weight + e * n_ord * n_ch, *K = est->K + est->offset[4 * e + 1],
+                                  *zq = est->zq + n_ord * o;
+                duffid_real cm[MAX_ORD], v[MAX_UNK];
+                int moves = 0;
+                if (est->eq_state[e] != SOLVABLE) {
+                    continue;
+                }
+                for (m = 0; m <= n; m++) {
+                    cm[m] = RC(0.0);
+                }
+                for (d = 0; d <= n; d++) { /* J_d, into c_m for m = n - d + k */
+                    duffid_real J = RC(0.0);
+                    for (c = 0; c < n_ch; c++) {
+                        J += w[d * n_ch + c] * slope[c];
+                    }
+                    moves |= J != RC(0.0);
+                    J *= est->t_inv[d];
+                    for (k = 0; k <= d; k++) {
+                        cm[n - d + k] += est->alpha[d * n_ord + k] * sp[n - k] * J;
+                    }
+                }
+                if (!moves) {
+                    continue;
+                }
+                for (u = 0; u < ne; u++) { /* v = A^T m_s = sum_m c_m zq_m */
+                    v[u] = RC(0.0);
+                    for (m = 0; m <= n; m++) {
+                        v[u] += cm[m] * zq[m * ne + u];
+                    }
+                }
+                for (u = 0; u < ne; u++) { /* (G^-1 v)_u^2 sigma^2 */
+                    duffid_real delta = RC(0.0);
+                    for (k = 0; k < ne; k++) {
+                        delta += K[u * ne + k] * v[k];
+                    }
+                    est->var[o + u] += sigma2 * delta * delta;
+                }
+            }
+        }
+    }
+}
+
+/* BufferedIdentifier.solve_window's errors and verdict: each relative error the larger of the
+ * residual's and the noise's, with the check's difference in quadrature */
+static void solve_verdict(duffid_buffered *est)
 {
     const duffid_buffered_tables *tb = est->tb;
     duffid_real cond = RC(0.0), worst = RC(0.0);
     int e, i, all_finite = 1;
     for (e = 0; e < tb->n_equations; e++) {
-        const int n = tb->n_unknowns[e];
-        duffid_real *held = est->held + est->offset[4 * e];
+        const int n = tb->n_unknowns[e], o = est->offset[4 * e];
         const duffid_real c = est->eq_cond[e], rounding = rows_rounding(est, e);
         if (est->eq_state[e] == HELD) {
             cond = R_INF;
             worst = R_INF;
             continue;
         }
-        if (est->eq_state[e] == SINGULAR) {
-            for (i = 0; i < n; i++) {
-                held[i] = R_NAN;
-                est->rse[i] = R_INF;
-            }
-        } else {
-            duffid_la_factor_unknowns(n, est->R + est->offset[4 * e + 2], (duffid_real)tb->n_kept, RC(1.0),
-                                      est->scale + est->offset[4 * e], est->Rinv + est->offset[4 * e + 1], held,
-                                      est->rse);
-            check_basis(est, e, held);
-        }
         cond = c > cond ? c : cond;
         for (i = 0; i < n; i++) {
+            const duffid_real theta = est->held[o + i], moved = est->moved[o + i];
+            duffid_real rse = est->resid[o + i];
+            if (est->eq_state[e] == SOLVABLE) {
+                const duffid_real noise = theta != RC(0.0) ? R_SQRT(est->var[o + i]) / R_FABS(theta) : R_INF;
+                rse = noise > rse ? noise : rse;
+            }
+            rse = is_finite(moved) ? duffid_la_hypot(rse, moved) : R_INF;
 #if DUFFID_SINGLE
-            est->rse[i] = duffid_la_hypot(est->rse[i], rounding * c);
+            rse = duffid_la_hypot(rse, rounding * c);
 #else
             (void)rounding;
 #endif
-            worst = est->rse[i] > worst ? est->rse[i] : worst;
+            worst = rse > worst ? rse : worst;
         }
     }
     for (i = 0; i < tb->n_parameters; i++) {
@@ -721,8 +997,9 @@ static int solve_stage(duffid_buffered *est)
         memset(est->R_check, 0, (size_t)sum_unknowns(tb, 2) * sizeof(duffid_real));
         memset(est->norm2, 0, (size_t)sum_unknowns(tb, 3) * sizeof(duffid_real));
         memset(est->bound2, 0, (size_t)sum_unknowns(tb, 3) * sizeof(duffid_real));
+        memset(est->Z, 0, (size_t)(est->n_ord * est->r * sum_unknowns(tb, 0)) * sizeof(duffid_real));
     }
-    if (est->stage < est->stages - 3) {
+    if (est->stage < est->row_stages) {
         const int row0 = est->stage * est->chunk;
         const int row1 = row0 + est->chunk < tb->n_kept ? row0 + est->chunk : tb->n_kept;
         const int split = est->check_rows;
@@ -739,12 +1016,27 @@ static int solve_stage(duffid_buffered *est)
         est->stage++;
         return 0;
     }
-    if (est->stage < est->stages - 1) { /* the factors' inverses, then their condition numbers */
-        solve_conditions(est, est->stage == est->stages - 2);
+    if (est->stage < est->row_stages + 2) { /* the factors' inverses, then their condition numbers */
+        solve_conditions(est, est->stage == est->row_stages + 1);
         est->stage++;
         return 0;
     }
-    solve_unknowns(est); /* (the slot is free from here: its position is past the window) */
+    if (est->stage == est->row_stages + 2) {
+        solve_unknowns(est);
+        est->stage++;
+        return 0;
+    }
+    { /* the noise errors over a chunk of the window's samples */
+        const long s0 = (long)(est->stage - est->row_stages - 3) * est->noise_chunk;
+        const long s1 = s0 + est->noise_chunk < est->N + 1 ? s0 + est->noise_chunk : est->N + 1;
+        if (s0 < s1) {
+            noise_samples(est, s0, s1);
+        }
+    }
+    if (++est->stage < est->stages) {
+        return 0;
+    }
+    solve_verdict(est); /* (the slot is free from here: its position is past the window) */
     est->pending = -1;
     est->stage = 0;
     return 1;
@@ -800,6 +1092,12 @@ int duffid_buffered_update(duffid_buffered *est, const duffid_real *x, const duf
         est->last_x[i] = x[i];
     }
     est->have_last = 1;
+    duffid_la_noise_push(&est->noise_level, tb->n_dof, x); /* the noise levels, the ring */
+    duffid_la_noise_push(&est->force_level, tb->n_forces, f);
+    est->ring_pos = est->ring_pos + 1 == est->ring_size ? 0 : est->ring_pos + 1;
+    for (i = 0; i < tb->n_dof; i++) {
+        est->ring[est->ring_pos * tb->n_dof + i] = x[i];
+    }
     for (i = 0; i < est->n_ch; i++) {
         g[i] = channel_value(est, &tb->channels[i], x, f);
     }
@@ -820,8 +1118,17 @@ int duffid_buffered_update(duffid_buffered *est, const duffid_real *x, const duf
         if (est->pos[i] >= 0 && est->pos[i] <= est->N && i != est->pending) {
             accumulate(est, i, est->pos[i], g);
             if (est->pos[i] == est->N) { /* complete: solved over the next samples */
+                int j;
                 est->pending = i;
                 est->stage = 0;
+                est->window_ring = est->ring_pos - est->N < 0 ? est->ring_pos - est->N + est->ring_size
+                                                               : est->ring_pos - est->N;
+                for (j = 0; j < tb->n_dof; j++) {
+                    est->window_sigma[j] = duffid_la_noise_sigma(&est->noise_level, j);
+                }
+                for (j = 0; j < tb->n_forces; j++) {
+                    est->window_sigma[tb->n_dof + j] = duffid_la_noise_sigma(&est->force_level, j);
+                }
                 while (est->immediate && !solved) {
                     solved = solve_stage(est);
                 }

@@ -11,26 +11,34 @@
  * and per-window arithmetic:
  *   - per sample, fixed work: the sample's channels times s^p (s = i / N, p = 0..n) times the
  *     projection weights Q[:, i] are added to the coefficients of every window that holds
- *     the sample (r x (n + 1) x channels multiply-adds per window; no sample buffer);
- *   - per window, spread over the samples after its end (a few rows per sample, then the
- *     solve, so that no update does much more than another): the operational matrices' powers
- *     (sparse) turn the coefficients into the rows, which enter a triangular factor by
- *     Householder reflections; the unknowns and their standard errors come from the
- *     triangular inverse, the condition number from a Jacobi iteration (as in the online
- *     core, duffid_linalg.h). A window's solution is output duffid_buffered_latency()
- *     samples after its last sample (ceil(r' / 2) + 3, at most `every`; 0 when `every` < 4:
- *     then the window's last update solves it).
+ *     the sample (r x (n + 1) x channels multiply-adds per window); the displacements enter a
+ *     ring of N + 1 + latency samples, they and the forces their noise levels
+ *     (row_noise.NoiseLevel);
+ *   - per window, spread over the samples after its end (one row per sample, then the solve,
+ *     then two of the window's samples per update for its noise errors, so that no update does
+ *     much more than another): the operational matrices' powers (sparse) turn the
+ *     coefficients into the rows, which enter a triangular factor by Householder reflections;
+ *     the unknowns and their residual's standard errors come from the triangular inverse, the
+ *     condition number from a Jacobi iteration (as in the online core, duffid_linalg.h), the
+ *     noise's standard errors from the displacements' and forces' noise levels propagated
+ *     through the window's kernels (BufferedIdentifier.noise_products). A window's solution is
+ *     output duffid_buffered_latency() samples after its last sample (r' + 3 +
+ *     ceil((N + 1) / 2), at most `every - 3` for the rows and samples, shared in proportion
+ *     when that is fewer; 0 when `every` < 5: then the window's last update solves it).
  *
  * Honesty: a window's estimate is published (parameters[]) only when the column-equilibrated
  * condition number is at most max_condition (and, in single precision, 0.01 / eps) and every
- * unknown's relative standard error (in single precision including a bound on the rounding of
- * the window's sums) is at most max_uncertainty; otherwise parameters[] are NaN and current[]
- * holds the window's solution. A window without force (no known term) holds the previous
- * solution, is never published, and says so (condition infinite).
+ * unknown's relative standard error is at most max_uncertainty: the larger of the residual's
+ * and the measured signals' noise's, with the difference from the estimate of the first
+ * coefficient equations (buffered.CHECK_SHARE) in quadrature, and in single precision a bound
+ * on the rounding of the window's sums; otherwise parameters[] are NaN and current[] holds
+ * the window's solution. A window without force (no known term) holds the previous solution,
+ * is never published, and says so (condition infinite).
  *
  * Memory: one block sized from the tables and the configuration (duffid_buffered_memory_size):
- * ceil((N + 1) / every) windows of coefficients plus the least-squares workspace; the tables
- * are constants (flash). No heap, no VLA, no static mutable state.
+ * ceil((N + stages) / every) windows of coefficients, the ring of displacements and the
+ * least-squares workspace; the tables are constants (flash). No heap, no VLA, no static
+ * mutable state.
  */
 #ifndef DUFFID_BUFFERED_H
 #define DUFFID_BUFFERED_H

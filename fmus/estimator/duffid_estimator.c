@@ -53,7 +53,6 @@ typedef char line_unknowns_fit[MAX_LINE <= MAX_UNK ? 1 : -1]; /* the workspaces 
 #define MAX_POW (MAX_DEG + 1)
 #define MAX_CORR (2 * DUFFID_GREGORY_POINTS) /* quadrature end corrections */
 #define MAX_RATE (2 * MAX_CORR + 1)  /* ... of the rule minus the half-rate rule (engine.RATE_NOISE) */
-#define NOISE_HISTORY 7              /* the displacements the rows' noise level keeps: a 6th difference's */
 #define NEAR (DUFFID_GREGORY_POINTS + 1) /* a raw ring's newest samples whose channels are kept */
 #define MIN_SAMPLES DUFFID_MIN_SAMPLES  /* engine.MIN_SAMPLES (duffid_facts.h) */
 #define MAX_CAPACITY 100000000L      /* longest robust window in samples */
@@ -260,10 +259,7 @@ struct duffid_estimator {
     duffid_real *held;                     /* public order */
     /* row_noise.NoiseLevel: the displacements' noise level and the generator of the rows' noise */
     uint32_t noise_state;                  /* xorshift32 */
-    int noise_count;                       /* displacements in noise_hist, at most NOISE_HISTORY */
-    duffid_real noise_hist[NOISE_HISTORY * DUFFID_MAX_DOF]; /* the latest, oldest first: [slot * n_dof + j] */
-    duffid_real noise_m4[DUFFID_MAX_DOF], noise_m6[DUFFID_MAX_DOF]; /* running mean square 4th, 6th differences */
-    int64_t noise_n4, noise_n6;
+    duffid_la_noise_level noise_level;
     int has_last_x;                        /* signs of velocity (identification._Channels) */
     duffid_real last_x[DUFFID_MAX_DOF], sgn[DUFFID_MAX_DOF];
 
@@ -1461,10 +1457,10 @@ int duffid_check_state(const void *memory, size_t size, char *msg, size_t msg_si
     }
     STATE_RANGE(est->spanned_from, -1, n + 1 + (int64_t)est->capacity)
     STATE_RANGE(est->has_last_x, 0, 1)
-    STATE_RANGE(est->noise_count, 0, NOISE_HISTORY) /* the rows' noise */
+    STATE_RANGE(est->noise_level.count, 0, DUFFID_LA_NOISE_HISTORY) /* the rows' noise */
     STATE_RANGE(est->near_head, 0, NEAR - 1)
-    STATE_RANGE(est->noise_n4, 0, n + 1)
-    STATE_RANGE(est->noise_n6, 0, est->noise_n4)
+    STATE_RANGE(est->noise_level.n4, 0, n + 1)
+    STATE_RANGE(est->noise_level.n6, 0, est->noise_level.n4)
     STATE_RANGE(est->noise_state, 1, UINT32_MAX) /* xorshift32 never reaches 0 */
     STATE_RANGE(est->pending, 0, 2)
     STATE_RANGE(est->received, n + est->pending, n + est->pending) /* a held sample is not processed yet */
@@ -1718,11 +1714,7 @@ void duffid_reset(duffid_estimator *est)
     memset(est->last_x, 0, sizeof est->last_x);
     memset(est->sgn, 0, sizeof est->sgn);
     est->noise_state = DUFFID_NOISE_SEED; /* row_noise.NoiseLevel.reset */
-    est->noise_count = 0;
-    memset(est->noise_hist, 0, sizeof est->noise_hist);
-    memset(est->noise_m4, 0, sizeof est->noise_m4);
-    memset(est->noise_m6, 0, sizeof est->noise_m6);
-    est->noise_n4 = est->noise_n6 = 0;
+    duffid_la_noise_reset(&est->noise_level);
     est->received = -1;
     guard_reset(est);
     est->pending = 0;
@@ -1846,9 +1838,6 @@ static void generated_channels(duffid_estimator *est, const duffid_real *x, cons
 #endif
 
 /* ------------------------------------------------------------------ the rows' noise (row_noise) */
-static const duffid_real D4[5] = {RC(1.0), RC(-4.0), RC(6.0), RC(-4.0), RC(1.0)};
-static const duffid_real D6[7] = {RC(1.0), RC(-6.0), RC(15.0), RC(-20.0), RC(15.0), RC(-6.0), RC(1.0)};
-
 /* NoiseLevel.uniform: the next pseudo-random number of unit variance (xorshift32) */
 static duffid_real noise_uniform(duffid_estimator *est)
 {
@@ -1860,51 +1849,13 @@ static duffid_real noise_uniform(duffid_estimator *est)
     return (RC(2.0) * ((duffid_real)v * RC(2.3283064365386963e-10)) - RC(1.0)) * RC(1.7320508075688772); /* v / 2^32 */
 }
 
-/* NoiseLevel.push and .perturbed: the running mean squares of x's 4th and 6th differences,
- * then xn = x plus a noise of the level they measure */
+/* NoiseLevel.push and .perturbed: xn = x plus a noise of the level measured so far */
 static void noise_perturbed(duffid_estimator *est, const duffid_real *x, duffid_real *xn)
 {
-    const int nd = est->n_dof;
-    duffid_real *h = est->noise_hist;
-    int j, k;
-    if (est->noise_count == NOISE_HISTORY) { /* the oldest leaves */
-        memmove(h, h + nd, (size_t)((NOISE_HISTORY - 1) * nd) * sizeof(duffid_real));
-        est->noise_count--;
-    }
-    for (j = 0; j < nd; j++) {
-        h[est->noise_count * nd + j] = x[j];
-    }
-    est->noise_count++;
-    if (est->noise_count >= 5) {
-        const duffid_real *last = h + (est->noise_count - 5) * nd;
-        est->noise_n4++;
-        for (j = 0; j < nd; j++) {
-            duffid_real d = RC(0.0);
-            for (k = 0; k < 5; k++) {
-                d += D4[k] * last[k * nd + j];
-            }
-            est->noise_m4[j] += (d * d - est->noise_m4[j]) / (duffid_real)est->noise_n4;
-        }
-    }
-    if (est->noise_count >= NOISE_HISTORY) {
-        est->noise_n6++;
-        for (j = 0; j < nd; j++) {
-            duffid_real d = RC(0.0);
-            for (k = 0; k < NOISE_HISTORY; k++) {
-                d += D6[k] * h[k * nd + j];
-            }
-            est->noise_m6[j] += (d * d - est->noise_m6[j]) / (duffid_real)est->noise_n6;
-        }
-    }
-    for (j = 0; j < nd; j++) { /* NoiseLevel.sigma: the smaller estimate (0 before five samples) */
-        duffid_real v = RC(0.0), sigma;
-        if (est->noise_n4 > 0) {
-            const duffid_real v4 = est->noise_m4[j] / RC(70.0);
-            const duffid_real v6 = est->noise_n6 > 0 ? est->noise_m6[j] / RC(924.0) : v4;
-            v = v6 < v4 ? v6 : v4;
-        }
-        sigma = R_SQRT(v);
-        xn[j] = x[j] + sigma * noise_uniform(est);
+    int j;
+    duffid_la_noise_push(&est->noise_level, est->n_dof, x);
+    for (j = 0; j < est->n_dof; j++) {
+        xn[j] = x[j] + duffid_la_noise_sigma(&est->noise_level, j) * noise_uniform(est);
     }
 }
 

@@ -655,3 +655,58 @@ void *duffid_la_carve(duffid_la_carver *c, size_t count, size_t item)
     c->used += DUFFID_LA_ALIGN_UP(count * item);
     return p;
 }
+
+/* ------------------------------------------------------------------ the displacements' noise level */
+static const duffid_real NOISE_D4[5] = {RC(1.0), RC(-4.0), RC(6.0), RC(-4.0), RC(1.0)};
+static const duffid_real NOISE_D6[7] = {RC(1.0), RC(-6.0), RC(15.0), RC(-20.0), RC(15.0), RC(-6.0), RC(1.0)};
+
+void duffid_la_noise_reset(duffid_la_noise_level *level)
+{
+    memset(level, 0, sizeof *level);
+}
+
+void duffid_la_noise_push(duffid_la_noise_level *level, int n_dof, const duffid_real *x)
+{
+    duffid_real *h = level->hist;
+    int j, k;
+    if (level->count == DUFFID_LA_NOISE_HISTORY) { /* the oldest leaves */
+        memmove(h, h + n_dof, (size_t)((DUFFID_LA_NOISE_HISTORY - 1) * n_dof) * sizeof(duffid_real));
+        level->count--;
+    }
+    for (j = 0; j < n_dof; j++) {
+        h[level->count * n_dof + j] = x[j];
+    }
+    level->count++;
+    if (level->count >= 5) {
+        const duffid_real *last = h + (level->count - 5) * n_dof;
+        level->n4++;
+        for (j = 0; j < n_dof; j++) {
+            duffid_real d = RC(0.0);
+            for (k = 0; k < 5; k++) {
+                d += NOISE_D4[k] * last[k * n_dof + j];
+            }
+            level->m4[j] += (d * d - level->m4[j]) / (duffid_real)level->n4;
+        }
+    }
+    if (level->count >= DUFFID_LA_NOISE_HISTORY) {
+        level->n6++;
+        for (j = 0; j < n_dof; j++) {
+            duffid_real d = RC(0.0);
+            for (k = 0; k < DUFFID_LA_NOISE_HISTORY; k++) {
+                d += NOISE_D6[k] * h[k * n_dof + j];
+            }
+            level->m6[j] += (d * d - level->m6[j]) / (duffid_real)level->n6;
+        }
+    }
+}
+
+duffid_real duffid_la_noise_sigma(const duffid_la_noise_level *level, int j)
+{
+    duffid_real v = RC(0.0);
+    if (level->n4 > 0) {
+        const duffid_real v4 = level->m4[j] / RC(70.0);
+        const duffid_real v6 = level->n6 > 0 ? level->m6[j] / RC(924.0) : v4;
+        v = v6 < v4 ? v6 : v4;
+    }
+    return R_SQRT(v);
+}

@@ -10,6 +10,7 @@
 #include <float.h>
 #include <math.h>
 #include <stddef.h>
+#include <stdint.h>
 
 #include "duffid_model.h" /* duffid_real, DUFFID_SINGLE */
 
@@ -132,5 +133,23 @@ int duffid_la_solve(int n, duffid_real *a, duffid_real *b, int nrhs);
  * reduction to Hessenberg form, then shifted QR iterations. a is destroyed. Returns 0, or
  * -1 if a holds a non-finite value or the iteration did not converge. */
 int duffid_la_eigenvalues(int n, duffid_real *a, duffid_real *wr, duffid_real *wi);
+
+/* row_noise.NoiseLevel's measurement: each displacement's white-noise level from the running
+ * mean squares of its 4th and 6th differences (white noise: 70 and 924 times its variance; a
+ * smooth signal barely reaches them). */
+#define DUFFID_LA_NOISE_HISTORY 7 /* the displacements kept: a 6th difference's */
+typedef struct {
+    int count;                                                 /* displacements in hist */
+    duffid_real hist[DUFFID_LA_NOISE_HISTORY * DUFFID_MAX_DOF]; /* the latest, oldest first:
+                                                                * [slot * n_dof + j] */
+    duffid_real m4[DUFFID_MAX_DOF], m6[DUFFID_MAX_DOF];        /* running mean squares */
+    int64_t n4, n6;                                            /* differences in them */
+} duffid_la_noise_level;
+void duffid_la_noise_reset(duffid_la_noise_level *level);
+/* NoiseLevel.push: take the n_dof displacements x of one sample */
+void duffid_la_noise_push(duffid_la_noise_level *level, int n_dof, const duffid_real *x);
+/* NoiseLevel.sigma: displacement j's noise standard deviation (the smaller of the two
+ * differences' estimates; 0 before five samples) */
+duffid_real duffid_la_noise_sigma(const duffid_la_noise_level *level, int j);
 
 #endif /* DUFFID_LINALG_H */

@@ -4,8 +4,8 @@
 the fixed matrices of its window (projection weights ``Q``, the operational matrices'
 powers ``P_m``, the kept coefficients, the model's terms). :func:`tables_source` writes them
 as a C file for ``fmus/estimator/duffid_buffered.c``, which does the per-sample and
-per-window arithmetic on a microcontroller (no heap, no sample buffer: the window's
-coefficients are accumulated sample by sample). :class:`CBufferedIdentifier` runs that C
+per-window arithmetic on a microcontroller (no heap; the window's coefficients are
+accumulated sample by sample, and only its displacements are kept, for its noise errors). :class:`CBufferedIdentifier` runs that C
 code from Python (compiled on demand, cached) and is tested against the Python class
 (``tests/test_buffered_c.py``).
 

@@ -992,8 +992,8 @@ class Estimate:
     condition : float
         Largest condition number over the equations (column-equilibrated).
     uncertainty : float
-        Largest relative standard error of a parameter (robust method; NaN for paper), an
-        approximate figure from the least-squares residual; relative to
+        Largest relative standard error of a parameter (robust method; NaN for paper; the
+        buffered methods: each window's, :class:`~duffid.identification.buffered.BufferedIdentifier`); relative to
         max(|estimate|, prior size) for a parameter given an optional prior (``nominal``).
     window : float
         Current window length [s].

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["NOISE_SHARE", "NOISE_SEED", "NoiseLevel", "noise_shift"]
+__all__ = ["NOISE_SHARE", "NOISE_SEED", "NoiseLevel", "noise_sigmas", "noise_shift"]
 
 #: Where the displacement's noise carries this share of the rows' energy in some direction
 #: (``A^T A - N / NOISE_SHARE`` is not positive definite), their solution is not published.
@@ -102,6 +102,24 @@ class NoiseLevel:
         for j in range(self.n_dof):
             out[j] += sigma[j] * self.uniform()
         return out
+
+
+def noise_sigmas(x: np.ndarray) -> np.ndarray:
+    """:meth:`NoiseLevel.sigma` after each sample of ``x`` (samples x displacements), all at
+    once: equal to pushing the samples one by one, to rounding."""
+    x = np.asarray(x, dtype=float).reshape(len(x), -1)
+    out = np.zeros_like(x)
+
+    def running(weights: tuple[float, ...], variance: float) -> np.ndarray:
+        diff = sum(c * x[k:len(x) - len(weights) + 1 + k] for k, c in enumerate(weights))
+        return np.cumsum(diff**2, axis=0) / np.arange(1, len(diff) + 1)[:, None] / variance
+
+    if len(x) >= len(_D4):
+        v = running(_D4, _V4)
+        if len(x) >= len(_D6):
+            v[2:] = np.minimum(v[2:], running(_D6, _V6))
+        out[len(_D4) - 1:] = np.sqrt(v)
+    return out
 
 
 def _forward(R: np.ndarray, b: np.ndarray) -> np.ndarray:
