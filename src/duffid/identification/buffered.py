@@ -304,8 +304,8 @@ class BufferedIdentifier(Identifier):
     Every re-identification publishes its estimate (Figure 15). It is flagged identified
     when the scaled problem's condition number is at most ``max_condition`` and the
     relative standard error of every unknown is at most ``max_uncertainty``: the larger of
-    the coefficient equations' residual's and the displacements' measured noise's
-    (propagated through the window's kernels, :meth:`noise_products`), with the basis
+    the coefficient equations' residual's and the measured noise's of the displacements and
+    the forces (propagated through the window's kernels, :meth:`noise_products`), with the basis
     check's difference (:data:`CHECK_SHARE`) in quadrature. A window of a decayed response
     is poorly excited: its estimate is published but not flagged; ``accumulate=True`` keeps
     the information of the earlier windows.
@@ -430,12 +430,13 @@ class BufferedIdentifier(Identifier):
         With the channels' ``slopes`` (:func:`channel_slopes` of the window's samples) and the
         measured signals' noise levels ``sigma`` (:class:`NoiseLevel` of the displacements, then
         of the forces, at the window's last sample), each unknown's standard error is at least
-        the one that noise gives (:meth:`noise_products`). The residual of the coefficient equations does not show it:
-        the noise reaches them through the same operational matrices and is correlated along
-        the unknowns' own directions. The structure (450 kg, 11.1 Hz) swept 0.5-2.5 natural
-        frequencies at 60 dB in 0.25 s windows: kp spread 3.4-9 % over 30 draws, its residual
-        error said 0.6-2.9 %, the noise's 3.4-9.8 %; windows flagged identified at the default
-        5 % were up to 36 % off; with the force's noise at 30-40 dB, up to 43 % off.
+        the one that noise gives (:meth:`noise_products`). The residual of the coefficient
+        equations does not show it: the noise reaches them through the same operational
+        matrices and is correlated along the unknowns' own directions. The structure (450 kg,
+        11.1 Hz) swept 0.5-2.5 natural frequencies at 60 dB in 0.25 s windows: kp spread
+        3.4-9.2 % over 30 draws, its residual's error said 0.6-2.9 %, the noise's 3.4-9.1 %;
+        windows flagged identified at the default 5 % were up to 36 % off; with the force's
+        noise at 30-40 dB, up to 43 % off.
 
         With ``accumulate``, ``dG`` is the window's channels' change under a noise of the
         displacements' measured level (:mod:`~duffid.identification.row_noise`): the rows'
@@ -510,7 +511,7 @@ class BufferedIdentifier(Identifier):
         A noise ``e`` on measured signal ``j`` (a displacement or a force) moves the
         coefficient equations' residual
         ``A theta - D`` by ``M_j e`` (linearised at ``theta``):
-        ``M_j = sum_d T^-d W[d] diag(J_d)``, ``J_d = sum_c w[d, c] dG_c/dx_j`` with
+        ``M_j = sum_d T^-d W[d] diag(J_d)``, ``J_d = sum_c w[d, c] dG_c/dj`` with
         ``w = lhs theta - rhs`` the equation's weight of each (order, channel). White noise of
         level ``sigma_j`` moves the unknowns with covariance ``G^-1 S G^-1``, ``G = A^T A``.
         """
