@@ -133,67 +133,51 @@ static long every_of(const duffid_buffered_config *cfg)
     return cfg->every > 0 ? cfg->every : cfg->tables->n_intervals;
 }
 
-/* a window's solve: row_stages chunks of rows, the factors' inverses, their condition numbers,
- * the unknowns, then noise_stages chunks of samples; in all at most every (a window ends every
- * `every` samples: its solve is done before the next ends), and when fewer than 5 fit, one of
- * each at the window's last sample (immediate) */
-static void stage_plan(const duffid_buffered_config *cfg, int *row_stages, int *noise_stages, int *immediate)
+/* a window's solve: `rows` chunks of rows, the factors' inverses, their condition numbers, the
+ * unknowns, then `noise` chunks of samples; in all at most every (a window ends every `every`
+ * samples: its solve is done before the next ends), and when fewer than 5 fit, one of each at
+ * the window's last sample (immediate) */
+typedef struct {
+    int rows, noise, immediate; /* row stages, noise stages, all at the window's last sample */
+    int stages;                 /* rows + 3 + noise */
+    int chunk, noise_chunk;     /* rows and window samples per stage */
+} stage_plan;
+
+static stage_plan plan_of(const duffid_buffered_config *cfg)
 {
     const long kept = cfg->tables->n_kept, samples = cfg->tables->n_intervals + 1, budget = every_of(cfg) - 3;
     const long rows = (kept + ROWS_PER_STAGE - 1) / ROWS_PER_STAGE;
     const long noise = (samples + SAMPLES_PER_STAGE - 1) / SAMPLES_PER_STAGE;
-    *immediate = budget < 2;
+    stage_plan plan;
+    plan.immediate = budget < 2;
     if (budget < 2) {
-        *row_stages = *noise_stages = 1;
+        plan.rows = plan.noise = 1;
     } else if (rows + noise <= budget) {
-        *row_stages = (int)rows;
-        *noise_stages = (int)noise;
+        plan.rows = (int)rows;
+        plan.noise = (int)noise;
     } else { /* shared in proportion */
         long r = budget * rows / (rows + noise);
         r = r < 1 ? 1 : (r > budget - 1 ? budget - 1 : r);
-        *row_stages = (int)r;
-        *noise_stages = (int)(budget - r);
+        plan.rows = (int)r;
+        plan.noise = (int)(budget - r);
     }
-}
-
-static int stages_of(const duffid_buffered_config *cfg)
-{
-    int rows, noise, now;
-    stage_plan(cfg, &rows, &noise, &now);
-    return rows + 3 + noise;
-}
-
-static int immediate(const duffid_buffered_config *cfg)
-{
-    int rows, noise, now;
-    stage_plan(cfg, &rows, &noise, &now);
-    return now;
-}
-
-static int chunk_of(const duffid_buffered_config *cfg)
-{
-    int rows, noise, now;
-    stage_plan(cfg, &rows, &noise, &now);
-    return (cfg->tables->n_kept + rows - 1) / rows;
-}
-
-static int noise_chunk_of(const duffid_buffered_config *cfg)
-{
-    int rows, noise, now;
-    stage_plan(cfg, &rows, &noise, &now);
-    return (int)((cfg->tables->n_intervals + 1 + noise - 1) / noise);
+    plan.stages = plan.rows + 3 + plan.noise;
+    plan.chunk = (int)((kept + plan.rows - 1) / plan.rows);
+    plan.noise_chunk = (int)((samples + plan.noise - 1) / plan.noise);
+    return plan;
 }
 
 static long ring_of(const duffid_buffered_config *cfg)
 {
-    return cfg->tables->n_intervals + 1 + stages_of(cfg);
+    return cfg->tables->n_intervals + 1 + plan_of(cfg).stages;
 }
 
 static long slots_of(const duffid_buffered_config *cfg)
 {
     /* windows open at once, and the one being solved: a slot is reused once its solve is done */
     const long N = cfg->tables->n_intervals, every = every_of(cfg);
-    return (N + (immediate(cfg) ? 1 : stages_of(cfg)) + every - 1) / every;
+    const stage_plan plan = plan_of(cfg);
+    return (N + (plan.immediate ? 1 : plan.stages) + every - 1) / every;
 }
 
 /* the block after the structure; base NULL: sizes only */
@@ -213,8 +197,8 @@ static size_t layout(const duffid_buffered_config *cfg, duffid_buffered *est, ch
     CARVE(&c, est->coef, slots * n_ord * n_ch * r);
     CARVE(&c, est->sumsq, slots * n_ch);
     CARVE(&c, est->pos, slots);
-    CARVE(&c, est->E, chunk_of(cfg) * n_ord * n_ch);
-    CARVE(&c, est->B, chunk_of(cfg) * p);
+    CARVE(&c, est->E, plan_of(cfg).chunk * n_ord * n_ch);
+    CARVE(&c, est->B, plan_of(cfg).chunk * p);
     CARVE(&c, est->R, sum_unknowns(tb, 2));
     CARVE(&c, est->R_check, sum_unknowns(tb, 2));
     CARVE(&c, est->check, (p - 1) * (2 * p + 1));
@@ -496,14 +480,15 @@ int duffid_buffered_init(duffid_buffered **out, void *memory, size_t size, const
         off3 += (n + 1) * (n + 1);
         off4 += n + 1;
     }
-    est->chunk = chunk_of(cfg);
-    est->noise_chunk = noise_chunk_of(cfg);
-    est->check_rows = (int)(RC(DUFFID_BUFFERED_CHECK_SHARE) * (duffid_real)tb->n_kept);
     {
-        int noise;
-        stage_plan(cfg, &est->row_stages, &noise, &est->immediate);
-        est->stages = est->row_stages + 3 + noise;
+        const stage_plan plan = plan_of(cfg);
+        est->chunk = plan.chunk;
+        est->noise_chunk = plan.noise_chunk;
+        est->row_stages = plan.rows;
+        est->stages = plan.stages;
+        est->immediate = plan.immediate;
     }
+    est->check_rows = (int)(RC(DUFFID_BUFFERED_CHECK_SHARE) * (duffid_real)tb->n_kept);
     est->ring_size = ring_of(cfg);
     duffid_buffered_reset(est);
     *out = est;
